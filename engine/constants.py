@@ -1,0 +1,69 @@
+"""One place for the reference model's constants, grids and test protocol.
+
+Every value here comes from ``MODEL.md`` (the project's reference plant, copied
+into ``docs/MODEL.md``) or from the paper; the module is the single source the
+rest of the package reads. Changing a value here is a *model change*: bump
+:data:`MODEL_VERSION` and record it in ``docs/model-changes.md``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Final
+
+#: Version of the reference model implemented by :mod:`engine.simulation`.
+#: Stored with every pattern set so that patterns trained on another model
+#: version are never silently mixed with this one.
+MODEL_VERSION: Final[str] = "1.0"
+
+# --- base quantities -------------------------------------------------------
+#: Electrical base angular frequency w_b [rad/s] (50 Hz supply).
+W_B: Final[float] = 2.0 * math.pi * 50.0
+#: Pole pairs p [-] (chosen in MODEL.md).
+POLE_PAIRS: Final[int] = 2
+#: Mechanical base speed Omega_b = w_b / p [rad/s]; 1 pu speed.
+OMEGA_B: Final[float] = W_B / POLE_PAIRS
+#: Mechanical time constant per unit inertia: T_i = J_i * TM_PER_J [s / (kg m^2)].
+TM_PER_J: Final[float] = 0.86 / 0.87
+
+# --- test protocol (MODEL.md section 2) ------------------------------------
+#: Sample interval Ts [s].
+SAMPLE_INTERVAL: Final[float] = 1e-4
+#: Samples in one record.
+N_SAMPLES: Final[int] = 2048
+#: Samples before the event; sample EVENT_INDEX is at t_e.
+EVENT_INDEX: Final[int] = 48
+#: Longest simulated time before the event must have happened [s].
+T_EVENT_MAX: Final[float] = 1.0
+
+# --- paper grids (MODEL.md section 1.2) --------------------------------------
+#: J1 grid K_I [kg m^2], in the paper's order (nominal first).
+J1_GRID: Final[tuple[float, ...]] = (0.87, 0.8482, 0.8265, 0.8047, 0.7612, 0.8917, 0.9135)
+#: Nominal J1 [kg m^2].
+J1_NOMINAL: Final[float] = 0.87
+#: Backlash zone widths K [m], in the paper's order (index nr5 = 1..6).
+K_GRID: Final[tuple[float, ...]] = (0.0025, 0.00375, 0.005, 0.0075, 0.009, 0.01)
+#: Apparent-viscosity groups c [pu].
+C_GROUPS: Final[tuple[float, ...]] = (0.8, 1.0, 1.25, 1.4)
+
+# --- channels (MODEL.md section 3) -----------------------------------------
+#: Recorded channels, in the canonical order.
+CHANNELS: Final[tuple[str, ...]] = ("a1", "m_el", "omega1", "a2", "v2")
+#: Unit of each channel.
+CHANNEL_UNITS: Final[dict[str, str]] = {
+    "a1": "m/s^2",
+    "m_el": "pu",
+    "omega1": "rad/s",
+    "a2": "m/s^2",
+    "v2": "m/s",
+}
+#: Paper's wavelet for each channel.
+CHANNEL_WAVELETS: Final[dict[str, str]] = {
+    "a1": "sym5",
+    "m_el": "db6",
+    "omega1": "sym5",
+    "a2": "db6",
+    "v2": "sym5",
+}
+#: Wavelet decomposition level (paper: 10 for every channel).
+WAVELET_LEVEL: Final[int] = 10

@@ -1,0 +1,143 @@
+"""Catalogue of unmodelled physical effects: named, one-parameter extensions of the model.
+
+Each :class:`Effect` changes one field of the plant or of the measurement chain
+(:class:`~engine.simulation.parameters.Case`), either by multiplying it or by
+setting it. An :class:`EffectLibrary` is a named, composable collection (in the
+spirit of pysindy's feature libraries): the gap diagnosis fits every member,
+and a blind validation can hand the diagnosis a library *without* one member.
+
+Adding an effect is a local change: one entry in :data:`CATALOGUE` (plus, if it
+needs a new physical term, one field in ``PlantParameters`` with a neutral
+default and its term in the kernel's right-hand side).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterator, Literal, Mapping
+
+from engine.simulation.parameters import Case, ParameterError
+
+
+class UnknownEffectError(ParameterError):
+    """Raised for an effect name that is not in the library."""
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One unmodelled effect with one scalar parameter.
+
+    Parameters
+    ----------
+    name : str
+        Catalogue name (used by the API's ``effects`` and by the diagnosis).
+    description : str
+        What it models, with the parameter's meaning and unit.
+    target : {"plant", "sensors"}
+        Which part of the case it changes.
+    field : str
+        The field of ``PlantParameters`` or ``SensorParameters`` it changes.
+    mode : {"multiply", "set"}
+        ``multiply``: field = nominal * value; ``set``: field = value.
+    bounds : tuple of float
+        Accepted range of the value (inclusive).
+    neutral : float
+        Value that leaves the model unchanged (the "no effect" point).
+    unit : str
+        Unit of the value.
+    """
+
+    name: str
+    description: str
+    target: Literal["plant", "sensors"]
+    field: str
+    mode: Literal["multiply", "set"]
+    bounds: tuple[float, float]
+    neutral: float
+    unit: str
+
+    def check(self, value: float) -> float:
+        value = float(value)
+        lo, hi = self.bounds
+        if not (lo <= value <= hi):
+            raise ParameterError(f"effect {self.name!r} = {value} {self.unit} is outside its range [{lo}, {hi}] {self.unit}")
+        return value
+
+    def apply(self, case: Case, value: float) -> Case:
+        """Return ``case`` with this effect at ``value`` (raises if out of range)."""
+        value = self.check(value)
+        part = case.plant if self.target == "plant" else case.sensors
+        new = value * getattr(part, self.field) if self.mode == "multiply" else value
+        part = part.replace(**{self.field: new})
+        return Case(part, case.sensors) if self.target == "plant" else Case(case.plant, part)
+
+
+class EffectLibrary(Mapping[str, Effect]):
+    """An ordered, named collection of effects."""
+
+    def __init__(self, effects: list[Effect]):
+        self._effects = {e.name: e for e in effects}
+
+    def __getitem__(self, name: str) -> Effect:
+        try:
+            return self._effects[name]
+        except KeyError:
+            raise UnknownEffectError(f"unknown effect {name!r}; known effects: {', '.join(self._effects)}") from None
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._effects)
+
+    def __len__(self) -> int:
+        return len(self._effects)
+
+    def without(self, *names: str) -> "EffectLibrary":
+        """The library less some members (leave-one-effect-out)."""
+        for n in names:
+            self[n]  # raise on unknown names
+        return EffectLibrary([e for n, e in self._effects.items() if n not in names])
+
+    def __add__(self, other: "EffectLibrary") -> "EffectLibrary":
+        return EffectLibrary(list(self.values()) + [e for n, e in other.items() if n not in self])
+
+    def apply(self, case: Case, effects: Mapping[str, float] | None) -> Case:
+        """Apply several effects to a case, in the given order."""
+        for name, value in (effects or {}).items():
+            case = self[name].apply(case, value)
+        return case
+
+
+CATALOGUE = EffectLibrary(
+    [
+        Effect("motor_coulomb_friction", "Coulomb friction on the motor shaft: value * tanh(w_1 / 1e-3)",
+               "plant", "tau_C1", "set", (0.0, 0.1), 0.0, "pu"),
+        Effect("motor_viscous_friction", "viscous friction on the motor shaft: value * w_1",
+               "plant", "b_1", "set", (0.0, 0.1), 0.0, "pu"),
+        Effect("rotor_resistance_drift", "rotor resistance r_r multiplied by value",
+               "plant", "r_r", "multiply", (0.6, 1.6), 1.0, "x"),
+        Effect("stator_resistance_drift", "stator resistance r_s multiplied by value",
+               "plant", "r_s", "multiply", (0.6, 1.6), 1.0, "x"),
+        Effect("contact_stiffness", "clutch contact stiffness k_12 multiplied by value",
+               "plant", "k12", "multiply", (0.1, 10.0), 1.0, "x"),
+        Effect("contact_damping", "clutch contact damping d_12 multiplied by value",
+               "plant", "d12", "multiply", (0.1, 20.0), 1.0, "x"),
+        Effect("resilient_stiffness", "resilient-element stiffness k_2 multiplied by value",
+               "plant", "k2", "multiply", (0.5, 2.0), 1.0, "x"),
+        Effect("load_inertia", "drive-wheel inertia J2 multiplied by value",
+               "plant", "J2", "multiply", (0.5, 2.0), 1.0, "x"),
+        Effect("absorber_discontinuity", "absorber discontinuity c_1 multiplied by value",
+               "plant", "c1", "multiply", (0.0, 3.0), 1.0, "x"),
+        Effect("supply_voltage", "supply voltage u multiplied by value",
+               "plant", "u", "multiply", (0.8, 1.1), 1.0, "x"),
+        Effect("speed_quantization", "omega1 rounded to multiples of value",
+               "sensors", "speed_quantum", "set", (0.0, 0.5), 0.0, "rad/s"),
+        Effect("measurement_delay", "every channel delayed by value",
+               "sensors", "delay", "set", (0.0, 0.001), 0.0, "s"),
+        Effect("sensor_lowpass", "first-order low-pass of cut-off value on every channel",
+               "sensors", "lowpass_hz", "set", (200.0, 5000.0), 0.0, "Hz"),
+    ]
+)
+
+
+def apply_effects(case: Case, effects: Mapping[str, float] | None, library: EffectLibrary = CATALOGUE) -> Case:
+    """Apply named effects from ``library`` to ``case`` (see :meth:`EffectLibrary.apply`)."""
+    return library.apply(case, effects)

@@ -1,0 +1,243 @@
+"""Parameters of the reference plant, its sensors and the solver.
+
+Names follow the maths of MODEL.md; units are in each field's docstring.
+Two fields are *extensions* of MODEL.md with a neutral default (zero), so the
+reference plant is unchanged unless an effect sets them: ``tau_C1`` and
+``b_1`` (motor-shaft friction). The sensor chain (delay, low-pass,
+quantisation) is also an extension with neutral defaults. See
+``docs/model-changes.md``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any, Mapping
+
+from engine.constants import C_GROUPS, J1_NOMINAL, T_EVENT_MAX, TM_PER_J
+
+
+class ParameterError(ValueError):
+    """Raised for a physically absurd or non-finite parameter; the message says what to fix."""
+
+
+@dataclass(frozen=True)
+class PlantParameters:
+    """Reference plant of MODEL.md section 1 (per unit unless stated).
+
+    Parameters
+    ----------
+    K : float
+        Backlash zone width [m]; the clutch dead zone has half-width b = K / r [rad].
+    J1 : float
+        Motor-side inertia [kg m^2]; T_1 = J1 * 0.86 / 0.87 [s].
+    J2 : float
+        Drive-wheel inertia [kg m^2]; T_2 = J2 * 0.86 / 0.87 [s].
+    T3 : float
+        Mechanical time constant of the mass m2 referred to the motor shaft [s].
+    c : float
+        Apparent viscosity of the absorber [pu torque / pu speed].
+    c1 : float
+        Discontinuity at zero speed of the absorber characteristic [pu torque].
+    r : float
+        Drive-wheel radius [m].
+    k12, d12 : float
+        Contact stiffness [pu/rad] and contact damping [pu/pu speed] of the clutch.
+    k2, d2 : float
+        Stiffness [pu/rad] and damping [pu/pu speed] of the resilient element.
+    r_s, r_r, x_s, x_r, x_m : float
+        Stator and rotor resistance, total stator and rotor reactance, magnetising
+        reactance [pu].
+    u, f : float
+        Supply voltage amplitude [pu] and frequency [pu of 50 Hz].
+    tau_C1 : float
+        Extension: Coulomb friction torque on the motor shaft, tau_C1 * tanh(w_1 / 1e-3) [pu].
+    b_1 : float
+        Extension: viscous friction on the motor shaft, b_1 * w_1 [pu torque / pu speed].
+    """
+
+    K: float = 0.005
+    J1: float = J1_NOMINAL
+    J2: float = 0.348
+    T3: float = 0.30
+    c: float = 1.0
+    c1: float = 0.2
+    r: float = 0.1
+    k12: float = 222.0
+    d12: float = 0.5
+    k2: float = 9.0
+    d2: float = 0.02
+    r_s: float = 0.059
+    r_r: float = 0.048
+    x_s: float = 1.92
+    x_r: float = 1.92
+    x_m: float = 1.82
+    u: float = 1.0
+    f: float = 1.0
+    tau_C1: float = 0.0
+    b_1: float = 0.0
+
+    @property
+    def T1(self) -> float:
+        """Mechanical time constant of the motor side [s]."""
+        return self.J1 * TM_PER_J
+
+    @property
+    def T2(self) -> float:
+        """Mechanical time constant of the drive wheel [s]."""
+        return self.J2 * TM_PER_J
+
+    @property
+    def b(self) -> float:
+        """Half-width of the backlash dead zone, K / r [rad]."""
+        return self.K / self.r
+
+    def validate(self) -> "PlantParameters":
+        """Raise :class:`ParameterError` on a non-finite or physically absurd value."""
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ParameterError(f"plant parameter {f.name} must be a finite number, got {v!r}")
+        _check_range("K", self.K, 1e-5, 0.05, "m")
+        for name in ("J1", "J2"):
+            _check_range(name, getattr(self, name), 0.05, 20.0, "kg m^2")
+        _check_range("T3", self.T3, 1e-3, 20.0, "s")
+        _check_range("r", self.r, 1e-3, 10.0, "m")
+        for name in ("c", "c1", "d12", "d2", "tau_C1", "b_1"):
+            _check_range(name, getattr(self, name), 0.0, 100.0, "pu")
+        for name in ("k12", "k2"):
+            _check_range(name, getattr(self, name), 1e-3, 1e5, "pu/rad")
+        for name in ("r_s", "r_r"):
+            _check_range(name, getattr(self, name), 1e-4, 10.0, "pu")
+        for name in ("x_s", "x_r", "x_m"):
+            _check_range(name, getattr(self, name), 1e-3, 100.0, "pu")
+        if self.x_s * self.x_r - self.x_m**2 <= 0:
+            raise ParameterError("x_s * x_r must exceed x_m^2 (leakage reactances must be positive)")
+        _check_range("u", self.u, 0.05, 2.0, "pu")
+        _check_range("f", self.f, 0.05, 2.0, "pu")
+        return self
+
+    def replace(self, **changes: Any) -> "PlantParameters":
+        """Copy with some fields changed (unknown names raise :class:`ParameterError`)."""
+        _check_names(self, changes)
+        return replace(self, **changes)
+
+    def as_dict(self) -> dict[str, float]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class SensorParameters:
+    """Measurement chain between the plant and the record (extension of MODEL.md).
+
+    Parameters
+    ----------
+    delay : float
+        Every channel is recorded ``delay`` seconds late: sample k holds the
+        value at t_e + (k - 48) Ts - delay [s].
+    lowpass_hz : float
+        Cut-off of a first-order low-pass on every channel [Hz]; 0 means none.
+    speed_quantum : float
+        omega1 is rounded to multiples of this [rad/s]; 0 means none.
+    """
+
+    delay: float = 0.0
+    lowpass_hz: float = 0.0
+    speed_quantum: float = 0.0
+
+    def validate(self) -> "SensorParameters":
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ParameterError(f"sensor parameter {f.name} must be a finite number, got {v!r}")
+        _check_range("delay", self.delay, 0.0, 0.005, "s")
+        if self.lowpass_hz != 0.0:
+            _check_range("lowpass_hz", self.lowpass_hz, 10.0, 50_000.0, "Hz")
+        _check_range("speed_quantum", self.speed_quantum, 0.0, 10.0, "rad/s")
+        return self
+
+    def replace(self, **changes: Any) -> "SensorParameters":
+        _check_names(self, changes)
+        return replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """Settings of the fixed-step integrator.
+
+    Parameters
+    ----------
+    max_step : float
+        Largest RK4 step [s]; every interval between sample instants is split
+        into equal steps no longer than this. 10 us (Ts / 10) meets MODEL.md
+        section 4 with a wide margin (tests/test_simulation_accuracy.py).
+    t_event_max : float
+        Simulated time within which the backlash event must occur [s].
+    """
+
+    max_step: float = 1e-5
+    t_event_max: float = T_EVENT_MAX
+
+    def validate(self) -> "SolverSettings":
+        _check_range("max_step", self.max_step, 1e-7, 5e-5, "s")
+        _check_range("t_event_max", self.t_event_max, 1e-3, 10.0, "s")
+        return self
+
+
+@dataclass(frozen=True)
+class Case:
+    """One simulation case: plant plus measurement chain."""
+
+    plant: PlantParameters = PlantParameters()
+    sensors: SensorParameters = SensorParameters()
+
+    def validate(self) -> "Case":
+        self.plant.validate()
+        self.sensors.validate()
+        return self
+
+    @classmethod
+    def from_overrides(cls, overrides: Mapping[str, float] | None = None) -> "Case":
+        """Build a case from flat overrides of plant or sensor fields (e.g. ``{"K": 0.005, "delay": 1e-4}``)."""
+        overrides = dict(overrides or {})
+        plant_names = {f.name for f in fields(PlantParameters)}
+        sensor_names = {f.name for f in fields(SensorParameters)}
+        unknown = set(overrides) - plant_names - sensor_names
+        if unknown:
+            raise ParameterError(
+                f"unknown parameter(s) {sorted(unknown)}; plant parameters: {sorted(plant_names)}, "
+                f"sensor parameters: {sorted(sensor_names)}"
+            )
+        plant = PlantParameters(**{k: float(v) for k, v in overrides.items() if k in plant_names})
+        sensors = SensorParameters(**{k: float(v) for k, v in overrides.items() if k in sensor_names})
+        return cls(plant, sensors)
+
+
+def paper_grid(c: float, J1_values: tuple[float, ...] | None = None, K_values: tuple[float, ...] | None = None) -> list[Case]:
+    """The paper's cases of one c group: every J1 for every width, width-major order.
+
+    Returns ``len(K_values) * len(J1_values)`` cases; case ``i * n_J1 + p`` has
+    width ``K_values[i]`` and inertia ``J1_values[p]``.
+    """
+    from engine.constants import J1_GRID, K_GRID
+
+    J1_values = tuple(J1_GRID if J1_values is None else J1_values)
+    K_values = tuple(K_GRID if K_values is None else K_values)
+    return [Case(PlantParameters(K=K, J1=J1, c=c)) for K in K_values for J1 in J1_values]
+
+
+def full_grid() -> list[Case]:
+    """The paper's full grid: 4 c groups x 6 widths x 7 J1 = 168 cases."""
+    return [case for c in C_GROUPS for case in paper_grid(c)]
+
+
+def _check_range(name: str, value: float, lo: float, hi: float, unit: str) -> None:
+    if not (lo <= value <= hi):
+        raise ParameterError(f"{name} = {value} {unit} is outside the accepted range [{lo}, {hi}] {unit}")
+
+
+def _check_names(obj: Any, changes: Mapping[str, Any]) -> None:
+    known = {f.name for f in fields(obj)}
+    unknown = set(changes) - known
+    if unknown:
+        raise ParameterError(f"unknown parameter(s) {sorted(unknown)} for {type(obj).__name__}; known: {sorted(known)}")
