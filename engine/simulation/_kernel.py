@@ -49,6 +49,17 @@ _N_RING = 64
 
 
 @njit(cache=True, fastmath=False)
+def smooth_sign(w):
+    """tanh(w / W_SMOOTH), MODEL.md's smoothed sign; exactly +-1 in double precision beyond |w| > 20 W_SMOOTH."""
+    x = w / W_SMOOTH
+    if x > 20.0:
+        return 1.0
+    if x < -20.0:
+        return -1.0
+    return math.tanh(x)
+
+
+@njit(cache=True, fastmath=False)
 def rhs(t, y, P, motor_on, dy, ch):
     """Right-hand side dy/dt and the five channel values at (t, y).
 
@@ -97,8 +108,10 @@ def rhs(t, y, P, motor_on, dy, ch):
     else:
         m_c = 0.0
     m_s = P[P_K2] * (y[8] - y[9]) + P[P_D2] * (w2 - w3)
-    m_a = P[P_C] * w3 + P[P_C1] * math.tanh(w3 / W_SMOOTH)
-    m_f = P[P_TAU_C1] * math.tanh(w1 / W_SMOOTH) + P[P_B_1] * w1
+    m_a = P[P_C] * w3 + P[P_C1] * smooth_sign(w3)
+    m_f = P[P_B_1] * w1
+    if P[P_TAU_C1] != 0.0:
+        m_f += P[P_TAU_C1] * smooth_sign(w1)
     dw1 = (m_el - m_c - m_f) / P[P_T1]
     dw2 = (m_c - m_s) / P[P_T2]
     dw3 = (m_s - m_a) / P[P_T3]
@@ -236,7 +249,8 @@ def simulate_one(P, out):
     h = P[P_STEP]
     b = P[P_B]
     y = np.zeros(N_STATES)
-    work = np.zeros((8, N_STATES))
+    work = (np.zeros(N_STATES), np.zeros(N_STATES), np.zeros(N_STATES), np.zeros(N_STATES),
+            np.zeros(N_STATES), np.zeros(N_STATES), np.zeros(N_STATES), np.zeros(N_STATES))
     ring_t = np.zeros(_N_RING)
     ring_y = np.zeros((_N_RING, N_STATES))
     # checkpoint every 0.25 ms; the ring then covers 16 ms of history
