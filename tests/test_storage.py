@@ -312,7 +312,7 @@ def test_schema_version_pragmas_and_migration_hook(
 
 def test_default_path_comes_from_the_environment(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     target = tmp_path / "env" / "patterns.sqlite3"
-    monkeypatch.setenv("BACKLASH_PATTERN_DB", str(target))
+    monkeypatch.setenv("BACKLASH_DB_PATH", str(target))
     saved = PatternStore().save(make_set(0))
     assert PatternStore(target).get(saved.id) == saved
     with pytest.raises(ValueError, match="database file path"):

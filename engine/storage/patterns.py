@@ -71,10 +71,10 @@ __all__ = [
 ]
 
 #: Environment variable that overrides the default database path.
-STORE_PATH_ENV = "BACKLASH_PATTERN_DB"
+STORE_PATH_ENV = "BACKLASH_DB_PATH"
 #: Database path used when neither an explicit path nor ``STORE_PATH_ENV`` is given
 #: (relative to the working directory).
-DEFAULT_STORE_PATH = Path("out") / "patterns.sqlite3"
+DEFAULT_STORE_PATH = Path("data") / "patterns.sqlite3"
 #: ``PRAGMA application_id`` marking a file as a backlash pattern store ("BKLS").
 APPLICATION_ID = 0x424B4C53
 
@@ -274,7 +274,7 @@ def default_store_path() -> Path:
     Returns
     -------
     Path
-        ``$BACKLASH_PATTERN_DB`` if set, else :data:`DEFAULT_STORE_PATH`.
+        ``$BACKLASH_DB_PATH`` if set, else :data:`DEFAULT_STORE_PATH`.
     """
     env = os.environ.get(STORE_PATH_ENV)
     return Path(env) if env else DEFAULT_STORE_PATH

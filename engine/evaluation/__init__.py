@@ -1,0 +1,1 @@
+"""Main job and honest evaluation of the identifiers (held-out data only)."""

@@ -1,0 +1,169 @@
+"""Held-out accuracy of the identifiers.
+
+Three evaluations, none of which ever trains on a record it scores:
+
+(a) ``leave-one-J1-out``: within each c group, for each of the seven J1 values,
+    train on the six widths x the other six J1 values (36 records) and identify
+    the six records of the held-out J1; 4 groups x 7 folds x 6 = 168 scored
+    records per channel and identifier.
+(b) ``random``: cases with J1 ~ U[0.75, 0.93] kg m^2, c ~ U[0.8, 1.5] pu and a
+    width drawn from the six, identified with the patterns of the nearest c
+    group trained on the grid; the random J1 and c are never grid values.
+(c) ``random + 40 dB`` / ``random + 30 dB``: the same records with white noise
+    (:func:`engine.simulation.add_white_noise`, SNR against each channel's variance).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from engine.constants import C_GROUPS, CHANNELS, K_GRID
+from engine.identification.training import fit_identifier, make_identifier
+from engine.simulation import PlantParameters, SimulationResult, add_white_noise, simulate_batch
+
+logger = logging.getLogger(__name__)
+
+NOISE_LEVELS_DB: tuple[float, ...] = (40.0, 30.0)
+
+
+@dataclass(frozen=True)
+class AccuracyRow:
+    identifier: str
+    channel: str
+    split: str
+    n: int
+    correct: int
+    mean_epochs: float
+
+    @property
+    def accuracy(self) -> float:
+        return self.correct / self.n if self.n else float("nan")
+
+
+def _fit_predict(kind: str, channel: str, params: Mapping[str, Any], X_tr, y_tr, g_tr, X_te) -> tuple[np.ndarray, np.ndarray]:
+    est = fit_identifier(make_identifier(kind, channel, **params), X_tr, y_tr, g_tr)
+    res = est.identify_batch(X_te)
+    return np.array([r.width for r in res]), np.array([r.epochs for r in res])
+
+
+def _lojo_task(kind: str, channel: str, params: Mapping[str, Any], X, y, g) -> tuple[int, int, float]:
+    correct, n, epochs = 0, 0, []
+    for held in np.unique(g):
+        te = np.isclose(g, held)
+        pred, ep = _fit_predict(kind, channel, params, X[~te], y[~te], g[~te], X[te])
+        correct += int(np.isclose(pred, y[te]).sum())
+        n += int(te.sum())
+        epochs.extend(ep.tolist())
+    return correct, n, float(np.mean(epochs))
+
+
+def random_cases(n: int = 240, seed: int = 20261121) -> SimulationResult:
+    """Held-out cases (b): J1 ~ U[0.75, 0.93], c ~ U[0.8, 1.5], width uniform over the six."""
+    rng = np.random.default_rng(seed)
+    K = rng.choice(np.asarray(K_GRID), n)
+    J1 = rng.uniform(0.75, 0.93, n)
+    c = rng.uniform(0.8, 1.5, n)
+    return simulate_batch([PlantParameters(K=float(k), J1=float(j), c=float(cc)) for k, j, cc in zip(K, J1, c)])
+
+
+def nearest_group_index(c: np.ndarray) -> np.ndarray:
+    return np.argmin(np.abs(np.asarray(c)[:, None] - np.asarray(C_GROUPS)[None, :]), axis=1)
+
+
+def _random_task(kind, channel, params, grids_X, grid_y, grid_g, X_sets, groups_idx) -> list[tuple[int, int, float]]:
+    """Fit one identifier per c group, then score every noise version of the random records."""
+    ests = [fit_identifier(make_identifier(kind, channel, **params), grids_X[k], grid_y, grid_g) for k in range(len(C_GROUPS))]
+    out = []
+    for X in X_sets:
+        widths = np.empty(X.shape[0])
+        epochs = np.empty(X.shape[0])
+        for k, est in enumerate(ests):
+            sel = groups_idx == k
+            if sel.any():
+                res = est.identify_batch(X[sel])
+                widths[sel] = [r.width for r in res]
+                epochs[sel] = [r.epochs for r in res]
+        out.append(widths)
+        out.append(epochs)
+    return out
+
+
+def evaluate(
+    grids: Mapping[float, SimulationResult],
+    random: SimulationResult,
+    kinds: Mapping[str, Mapping[str, Any]],
+    channels: Sequence[str] = CHANNELS,
+    noise_seed: int = 7,
+    n_jobs: int | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> list[AccuracyRow]:
+    """Run evaluations (a), (b) and (c) for every identifier kind and channel.
+
+    Parameters
+    ----------
+    grids : mapping of c group to SimulationResult
+        The paper grid of each c group (six widths x seven J1, width-major).
+    random : SimulationResult
+        Held-out random cases, see :func:`random_cases`.
+    kinds : mapping of kind to hyper-parameters
+        Identifier kinds to evaluate, e.g. ``{"template": {}, "paper": {"max_epochs": 500}}``.
+    n_jobs : int, optional
+        Worker processes (default: CPU count).
+    """
+    groups = sorted(grids)
+    y = np.array([c.plant.K for c in grids[groups[0]].cases])
+    g = np.array([c.plant.J1 for c in grids[groups[0]].cases])
+    rng = np.random.default_rng(noise_seed)
+    truth = np.array([c.plant.K for c in random.cases])
+    gidx = nearest_group_index(np.array([c.plant.c for c in random.cases]))
+    splits = ["random"] + [f"random + {db:g} dB" for db in NOISE_LEVELS_DB]
+    X_random = {ch: [random.channel(ch)] + [add_white_noise(random.channel(ch), db, rng) for db in NOISE_LEVELS_DB]
+                for ch in channels}
+    tasks = []
+    with ProcessPoolExecutor(max_workers=n_jobs or os.cpu_count() or 1) as pool:
+        for kind, params in kinds.items():
+            for ch in channels:
+                for cg in groups:
+                    fut = pool.submit(_lojo_task, kind, ch, dict(params), grids[cg].channel(ch), y, g)
+                    tasks.append(("lojo", kind, ch, cg, fut))
+                grids_X = [grids[cg].channel(ch) for cg in groups]
+                fut = pool.submit(_random_task, kind, ch, dict(params), grids_X, y, g, X_random[ch], gidx)
+                tasks.append(("random", kind, ch, None, fut))
+        lojo: dict[tuple[str, str], list] = {}
+        rows: list[AccuracyRow] = []
+        for i, (what, kind, ch, cg, fut) in enumerate(tasks):
+            result = fut.result()
+            if what == "lojo":
+                lojo.setdefault((kind, ch), []).append(result)
+            else:
+                for s, split in enumerate(splits):
+                    widths, epochs = result[2 * s], result[2 * s + 1]
+                    rows.append(AccuracyRow(kind, ch, split, len(truth), int(np.isclose(widths, truth).sum()), float(epochs.mean())))
+            if progress:
+                progress(i + 1, len(tasks), f"{what} {kind} {ch}")
+    for (kind, ch), parts in lojo.items():
+        n = sum(p[1] for p in parts)
+        rows.append(AccuracyRow(kind, ch, "leave-one-J1-out", n, sum(p[0] for p in parts),
+                                float(np.average([p[2] for p in parts], weights=[p[1] for p in parts]))))
+    order = {s: i for i, s in enumerate(["leave-one-J1-out"] + splits)}
+    rows.sort(key=lambda r: (r.identifier, CHANNELS.index(r.channel), order[r.split]))
+    return rows
+
+
+def accuracy_markdown(rows: Sequence[AccuracyRow]) -> str:
+    """Accuracy table: one row per identifier and channel, one column per split."""
+    splits = list(dict.fromkeys(r.split for r in rows))
+    n_by_split = {r.split: r.n for r in rows}
+    head = "| identifier | channel | " + " | ".join(f"{s} (n={n_by_split[s]})" for s in splits) + " |\n"
+    head += "|---|---|" + "---|" * len(splits) + "\n"
+    body = []
+    for (kind, ch) in dict.fromkeys((r.identifier, r.channel) for r in rows):
+        cells = {r.split: r for r in rows if r.identifier == kind and r.channel == ch}
+        body.append(f"| {kind} | {ch} | " + " | ".join(f"{100 * cells[s].accuracy:.1f} %" for s in splits) + " |")
+    return head + "\n".join(body) + "\n"

@@ -1,0 +1,127 @@
+"""Training identifiers into pattern sets, and rebuilding them from the store.
+
+One place for the orchestration shared by the main job, the service's
+training jobs and the gap diagnosis (patterns retrained with an effect):
+simulate the six widths x the J1 values of one c group, fit the identifier on
+one channel, and package the result as a :class:`~engine.storage.PatternSet`.
+"""
+
+from __future__ import annotations
+
+import inspect
+import logging
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from engine.constants import CHANNELS, J1_GRID, K_GRID, MODEL_VERSION
+from engine.identification.paper import PaperIdentifier
+from engine.identification.template import TemplateIdentifier
+from engine.simulation import SimulationResult, paper_grid, simulate_batch
+from engine.storage import PatternSet
+
+logger = logging.getLogger(__name__)
+
+#: Identifier kinds by name. ``template`` is the default: it beats the paper's
+#: method on every held-out evaluation (see README, "Evaluation").
+IDENTIFIERS: dict[str, type] = {"template": TemplateIdentifier, "paper": PaperIdentifier}
+DEFAULT_KIND = "template"
+
+Progress = Callable[[float, str], None]
+
+
+def make_identifier(kind: str, channel: str, **params: Any):
+    """A fresh (unfitted) identifier of ``kind`` for ``channel``."""
+    try:
+        cls = IDENTIFIERS[kind]
+    except KeyError:
+        raise ValueError(f"unknown identifier kind {kind!r}; known kinds: {', '.join(IDENTIFIERS)}") from None
+    if channel not in CHANNELS:
+        raise ValueError(f"unknown channel {channel!r}; known channels: {', '.join(CHANNELS)}")
+    accepted = set(inspect.signature(cls).parameters) - {"channel"}
+    unknown = set(params) - accepted
+    if unknown:
+        raise ValueError(f"identifier {kind!r} has no parameter(s) {sorted(unknown)}; accepted: {sorted(accepted)}")
+    return cls(channel=channel, **params)
+
+
+def fit_identifier(est, X: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None):
+    """Fit ``est``, passing ``groups`` (J1 values) where the identifier uses them."""
+    if "groups" in inspect.signature(est.fit).parameters:
+        return est.fit(X, y, groups=groups)
+    return est.fit(X, y)
+
+
+def simulate_training_grid(
+    c: float, J1_values: Sequence[float] = J1_GRID, effects: Mapping[str, float] | None = None
+) -> SimulationResult:
+    """The six widths x ``J1_values`` at apparent viscosity ``c`` [pu], with optional effects."""
+    return simulate_batch(paper_grid(c, tuple(J1_values)), effects=effects)
+
+
+def train_pattern_set(
+    channel: str,
+    c: float,
+    kind: str = DEFAULT_KIND,
+    J1_values: Sequence[float] = J1_GRID,
+    params: Mapping[str, Any] | None = None,
+    effects: Mapping[str, float] | None = None,
+    grid: SimulationResult | None = None,
+    progress: Progress | None = None,
+) -> PatternSet:
+    """Train one identifier on one channel of one c group and package it (unsaved).
+
+    Parameters
+    ----------
+    channel : str
+        Channel to train on.
+    c : float
+        Apparent viscosity of the group [pu].
+    kind : str
+        Identifier kind (``IDENTIFIERS``).
+    J1_values : sequence of float
+        Motor inertias of the training cases [kg m^2].
+    params : mapping, optional
+        Identifier hyper-parameters (e.g. ``learning_rate``, ``delta1``, ``max_epochs``).
+    effects : mapping, optional
+        Unmodelled effects the training plant includes (name -> value).
+    grid : SimulationResult, optional
+        Already simulated training grid (skips the simulation).
+    progress : callable, optional
+        ``progress(fraction, message)``.
+    """
+    params = dict(params or {})
+    est = make_identifier(kind, channel, **params)
+    if len(J1_values) < 1:
+        raise ValueError("J1_values needs at least one inertia")
+    if progress:
+        progress(0.05, f"simulating {len(K_GRID) * len(J1_values)} training cases")
+    grid = grid if grid is not None else simulate_training_grid(c, J1_values, effects)
+    if progress:
+        progress(0.4, f"fitting the {kind} identifier on {channel}")
+    y = np.array([case.plant.K for case in grid.cases])
+    groups = np.array([case.plant.J1 for case in grid.cases])
+    fit_identifier(est, grid.channel(channel), y, groups)
+    if progress:
+        progress(0.95, "packaging the pattern set")
+    stored_params = {**est.get_params(), "effects": dict(effects or {})}
+    return PatternSet(
+        kind=kind,
+        channel=channel,
+        c=float(c),
+        j1_values=[float(v) for v in J1_values],
+        wavelet=str(getattr(est, "wavelet_", est.get_params().get("wavelet"))),
+        params=stored_params,
+        model_version=MODEL_VERSION,
+        arrays=est.to_arrays(),
+    )
+
+
+def identifier_from_pattern_set(ps: PatternSet):
+    """Rebuild the fitted identifier stored in a pattern set."""
+    try:
+        cls = IDENTIFIERS[ps.kind]
+    except KeyError:
+        raise ValueError(f"pattern set {ps.id} has unknown identifier kind {ps.kind!r}") from None
+    params = {k: v for k, v in ps.params.items() if k != "effects"}
+    return cls.from_arrays(params, ps.arrays)
