@@ -146,3 +146,14 @@ def test_white_noise_has_requested_snr(nominal):
     noisy = add_white_noise(x, 30.0, rng)
     snr = 10 * np.log10(np.var(x[0]) / np.var(noisy - x))
     assert abs(snr - 30.0) < 0.2
+
+
+def test_simulation_is_safe_from_several_threads():
+    from concurrent.futures import ThreadPoolExecutor
+
+    cases = [PlantParameters(K=K) for K in (0.0025, 0.005, 0.0075, 0.01)]
+    expected = simulate_batch(cases).channels
+    with ThreadPoolExecutor(4) as pool:
+        results = list(pool.map(lambda _: simulate_batch(cases).channels, range(8)))
+    for r in results:
+        np.testing.assert_array_equal(r, expected)

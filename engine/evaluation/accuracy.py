@@ -72,13 +72,14 @@ def random_cases(n: int = 240, seed: int = 20261121) -> SimulationResult:
     return simulate_batch([PlantParameters(K=float(k), J1=float(j), c=float(cc)) for k, j, cc in zip(K, J1, c)])
 
 
-def nearest_group_index(c: np.ndarray) -> np.ndarray:
-    return np.argmin(np.abs(np.asarray(c)[:, None] - np.asarray(C_GROUPS)[None, :]), axis=1)
+def nearest_group_index(c: np.ndarray, groups: Sequence[float] = C_GROUPS) -> np.ndarray:
+    """Index into ``groups`` of the c group nearest to each ``c`` [pu]."""
+    return np.argmin(np.abs(np.asarray(c)[:, None] - np.asarray(groups)[None, :]), axis=1)
 
 
 def _random_task(kind, channel, params, grids_X, grid_y, grid_g, X_sets, groups_idx) -> list[tuple[int, int, float]]:
     """Fit one identifier per c group, then score every noise version of the random records."""
-    ests = [fit_identifier(make_identifier(kind, channel, **params), grids_X[k], grid_y, grid_g) for k in range(len(C_GROUPS))]
+    ests = [fit_identifier(make_identifier(kind, channel, **params), X_k, grid_y, grid_g) for X_k in grids_X]
     out = []
     for X in X_sets:
         widths = np.empty(X.shape[0])
@@ -121,7 +122,7 @@ def evaluate(
     g = np.array([c.plant.J1 for c in grids[groups[0]].cases])
     rng = np.random.default_rng(noise_seed)
     truth = np.array([c.plant.K for c in random.cases])
-    gidx = nearest_group_index(np.array([c.plant.c for c in random.cases]))
+    gidx = nearest_group_index(np.array([c.plant.c for c in random.cases]), groups)
     splits = ["random"] + [f"random + {db:g} dB" for db in NOISE_LEVELS_DB]
     X_random = {ch: [random.channel(ch)] + [add_white_noise(random.channel(ch), db, rng) for db in NOISE_LEVELS_DB]
                 for ch in channels}

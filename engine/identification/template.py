@@ -217,7 +217,8 @@ class TemplateIdentifier:
 
     def predict(self, X: Any) -> np.ndarray:
         """Identified widths K [m], shape (n_records,)."""
-        return self.widths_[self.d_vectors(X).argmin(axis=1)]
+        D = self.d_vectors(X)
+        return self.widths_[D.argmin(axis=1)]
 
     # -- persistence -----------------------------------------------------------------
 

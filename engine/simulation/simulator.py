@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import logging
+import threading
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
@@ -26,6 +27,12 @@ _STATUS_TEXT = {
     kern.NON_FINITE: "the integration diverged (non-finite or absurd state); check the parameters",
     kern.HISTORY_TOO_SHORT: "the pre-event window reaches further back than the integrator keeps history (delay too long)",
 }
+
+
+#: numba's default "workqueue" threading layer aborts the process when a parallel
+#: kernel is launched from two threads at once; batches are short, so launches are
+#: serialised here and every caller (request threads, training jobs) is safe.
+_KERNEL_LOCK = threading.Lock()
 
 
 class SimulationError(RuntimeError):
@@ -110,7 +117,8 @@ def run_cases(
     t_e = np.full(n, np.nan)
     status = np.zeros(n, dtype=np.int64)
     if n:
-        kern.simulate_many(P, out, t_e, status)
+        with _KERNEL_LOCK:
+            kern.simulate_many(P, out, t_e, status)
     # sensor quantisation of omega1 (post-sampling: a property of the reading)
     for i, case in enumerate(cases):
         q = case.sensors.speed_quantum
