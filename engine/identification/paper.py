@@ -1,0 +1,654 @@
+"""The paper's wavelet-neural identifier of the backlash zone width (section 3.1).
+
+Pipeline, for one channel and one group of operating conditions:
+
+1. Every record (2048 raw samples of the channel) is replaced by its 2048
+   periodized level-10 wavelet coefficients (:mod:`engine.features.wavelet`),
+   one row of the paper's matrix ``N``.
+2. The training rows, all six widths together, fix the normalisation of
+   eq. (2): ``h1, k1`` (range of ``N``) and ``h2, k2`` (target range, chosen by
+   the case analysis of eqs. (3)-(5) from the auxiliary variables
+   ``h3 .. h21``, ``m1 .. m5`` and the matrices ``N1 .. N5``). These constants
+   are stored and applied unchanged to every test record.
+3. One network 2048-15-15-6 (sigmoid, no bias) per width is trained by
+   per-sample backpropagation on that width's rows (the paper's ``N[7,2048]``:
+   the seven J1 cases of one width), starting from weights set from the mean
+   ``m1`` and with target ``T = exp(-|h2|)`` on every output (``target="abs"``,
+   default; ``target="as_printed"`` uses the printed ``exp(-h2)``, which
+   exceeds 1 whenever ``h2 < 0``). The first row of its output-layer weights,
+   ``W4 = W3[0, :]``, is the width's pattern; the six patterns form ``Ww`` (6 x 15).
+4. A test record trains its own network with the same procedure; with
+   ``test_rows="match"`` (default) on the record replicated to as many rows as
+   the pattern network it is compared with was trained on (the paper's
+   ``N[7,2048]`` shape, so both see the same number of weight updates per
+   epoch), with ``test_rows="single"`` on the record alone. With ``Wt`` its
+   ``W4``, ``D(i) = sum_j |Wt(j) - Ww(i, j)|`` and the identified width is
+   ``K[nr5]`` with ``nr5 = argmin D`` (1-based in the paper).
+
+The text of section 3.1 is garbled in many places; every reading chosen here
+is listed, one entry per ambiguity, in ``docs/paper-notes.md``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from engine.constants import CHANNEL_WAVELETS, CHANNELS, K_GRID, N_SAMPLES, WAVELET_LEVEL
+from engine.features.wavelet import wavelet_coefficients
+from engine.identification._network import TrainResult, Weights, initial_weights, train
+
+logger = logging.getLogger(__name__)
+
+__all__ = [
+    "ARRAYS_FORMAT_VERSION",
+    "TARGETS",
+    "TEST_ROWS",
+    "N1_WINDOWS",
+    "N2_WINDOWS",
+    "TERM_NAMES",
+    "IdentificationResult",
+    "NotFittedError",
+    "PaperIdentifier",
+    "normalisation_terms",
+    "normalise",
+]
+
+#: Window lengths [samples] of the running means in matrix N1 (paper: 100 .. 500).
+N1_WINDOWS: tuple[int, ...] = (100, 200, 300, 400, 500)
+#: Window lengths [samples] of the running means in matrix N2 (paper: 256 .. 1280).
+N2_WINDOWS: tuple[int, ...] = (256, 512, 768, 1024, 1280)
+#: Width indices (1-based, into K_GRID) whose N3 values enter the mean m3.
+M3_WIDTHS: tuple[int, ...] = (1, 2, 3)
+#: Width indices (1-based) whose N4 values give h17 (max) and h18 (min).
+N4_EXTREME_WIDTHS: tuple[int, ...] = (3, 4, 5, 6)
+#: Names of the scalar normalisation terms, in the order stored by ``to_arrays``.
+TERM_NAMES: tuple[str, ...] = (
+    "h1", "k1", "h2", "k2", "h3", "h4", "h5", "h6", "h7", "h8", "h9", "h10", "h11", "h12",
+    "h13", "h14", "h15", "h16", "h17", "h18", "h19", "h20", "h21", "m1", "m2", "m3", "m5",
+)
+#: Version of the layout produced by :meth:`PaperIdentifier.to_arrays`
+#: (2: adds ``pattern_rows``; the target and test-row readings are parameters).
+ARRAYS_FORMAT_VERSION: int = 2
+#: Readings of the network target (docs/paper-notes.md, D9): ``exp(-|h2|)`` or the printed ``exp(-h2)``.
+TARGETS: tuple[str, ...] = ("abs", "as_printed")
+#: Readings of the test network's training data (docs/paper-notes.md, D10).
+TEST_ROWS: tuple[str, ...] = ("match", "single")
+
+_N_OUT = len(K_GRID)  # the paper's 6 output neurons, one per width
+
+
+class NotFittedError(ValueError, AttributeError):
+    """The identifier is used before :meth:`PaperIdentifier.fit` (same bases as scikit-learn's)."""
+
+
+@dataclass(frozen=True)
+class IdentificationResult:
+    """Outcome of identifying one record.
+
+    Attributes
+    ----------
+    D : ndarray, shape (6,)
+        ``D(i) = sum_j |Wt(j) - Ww(i, j)|`` for the widths in ``K_GRID`` order [-].
+    index : int
+        ``nr5``: 1-based index of the smallest ``D`` (paper's convention).
+    width : float
+        Identified backlash zone width ``K_GRID[index - 1]`` [m].
+    epochs : int
+        Epochs the record's own network needed (the cap if it did not converge).
+        If the pattern networks were trained on different numbers of rows
+        (unbalanced training data, ``test_rows="match"``), the record trains
+        one network per row count; these fields describe the one compared
+        with the winning pattern.
+    rms : float
+        RMS output error of the record's network after training [-].
+    converged : bool
+        Whether that network reached ``RMS < delta1``.
+    """
+
+    D: np.ndarray
+    index: int
+    width: float
+    epochs: int
+    rms: float
+    converged: bool
+
+
+# --------------------------------------------------------------------------
+# normalisation, eqs. (2)-(5)
+# --------------------------------------------------------------------------
+
+
+def _running_means(N: np.ndarray, windows: tuple[int, ...]) -> np.ndarray:
+    """Means of the first ``n`` coefficients of each row for each window ``n``; shape (R, len(windows))."""
+    csum = np.cumsum(N, axis=1)
+    return np.stack([csum[:, n - 1] / n for n in windows], axis=-1)
+
+
+def _chained_differences(v: np.ndarray) -> np.ndarray:
+    """Paper's ``(v1 - v2) - (v2 - v3) - (v3 - v4) - (v4 - v5)`` along the last axis (eqs. 3, 4 and N5)."""
+    return (v[..., 0] - v[..., 1]) - (v[..., 1] - v[..., 2]) - (v[..., 2] - v[..., 3]) - (v[..., 3] - v[..., 4])
+
+
+def _summed_differences(v: np.ndarray) -> np.ndarray:
+    """Paper's ``(v1 - v2) + (v2 - v3) + (v3 - v4) + (v4 - v5)`` along the last axis (h21)."""
+    return (v[..., 0] - v[..., 1]) + (v[..., 1] - v[..., 2]) + (v[..., 2] - v[..., 3]) + (v[..., 3] - v[..., 4])
+
+
+def _count_sum(h16: float, mask: np.ndarray) -> np.ndarray:
+    """Paper's cyclic summation ``sum h16 over the samples where a condition holds``, per row."""
+    return h16 * np.count_nonzero(mask, axis=-1).astype(float)
+
+
+def normalisation_terms(N: np.ndarray, width_index: np.ndarray) -> dict[str, float]:
+    """All scalar terms of eqs. (2)-(5), computed on a set of training rows.
+
+    Parameters
+    ----------
+    N : ndarray, shape (R, 2048)
+        Wavelet coefficients of the training records, one row per record
+        (all widths, all J1 cases of the pattern set).
+    width_index : ndarray of int, shape (R,)
+        1-based index into ``K_GRID`` of each row's width; all of 1..6 present.
+
+    Returns
+    -------
+    dict of str to float
+        ``h1 .. h21``, ``k1``, ``k2``, ``m1``, ``m2``, ``m3``, ``m5`` (see
+        :data:`TERM_NAMES`) and ``case`` (1, 2 or 3: which branch of eq. (5)
+        chose ``h3, h4``). Per-record quantities that the paper indexes by
+        ``p`` alone (``N1``, ``N2`` in h5/h6/h21, ``m2(p)``, ``h12``, ``h14``)
+        are evaluated on every record and averaged over the records.
+
+    Raises
+    ------
+    ValueError
+        Case 2 with ``h11 == 0`` (``h3 = m1 / h11`` undefined).
+    """
+    N = np.asarray(N, dtype=float)
+    wi = np.asarray(width_index)
+    t: dict[str, float] = {}
+    # h1, k1: range of N (eq. 2); h16: "the biggest value of the matrix N"
+    t["h1"] = float(N.min())
+    t["k1"] = float(N.max())
+    h16 = t["h16"] = float(N.max())
+    # per-record statistics
+    m4 = N.mean(axis=1)                                   # m4(p)(i): row means
+    sd1 = np.sqrt(np.mean((N - m4[:, None]) ** 2, axis=1))  # d1(p)(i): row standard deviations
+    N1 = _running_means(N, N1_WINDOWS)                    # N1(p)(k)
+    N2 = _running_means(N, N2_WINDOWS)                    # N2(p)(i,k)
+    N3 = _count_sum(h16, N > sd1[:, None])                # N3(p)(i)
+    N4 = _count_sum(h16, N > m4[:, None])                 # N4(p)(i)
+    N5 = _chained_differences(N2)                         # N5(p)(i)
+    # eqs. (3), (4) and h21 on the means of N1, N2 over the records
+    n1, n2 = N1.mean(axis=0), N2.mean(axis=0)
+    t["h5"] = float(_chained_differences(n1))
+    t["h6"] = float(_chained_differences(n2))
+    t["h21"] = float(_summed_differences(n1))
+    # h7 <= h8 test
+    t["h13"] = float(N3.max())
+    t["h8"] = float(N3.min())
+    t["m3"] = float(N3[np.isin(wi, M3_WIDTHS)].mean())
+    t["h7"] = t["h13"] + (t["m3"] - t["h8"])
+    # h9 <= h10 test
+    sel = np.isin(wi, N4_EXTREME_WIDTHS)
+    t["h17"] = float(N4[sel].max())
+    t["h18"] = float(N4[sel].min())
+    t["h15"] = abs(t["h17"] - t["h18"])
+    m2_p = N.mean(axis=1)                                 # m2(p): mean of the tested matrix, per record
+    t["h14"] = float(np.mean(_count_sum(h16, N > m2_p[:, None])))
+    t["h9"] = abs(t["h14"] - t["h18"])
+    t["h10"] = max(t["h15"], h16)
+    # h11 from N5
+    t["h19"] = float(N5.min())
+    t["h20"] = float(N5.max())
+    t["m5"] = float(N5.mean())
+    t["h11"] = (t["h19"] - t["h21"]) - (t["h20"] - t["h21"]) - (t["m5"] - t["h21"])
+    # h12 from d2(p)
+    sd2 = np.sqrt(np.mean((N - m2_p[:, None]) ** 2, axis=1))
+    t["h12"] = float(np.mean(_count_sum(h16, N > sd2[:, None])))
+    # means
+    t["m1"] = float(m4[wi == 1].mean())                  # m1: rows of the smallest width
+    t["m2"] = float(N.mean())
+    # eq. (5)
+    if t["h7"] <= t["h8"]:
+        case, h3, h4 = 1, t["h5"] - t["h6"], t["h6"] - t["h5"]
+    elif t["h9"] <= t["h10"]:
+        if t["h11"] == 0.0:
+            raise ValueError("normalisation case 2 needs h3 = m1 / h11 but h11 = 0 for these training records")
+        case, h3, h4 = 2, t["m1"] / t["h11"], t["m1"] * t["h11"] / t["h11"]
+    else:
+        case, h3, h4 = 3, t["h12"], t["m2"]
+    t["h3"], t["h4"] = float(h3), float(h4)
+    t["h2"], t["k2"] = min(t["h3"], t["h4"]), max(t["h3"], t["h4"])
+    t["case"] = float(case)
+    return t
+
+
+def normalise(N: np.ndarray, h1: float, k1: float, h2: float, k2: float) -> np.ndarray:
+    """Eq. (2): map ``[h1, k1]`` (min, max of the training N) linearly onto ``[h2, k2]``.
+
+    ``X1 = (N - k1) / (h1 - k1) * (h2 - k2) + k2``. Test values outside
+    ``[h1, k1]`` land outside ``[h2, k2]``; they are not clipped.
+    """
+    if h1 == k1:
+        raise ValueError("cannot normalise: the training coefficients are all equal (h1 == k1)")
+    return (np.asarray(N, dtype=float) - k1) / (h1 - k1) * (h2 - k2) + k2
+
+
+def _init_row_values(m1_rows: np.ndarray, n_rows: int) -> np.ndarray:
+    """Initial weight of each neuron row: the per-record means m1(p) cycled over the rows.
+
+    Row i (0-based) gets ``m1_rows[i % len(m1_rows)]``.
+    """
+    return np.resize(np.asarray(m1_rows, dtype=float), n_rows)
+
+
+# --------------------------------------------------------------------------
+# the estimator
+# --------------------------------------------------------------------------
+
+
+class PaperIdentifier:
+    """The paper's wavelet-neural identifier of the backlash zone width, for one channel.
+
+    Parameters
+    ----------
+    channel : str
+        Channel the records hold, one of ``engine.constants.CHANNELS``.
+    wavelet : str or None, default None
+        Wavelet name; None uses the paper's wavelet of the channel
+        (``engine.constants.CHANNEL_WAVELETS``).
+    level : int, default 10
+        Wavelet decomposition level.
+    mode : str, default "periodization"
+        PyWavelets extension mode (only periodization keeps 2048 coefficients).
+    n_hidden : int, default 15
+        Neurons in each of the two hidden layers.
+    learning_rate : float, default 0.9
+        Learning coefficient l of the weight update [-] (paper: 0.6 .. 0.9).
+    delta1 : float, default 0.08
+        Training stops when the RMS output error falls below it [-] (paper: 0.07 .. 0.08).
+    max_epochs : int, default 500
+        Epoch cap per network (not in the paper; the paper's test networks
+        needed 11 .. 39 epochs).
+    target : {"abs", "as_printed"}, default "abs"
+        Network target: ``T = exp(-|h2|)`` in (0, 1], reachable by a sigmoid
+        (docs/paper-notes.md, D9), or the printed ``T = exp(-h2)``, which is
+        above 1 whenever ``h2 < 0`` (then no network converges).
+    test_rows : {"match", "single"}, default "match"
+        Training data of a test record's network: the record replicated to
+        the number of rows the compared pattern network was trained on, so
+        both get the same number of weight updates per epoch and the same
+        stop rule (docs/paper-notes.md, D10); or the record once ("single",
+        the literal reading).
+
+    Attributes
+    ----------
+    wavelet_ : str
+        Wavelet actually used.
+    widths_ : ndarray, shape (6,)
+        Backlash widths K of the patterns, ``K_GRID`` order [m].
+    patterns_ : ndarray, shape (6, 15)
+        Pattern matrix Ww: row i is W4 of the network trained on width i.
+    epochs_ : ndarray of int, shape (6,)
+        Epochs each pattern network ran.
+    pattern_rows_ : ndarray of int, shape (6,)
+        Training rows (records) each pattern network was trained on.
+    pattern_rms_ : ndarray, shape (6,)
+        Final RMS error of each pattern network [-].
+    h1_, k1_, h2_, k2_ : float
+        Normalisation constants of eq. (2), from the training rows.
+    target_ : float
+        Network target ``T`` [-]: ``exp(-|h2|)`` or ``exp(-h2)`` (see ``target``).
+    init_weights_ : ndarray, shape (max(n_hidden, 6),)
+        Initial value of every weight in each neuron row (from m1).
+    terms_ : dict of str to float
+        All normalisation terms (see :func:`normalisation_terms`).
+    case_ : int
+        Branch of eq. (5) that fixed ``h2, k2``.
+    n_features_in_ : int
+        Samples per record (2048).
+    """
+
+    def __init__(
+        self,
+        channel: str,
+        wavelet: str | None = None,
+        level: int = WAVELET_LEVEL,
+        mode: str = "periodization",
+        n_hidden: int = 15,
+        learning_rate: float = 0.9,
+        delta1: float = 0.08,
+        max_epochs: int = 500,
+        target: str = "abs",
+        test_rows: str = "match",
+    ) -> None:
+        self.channel = channel
+        self.wavelet = wavelet
+        self.level = level
+        self.mode = mode
+        self.n_hidden = n_hidden
+        self.learning_rate = learning_rate
+        self.delta1 = delta1
+        self.max_epochs = max_epochs
+        self.target = target
+        self.test_rows = test_rows
+
+    # -- parameters --------------------------------------------------------
+
+    _PARAM_NAMES = ("channel", "wavelet", "level", "mode", "n_hidden", "learning_rate", "delta1", "max_epochs",
+                    "target", "test_rows")
+
+    def get_params(self, deep: bool = True) -> dict[str, Any]:
+        """Constructor parameters (JSON-ready)."""
+        return {name: getattr(self, name) for name in self._PARAM_NAMES}
+
+    def set_params(self, **params: Any) -> "PaperIdentifier":
+        """Set constructor parameters; returns self."""
+        unknown = set(params) - set(self._PARAM_NAMES)
+        if unknown:
+            raise ValueError(f"unknown parameter(s) {sorted(unknown)}; valid: {', '.join(self._PARAM_NAMES)}")
+        for k, v in params.items():
+            setattr(self, k, v)
+        return self
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
+        return f"{type(self).__name__}({args})"
+
+    def _validate_params(self) -> None:
+        if self.channel not in CHANNELS:
+            raise ValueError(f"unknown channel {self.channel!r}; known channels: {', '.join(CHANNELS)}")
+        if not (isinstance(self.n_hidden, (int, np.integer)) and self.n_hidden >= 1):
+            raise ValueError(f"n_hidden must be a positive integer, got {self.n_hidden!r}")
+        if not (isinstance(self.max_epochs, (int, np.integer)) and self.max_epochs >= 1):
+            raise ValueError(f"max_epochs must be a positive integer, got {self.max_epochs!r}")
+        if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
+            raise ValueError(f"learning_rate must be a positive number, got {self.learning_rate!r}")
+        if not (math.isfinite(self.delta1) and self.delta1 > 0):
+            raise ValueError(f"delta1 must be a positive number, got {self.delta1!r}")
+        if self.target not in TARGETS:
+            raise ValueError(f"target must be one of {', '.join(TARGETS)}, got {self.target!r}")
+        if self.test_rows not in TEST_ROWS:
+            raise ValueError(f"test_rows must be one of {', '.join(TEST_ROWS)}, got {self.test_rows!r}")
+
+    # -- input handling ------------------------------------------------------
+
+    def _features(self, X: Any, what: str = "X") -> np.ndarray:
+        """Validated raw records -> wavelet coefficient rows N, shape (R, 2048)."""
+        arr = np.asarray(X, dtype=float)
+        if arr.ndim != 2 or arr.shape[1] != N_SAMPLES:
+            raise ValueError(f"{what} must have shape (n_records, {N_SAMPLES}) of raw {self.channel} samples, got {arr.shape}")
+        if arr.shape[0] == 0:
+            raise ValueError(f"{what} holds no records")
+        if not np.all(np.isfinite(arr)):
+            r, j = np.argwhere(~np.isfinite(arr))[0]
+            raise ValueError(f"{what} holds a non-finite value (NaN or inf) in record {r}, sample {j}")
+        wavelet = self.wavelet if self.wavelet is not None else CHANNEL_WAVELETS[self.channel]
+        return wavelet_coefficients(arr, wavelet, mode=self.mode, level=self.level, axis=-1)
+
+    @staticmethod
+    def _width_index(y: Any, n_records: int) -> np.ndarray:
+        """Widths [m] -> 1-based indices into K_GRID; all six must be present."""
+        yy = np.asarray(y, dtype=float)
+        if yy.shape != (n_records,):
+            raise ValueError(f"y must hold one width per record, shape ({n_records},), got {yy.shape}")
+        grid = np.asarray(K_GRID)
+        match = np.isclose(yy[:, None], grid[None, :], rtol=1e-9, atol=1e-12)
+        bad = ~match.any(axis=1)
+        if bad.any():
+            raise ValueError(f"width(s) {sorted(set(yy[bad].tolist()))} m are not in K_GRID {list(K_GRID)}")
+        idx = match.argmax(axis=1) + 1
+        missing = sorted(set(range(1, _N_OUT + 1)) - set(idx.tolist()))
+        if missing:
+            raise ValueError(f"training data lacks width(s) {[K_GRID[i - 1] for i in missing]} m; all six widths of K_GRID are needed")
+        return idx
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "patterns_"):
+            raise NotFittedError(f"this {type(self).__name__} is not fitted yet; call fit(X, y) or from_arrays(...) first")
+
+    # -- training ------------------------------------------------------------
+
+    def _initial(self) -> Weights:
+        return initial_weights(self.init_weights_, self.n_features_in_, self.n_hidden, _N_OUT)
+
+    def _train(self, X1: np.ndarray, label: str) -> TrainResult:
+        T = np.full(_N_OUT, self.target_)
+        return train(self._initial(), X1, T, self.learning_rate, self.delta1, int(self.max_epochs), label)
+
+    def fit(self, X: Any, y: Any) -> "PaperIdentifier":
+        """Learn the normalisation and the six width patterns.
+
+        Parameters
+        ----------
+        X : array_like, shape (n_records, 2048)
+            Raw time-domain samples of ``channel`` (its unit), one record per row:
+            the training records of one pattern set (e.g. the 7 J1 cases x 6
+            widths of one c group).
+        y : array_like, shape (n_records,)
+            Backlash width K of each record [m]; values of ``K_GRID``, all six present.
+
+        Returns
+        -------
+        PaperIdentifier
+            self.
+        """
+        self._validate_params()
+        N = self._features(X)
+        wi = self._width_index(y, N.shape[0])
+        terms = normalisation_terms(N, wi)
+        self.wavelet_ = self.wavelet if self.wavelet is not None else CHANNEL_WAVELETS[self.channel]
+        self.n_features_in_ = N.shape[1]
+        self.terms_ = {k: v for k, v in terms.items() if k != "case"}
+        self.case_ = int(terms["case"])
+        self.h1_, self.k1_, self.h2_, self.k2_ = terms["h1"], terms["k1"], terms["h2"], terms["k2"]
+        self.target_ = self._target(self.h2_, warn=True)
+        if self.h2_ == self.k2_:
+            logger.warning("normalisation range [h2, k2] collapsed to the point %.6g: every input is the same", self.h2_)
+        m1_rows = N[wi == 1].mean(axis=1)
+        self.init_weights_ = _init_row_values(m1_rows, max(self.n_hidden, _N_OUT))
+        X1 = normalise(N, self.h1_, self.k1_, self.h2_, self.k2_)
+        patterns, epochs, rms, rows = [], [], [], []
+        for i, K in enumerate(K_GRID, start=1):
+            res = self._train(X1[wi == i], f"{self.channel}/pattern K={K}")
+            patterns.append(res.weights.W3[0].copy())
+            epochs.append(res.epochs)
+            rms.append(res.rms)
+            rows.append(int(np.count_nonzero(wi == i)))
+        self.widths_ = np.asarray(K_GRID, dtype=float)
+        self.patterns_ = np.stack(patterns)
+        self.epochs_ = np.asarray(epochs, dtype=int)
+        self.pattern_rms_ = np.asarray(rms, dtype=float)
+        self.pattern_rows_ = np.asarray(rows, dtype=int)
+        logger.info(
+            "%s: case %d, h2=%.4g, k2=%.4g, T=%.4g, pattern epochs %s",
+            self.channel, self.case_, self.h2_, self.k2_, self.target_, self.epochs_.tolist(),
+        )
+        return self
+
+    def _target(self, h2: float, warn: bool = False) -> float:
+        """The network target from h2 (docs/paper-notes.md, D9).
+
+        ``target="abs"``: ``T = exp(-|h2|)``, in (0, 1]. Not clipped: training
+        stops once ``RMS < delta1``, so the output only has to come within
+        ``delta1`` of T and a T at (or near) 1 is reached at ``Y3 ~ 1 - delta1``,
+        far from saturation. ``target="as_printed"``: ``T = exp(-h2)``; with
+        ``warn`` a warning is logged when it exceeds 1 by ``delta1`` or more
+        (no network can then converge).
+        """
+        if self.target == "abs":
+            return math.exp(-abs(h2))
+        if -h2 > 700.0:
+            raise ValueError(f"target T = exp(-h2) overflows for h2 = {h2:.6g}")
+        T = math.exp(-h2)
+        if warn and T - 1.0 >= self.delta1:
+            logger.warning(
+                "target T = exp(-h2) = %.4g exceeds the sigmoid's range (0, 1) by at least delta1 = %.4g: "
+                "no network can converge and every training will run to max_epochs = %d",
+                T, self.delta1, self.max_epochs,
+            )
+        return T
+
+    def _test_row_counts(self) -> np.ndarray:
+        """Rows the test network is trained on, per pattern (same order as ``patterns_``)."""
+        if self.test_rows == "match":
+            return self.pattern_rows_
+        if self.test_rows == "single":
+            return np.ones(_N_OUT, dtype=int)
+        raise ValueError(f"test_rows must be one of {', '.join(TEST_ROWS)}, got {self.test_rows!r}")
+
+    # -- identification ------------------------------------------------------
+
+    def _test_result(self, x1: np.ndarray, label: str) -> IdentificationResult:
+        counts = self._test_row_counts()
+        D = np.empty(_N_OUT)
+        nets = {}
+        for n in np.unique(counts):
+            # the record as n identical rows: n weight updates per epoch, like a pattern network on n records
+            res = nets[int(n)] = self._train(np.repeat(x1[None, :], int(n), axis=0), label)
+            sel = counts == n
+            D[sel] = np.abs(res.weights.W3[0][None, :] - self.patterns_[sel]).sum(axis=1)
+        i = int(np.argmin(D))
+        res = nets[int(counts[i])]
+        tied = np.flatnonzero(D == D[i])
+        if tied.size > 1:
+            logger.warning(
+                "%s: D has a tie at its minimum %.3g between widths %s; reporting the first (nr5 = %d), as argmin does",
+                label, D[i], [K_GRID[j] for j in tied], i + 1,
+            )
+        return IdentificationResult(D=D, index=i + 1, width=float(self.widths_[i]), epochs=res.epochs,
+                                    rms=res.rms, converged=res.converged)
+
+    def identify_batch(self, X: Any) -> list[IdentificationResult]:
+        """Identify every record of a batch.
+
+        Parameters
+        ----------
+        X : array_like, shape (n_records, 2048)
+            Raw samples of ``channel``.
+
+        Returns
+        -------
+        list of IdentificationResult
+        """
+        self._check_fitted()
+        X1 = normalise(self._features(X), self.h1_, self.k1_, self.h2_, self.k2_)
+        return [self._test_result(x1, f"{self.channel}/test record {r}") for r, x1 in enumerate(X1)]
+
+    def identify(self, x: Any) -> IdentificationResult:
+        """Identify the width of one record.
+
+        Parameters
+        ----------
+        x : array_like, shape (2048,)
+            Raw samples of ``channel``.
+
+        Returns
+        -------
+        IdentificationResult
+        """
+        arr = np.asarray(x, dtype=float)
+        if arr.ndim != 1:
+            raise ValueError(f"identify takes one record of shape ({N_SAMPLES},), got {arr.shape}; use identify_batch for many")
+        return self.identify_batch(arr[None, :])[0]
+
+    def d_vectors(self, X: Any) -> np.ndarray:
+        """D vectors of a batch, shape (n_records, 6)."""
+        return np.stack([r.D for r in self.identify_batch(X)])
+
+    def predict(self, X: Any) -> np.ndarray:
+        """Identified width of each record [m], shape (n_records,)."""
+        return np.asarray([r.width for r in self.identify_batch(X)], dtype=float)
+
+    # -- persistence ---------------------------------------------------------
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """Everything learned, as named numpy arrays (pair with :meth:`get_params`).
+
+        Returns
+        -------
+        dict of str to ndarray
+            ``format_version``, ``patterns`` (6, 15), ``widths`` (6,),
+            ``epochs`` (6,), ``pattern_rms`` (6,), ``pattern_rows`` (6,), ``init_weights``,
+            ``terms`` (values in :data:`TERM_NAMES` order; holds h1, k1, h2, k2),
+            ``case``, ``n_features_in``.
+        """
+        self._check_fitted()
+        return {
+            "format_version": np.asarray(ARRAYS_FORMAT_VERSION),
+            "patterns": self.patterns_.copy(),
+            "widths": self.widths_.copy(),
+            "epochs": self.epochs_.copy(),
+            "pattern_rms": self.pattern_rms_.copy(),
+            "pattern_rows": self.pattern_rows_.copy(),
+            "init_weights": self.init_weights_.copy(),
+            "terms": np.asarray([self.terms_[k] for k in TERM_NAMES], dtype=float),
+            "case": np.asarray(self.case_),
+            "n_features_in": np.asarray(self.n_features_in_),
+        }
+
+    @classmethod
+    def from_arrays(cls, params: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> "PaperIdentifier":
+        """Restore a fitted identifier from :meth:`get_params` and :meth:`to_arrays`.
+
+        Parameters
+        ----------
+        params : mapping
+            Constructor parameters (unknown keys raise).
+        arrays : mapping of str to ndarray
+            As produced by :meth:`to_arrays`.
+
+        Returns
+        -------
+        PaperIdentifier
+            Fitted; identifies exactly as the original.
+        """
+        unknown = set(params) - set(cls._PARAM_NAMES)
+        if unknown:
+            raise ValueError(f"unknown parameter(s) {sorted(unknown)}; valid: {', '.join(cls._PARAM_NAMES)}")
+        obj = cls(**dict(params))
+        obj._validate_params()
+        need = {"format_version", "patterns", "widths", "epochs", "pattern_rms", "pattern_rows", "init_weights", "terms",
+                "case", "n_features_in"}
+        if "format_version" in arrays:  # checked first: an older layout also lacks newer arrays
+            version = int(np.asarray(arrays["format_version"]))
+            if version != ARRAYS_FORMAT_VERSION:
+                raise ValueError(f"arrays have format_version {version}; this code reads version {ARRAYS_FORMAT_VERSION}")
+        missing = need - set(arrays)
+        if missing:
+            raise ValueError(f"arrays lack {sorted(missing)}")
+        shapes = {
+            "patterns": (_N_OUT, obj.n_hidden),
+            "widths": (_N_OUT,),
+            "epochs": (_N_OUT,),
+            "pattern_rms": (_N_OUT,),
+            "pattern_rows": (_N_OUT,),
+            "init_weights": (max(obj.n_hidden, _N_OUT),),
+            "terms": (len(TERM_NAMES),),
+        }
+        for key, shape in shapes.items():
+            if np.shape(arrays[key]) != shape:
+                raise ValueError(f"array {key!r} has shape {np.shape(arrays[key])}, expected {shape} for n_hidden={obj.n_hidden}")
+        if not np.allclose(arrays["widths"], K_GRID, rtol=0, atol=1e-12):
+            raise ValueError(f"stored widths {np.asarray(arrays['widths']).tolist()} differ from K_GRID {list(K_GRID)}")
+        obj.wavelet_ = obj.wavelet if obj.wavelet is not None else CHANNEL_WAVELETS[obj.channel]
+        obj.n_features_in_ = int(np.asarray(arrays["n_features_in"]))
+        obj.terms_ = {k: float(v) for k, v in zip(TERM_NAMES, np.asarray(arrays["terms"], dtype=float))}
+        obj.case_ = int(np.asarray(arrays["case"]))
+        obj.h1_, obj.k1_, obj.h2_, obj.k2_ = (obj.terms_[k] for k in ("h1", "k1", "h2", "k2"))
+        obj.target_ = obj._target(obj.h2_)
+        obj.init_weights_ = np.array(arrays["init_weights"], dtype=float)
+        obj.widths_ = np.array(arrays["widths"], dtype=float)
+        obj.patterns_ = np.array(arrays["patterns"], dtype=float)
+        obj.epochs_ = np.array(arrays["epochs"], dtype=int)
+        obj.pattern_rms_ = np.array(arrays["pattern_rms"], dtype=float)
+        obj.pattern_rows_ = np.array(arrays["pattern_rows"], dtype=int)
+        if np.any(obj.pattern_rows_ < 1):
+            raise ValueError(f"array 'pattern_rows' must hold positive counts, got {obj.pattern_rows_.tolist()}")
+        return obj
