@@ -48,3 +48,15 @@ def test_main_job_writes_tables_and_figures(tmp_path):
     run(tmp_path / "out", db_path=tmp_path / "p.sqlite3", n_random=12, kinds={"template": {}}, n_jobs=1)
     assert len(store) == 4 * 5
     assert "leave-one-J1-out" in result.report()
+
+
+def test_main_job_pattern_sets_load_back_for_every_kind(tmp_path):
+    from engine.identification.training import identifier_from_pattern_set
+
+    run(tmp_path / "out", db_path=tmp_path / "p.sqlite3", n_random=6, kinds={"template": {}, "paper": {}}, n_jobs=1)
+    store = PatternStore(tmp_path / "p.sqlite3")
+    rec = simulate_batch(paper_grid(1.0, (0.85,), (0.005,))).channel("v2")[0]
+    for kind in ("template", "paper"):
+        ps = store.find_nearest("v2", 1.0, kind=kind)
+        assert ps.params["source"] == "main-job"
+        assert identifier_from_pattern_set(ps).identify(rec).D.shape == (6,)

@@ -123,5 +123,7 @@ def identifier_from_pattern_set(ps: PatternSet):
         cls = IDENTIFIERS[ps.kind]
     except KeyError:
         raise ValueError(f"pattern set {ps.id} has unknown identifier kind {ps.kind!r}") from None
-    params = {k: v for k, v in ps.params.items() if k != "effects"}
+    # stored params also carry metadata (effects, source, ...): pass only constructor parameters
+    accepted = set(inspect.signature(cls).parameters)
+    params = {k: v for k, v in ps.params.items() if k in accepted}
     return cls.from_arrays(params, ps.arrays)

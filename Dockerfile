@@ -1,0 +1,51 @@
+# The backlash service: `docker build -t backlash .` then
+#   docker run -p 8000:8000 -v backlash-data:/data backlash
+# Settings are BACKLASH_* environment variables (see app/core/config.py); the pattern
+# store lives on the /data volume. Other commands: docker run backlash backlash --help
+FROM python:3.11-slim
+
+ENV PYTHONDONTWRITEBYTECODE=1 \
+    PYTHONUNBUFFERED=1 \
+    PIP_NO_CACHE_DIR=1 \
+    PIP_DISABLE_PIP_VERSION_CHECK=1 \
+    NUMBA_CACHE_DIR=/home/app/.cache/numba \
+    NUMBA_THREADING_LAYER=omp \
+    BACKLASH_DB_PATH=/data/patterns.sqlite3
+
+# libgomp: numba's OpenMP threading layer, safe when several threads simulate at once
+RUN apt-get update \
+    && apt-get install -y --no-install-recommends libgomp1 \
+    && rm -rf /var/lib/apt/lists/* \
+    && useradd --create-home --uid 10001 --shell /usr/sbin/nologin app \
+    && mkdir -p /data "$NUMBA_CACHE_DIR" \
+    && chown app:app /data "$NUMBA_CACHE_DIR"
+
+WORKDIR /app
+
+# 1. the dependencies alone: this layer is rebuilt only when pyproject.toml changes
+COPY pyproject.toml ./
+RUN python -c "import tomllib; print('\n'.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['dependencies']))" \
+        > /tmp/requirements.txt \
+    && pip install -r /tmp/requirements.txt \
+    && rm /tmp/requirements.txt
+
+# 2. the code
+COPY README.md ./
+COPY engine ./engine
+COPY app ./app
+COPY bench ./bench
+# (the sources are removed after installing, so every import, the numba cache's included, uses site-packages)
+RUN pip install --no-deps . \
+    && rm -rf build ./*.egg-info engine app \
+    && chown app:app /app
+
+USER app
+
+# compile the numba kernels into NUMBA_CACHE_DIR now, so the first request is fast
+RUN python -c "from engine.simulation import PlantParameters, simulate; simulate(PlantParameters())"
+
+VOLUME ["/data"]
+EXPOSE 8000
+HEALTHCHECK --interval=30s --timeout=5s --start-period=60s --retries=3 \
+    CMD ["python", "-c", "import sys, urllib.request; sys.exit(0 if urllib.request.urlopen('http://127.0.0.1:8000/healthz', timeout=4).status == 200 else 1)"]
+CMD ["backlash", "serve", "--host", "0.0.0.0", "--port", "8000"]

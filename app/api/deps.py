@@ -1,0 +1,116 @@
+"""Dependencies of the routes: settings, the pattern store, the job manager, record bodies."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, TypeVar
+
+from fastapi import Depends, HTTPException, Query, Request
+from fastapi.exceptions import RequestValidationError
+from pydantic import BaseModel, ValidationError
+
+from app.core.config import Settings
+from app.jobs import JobManager
+from app.records_io import RecordFormatError, record_from_csv
+from app.services.errors import InvalidInputError
+from engine.constants import EVENT_INDEX, N_SAMPLES, SAMPLE_INTERVAL
+from engine.records import Record
+from engine.storage import PatternStore
+
+M = TypeVar("M", bound=BaseModel)
+
+
+def get_settings(request: Request) -> Settings:
+    return request.app.state.settings
+
+
+def get_store(request: Request) -> PatternStore:
+    return request.app.state.store
+
+
+def get_jobs(request: Request) -> JobManager:
+    return request.app.state.jobs
+
+
+SettingsDep = Annotated[Settings, Depends(get_settings)]
+StoreDep = Annotated[PatternStore, Depends(get_store)]
+JobsDep = Annotated[JobManager, Depends(get_jobs)]
+
+
+# -- bodies that are JSON or a record's CSV form ---------------------------------------
+
+CSV_MEDIA_TYPES = ("text/csv", "application/csv")
+
+
+def body_kind(request: Request) -> Literal["json", "csv"]:
+    """``json`` or ``csv`` from the Content-Type (no Content-Type means JSON); 415 otherwise."""
+    media = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if media in ("", "application/json") or media.endswith("+json"):
+        return "json"
+    if media in CSV_MEDIA_TYPES:
+        return "csv"
+    raise HTTPException(
+        415,
+        f"unsupported Content-Type {media!r}: send the JSON body as application/json, "
+        "or the record's CSV form as text/csv",
+    )
+
+
+async def json_body(request: Request, model: type[M]) -> M:
+    """The request body validated as ``model`` (errors as FastAPI's, located under ``body``)."""
+    raw = await request.body()
+    if not raw.strip():
+        raise RequestValidationError([{"type": "missing", "loc": ("body",), "msg": "a JSON body is required"}])
+    try:
+        return model.model_validate_json(raw)
+    except ValidationError as exc:
+        raise RequestValidationError(
+            [{**e, "loc": ("body", *e["loc"])} for e in exc.errors(include_url=False, include_input=False)]
+        ) from None
+
+
+class CSVRecordParams:
+    """Query parameters that complete a record sent in CSV form."""
+
+    def __init__(
+        self,
+        sample_interval: Annotated[
+            float, Query(gt=0, allow_inf_nan=False, description="CSV form: Ts [s].")
+        ] = SAMPLE_INTERVAL,
+        event_index: Annotated[
+            int, Query(ge=0, lt=N_SAMPLES, description="CSV form: index of the sample at t_e.")
+        ] = EVENT_INDEX,
+        J1: Annotated[float | None, Query(allow_inf_nan=False, description="CSV form: known J1 [kg m^2].")] = None,
+        c: Annotated[float | None, Query(allow_inf_nan=False, description="CSV form: known c [pu].")] = None,
+        c1: Annotated[float | None, Query(allow_inf_nan=False, description="CSV form: known c1 [pu].")] = None,
+        K: Annotated[float | None, Query(allow_inf_nan=False, description="CSV form: known K [m].")] = None,
+    ) -> None:
+        self.sample_interval = sample_interval
+        self.event_index = event_index
+        self.conditions = {k: v for k, v in {"J1": J1, "c": c, "c1": c1, "K": K}.items() if v is not None}
+
+
+CSVRecordDep = Annotated[CSVRecordParams, Depends()]
+
+
+async def csv_record(request: Request, params: CSVRecordParams) -> Record:
+    """The record sent in CSV form (header of channel names, one row per sample)."""
+    raw = await request.body()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise RecordFormatError(f"the CSV is not UTF-8 text (byte {exc.start} is invalid)") from None
+    return record_from_csv(text, params.sample_interval, params.event_index, params.conditions)
+
+
+def reject_query(request: Request, names: tuple[str, ...]) -> None:
+    """Query parameters meant for the CSV form must not accompany a JSON body."""
+    given = [n for n in names if n in request.query_params]
+    if given:
+        raise InvalidInputError(
+            f"query parameter(s) {', '.join(given)} apply only to a record sent as CSV (Content-Type: text/csv); "
+            "with a JSON body put them in the body"
+        )
+
+
+#: Query parameters of the CSV form of record bodies.
+CSV_QUERY = ("sample_interval", "event_index", "J1", "c", "c1", "K")

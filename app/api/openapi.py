@@ -1,0 +1,57 @@
+"""OpenAPI documentation of the routes that read their body themselves (JSON or a record's CSV form)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import FastAPI
+from fastapi.openapi.utils import get_openapi
+from pydantic import BaseModel
+
+from app.api.middleware import API_KEY_HEADER
+from engine.constants import CHANNELS
+
+#: Body models documented by :func:`body_schema`; added to the components by :func:`install_openapi`.
+_BODY_MODELS: dict[str, type[BaseModel]] = {}
+
+_CSV_EXAMPLE = ",".join(CHANNELS) + "\n" + ",".join("0.0" for _ in CHANNELS) + "\n...(2048 rows in all)\n"
+
+
+def body_schema(model: type[BaseModel], csv: bool = False) -> dict[str, Any]:
+    """``openapi_extra`` for a route whose body is ``model`` as JSON (or, with ``csv``, a record's CSV form)."""
+    _BODY_MODELS[model.__name__] = model
+    content: dict[str, Any] = {"application/json": {"schema": {"$ref": f"#/components/schemas/{model.__name__}"}}}
+    if csv:
+        content["text/csv"] = {
+            "schema": {"type": "string", "description": "Header row of channel names, then one row per sample "
+                                                         "(2048); the other values as query parameters."},
+            "example": _CSV_EXAMPLE,
+        }
+    return {"requestBody": {"required": True, "content": content}}
+
+
+def install_openapi(app: FastAPI) -> None:
+    """Make ``app.openapi()`` include the body models of :func:`body_schema`."""
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema:
+            return app.openapi_schema
+        schema = get_openapi(title=app.title, version=app.version, description=app.description, routes=app.routes)
+        components = schema.setdefault("components", {}).setdefault("schemas", {})
+        for name, model in _BODY_MODELS.items():
+            js = model.model_json_schema(ref_template="#/components/schemas/{model}")
+            for sub, sub_schema in js.pop("$defs", {}).items():
+                components.setdefault(sub, sub_schema)
+            components.setdefault(name, js)
+        if getattr(app.state, "settings", None) is not None and app.state.settings.api_key is not None:
+            schema["components"]["securitySchemes"] = {
+                "APIKeyHeader": {"type": "apiKey", "in": "header", "name": API_KEY_HEADER}
+            }
+            schema["security"] = [{"APIKeyHeader": []}]
+        app.openapi_schema = schema
+        return schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
+
+
+__all__ = ["body_schema", "install_openapi"]

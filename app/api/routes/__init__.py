@@ -1,0 +1,1 @@
+"""One router per resource; :mod:`app.api.main` includes them all."""

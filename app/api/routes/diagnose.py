@@ -1,0 +1,41 @@
+"""POST /v1/diagnose: the sim-to-real gap diagnosis (issue 4; 501 until the engine provides it)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter, Request
+from starlette.concurrency import run_in_threadpool
+
+from app.api.deps import CSV_QUERY, CSVRecordDep, body_kind, csv_record, json_body, reject_query
+from app.api.openapi import body_schema
+from app.schemas.common import ErrorPublic
+from app.schemas.diagnose import DiagnoseCreate
+from app.services import diagnosis
+from engine.simulation import CATALOGUE
+
+router = APIRouter(prefix="/diagnose", tags=["diagnose"])
+
+
+@router.post(
+    "",
+    summary="Diagnose the gap between a record and the model",
+    openapi_extra=body_schema(DiagnoseCreate, csv=True),
+    responses={
+        422: {"model": ErrorPublic, "description": "Invalid record or unknown effect"},
+        501: {"model": ErrorPublic, "description": "Not available in this version"},
+    },
+)
+async def diagnose(request: Request, csv_params: CSVRecordDep) -> Any:
+    """Where the record differs from the calibrated simulation, which unmodelled effect explains it and how far
+    the gap shrinks with it. The body is ``{"record": ..., "effects": [...]}`` as JSON, or the record's CSV form.
+    """
+    if body_kind(request) == "csv":
+        record, effects = await csv_record(request, csv_params), None
+    else:
+        reject_query(request, CSV_QUERY)
+        body = await json_body(request, DiagnoseCreate)
+        record, effects = body.record.to_record(), body.effects
+    for name in effects or ():
+        CATALOGUE[name]  # UnknownEffectError (422) names the known effects
+    return await run_in_threadpool(diagnosis.diagnose, record, effects)

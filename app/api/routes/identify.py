@@ -1,0 +1,57 @@
+"""POST /v1/identify: the backlash width of a record, from a stored pattern set."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Query, Request
+from starlette.concurrency import run_in_threadpool
+
+from app.api.deps import CSV_QUERY, CSVRecordDep, StoreDep, body_kind, csv_record, json_body, reject_query
+from app.api.openapi import body_schema
+from app.schemas.common import ChannelName, ErrorPublic
+from app.schemas.identify import IdentificationPublic, IdentifyCreate
+from app.services import identification
+from app.services.errors import InvalidInputError
+
+router = APIRouter(prefix="/identify", tags=["identify"])
+
+
+@router.post(
+    "",
+    response_model=IdentificationPublic,
+    summary="Identify the backlash width of a record",
+    openapi_extra=body_schema(IdentifyCreate, csv=True),
+    responses={
+        400: {"model": ErrorPublic, "description": "Malformed JSON or CSV"},
+        404: {"model": ErrorPublic, "description": "No (matching) pattern set stored"},
+        415: {"model": ErrorPublic, "description": "Body neither JSON nor CSV"},
+        422: {"model": ErrorPublic, "description": "Invalid record or request"},
+    },
+)
+async def identify(
+    request: Request,
+    store: StoreDep,
+    csv_params: CSVRecordDep,
+    channel: Annotated[ChannelName | None, Query(description="CSV form: the channel to identify from.")] = None,
+    pattern_set: Annotated[str | None, Query(description="CSV form: id of the pattern set.")] = None,
+    kind: Annotated[str | None, Query(description="CSV form: only choose sets of this kind.")] = None,
+) -> Any:
+    """Identify with the pattern set ``pattern_set``, or else the stored set of ``channel`` whose c
+    is nearest the record's ``conditions.c`` (nominal c = 1.0 if the record has none); the answer
+    says which set was used and why.
+
+    The body is ``{"record": ..., "channel": ..., "pattern_set": ...}`` as JSON, or the record's
+    CSV form (``Content-Type: text/csv``) with ``channel``, ``pattern_set``, ``sample_interval``,
+    ``event_index`` and the known conditions (``c``, ``J1``, ...) as query parameters.
+    """
+    if body_kind(request) == "csv":
+        if channel is None:
+            raise InvalidInputError("with a CSV body, give the channel to identify from as query parameter ?channel=")
+        record = await csv_record(request, csv_params)
+        args = (record, channel, pattern_set, kind)
+    else:
+        reject_query(request, (*CSV_QUERY, "channel", "pattern_set", "kind"))
+        body = await json_body(request, IdentifyCreate)
+        args = (body.record.to_record(), body.channel, body.pattern_set, body.kind)
+    return await run_in_threadpool(identification.identify_from_store, store, *args)

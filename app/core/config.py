@@ -1,0 +1,93 @@
+"""The service's settings: one validated ``BaseSettings``, read from ``BACKLASH_*`` environment variables.
+
+=========================  =====================================  ==========================
+environment variable        meaning                                default
+=========================  =====================================  ==========================
+``BACKLASH_DB_PATH``        pattern-store SQLite file              ``./data/patterns.sqlite3``
+``BACKLASH_API_KEY``        if set, every request but ``/healthz``  unset (no key needed)
+                            needs the header ``X-API-Key``
+``BACKLASH_MAX_BODY_BYTES`` largest request body [bytes] (413)     8 MiB
+``BACKLASH_MAX_BATCH_CASES`` most cases in one batch simulation    64
+``BACKLASH_WORKERS``        background training threads            1
+``BACKLASH_MAX_PENDING_JOBS`` queued + running jobs before 429     16
+``BACKLASH_LOG_LEVEL``      DEBUG, INFO, WARNING, ERROR            INFO
+=========================  =====================================  ==========================
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import Field, SecretStr, field_validator
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+#: Prefix of every environment variable the service reads.
+ENV_PREFIX = "BACKLASH_"
+#: Path prefix of the versioned API.
+API_V1_STR = "/v1"
+
+LogLevel = Literal["DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL"]
+
+
+class Settings(BaseSettings):
+    """Validated service settings (see the module docstring for the environment variables)."""
+
+    model_config = SettingsConfigDict(
+        env_prefix=ENV_PREFIX,
+        env_ignore_empty=True,
+        extra="ignore",
+        frozen=True,
+    )
+
+    db_path: Path = Field(
+        default=Path("data") / "patterns.sqlite3",
+        description="Pattern-store SQLite file; created with its directory if missing. Must be on a local file system.",
+    )
+    api_key: SecretStr | None = Field(
+        default=None,
+        description="If set, every request but /healthz must send it in the X-API-Key header.",
+    )
+    max_body_bytes: Annotated[int, Field(ge=1024, le=1 << 30)] = Field(
+        default=8 << 20, description="Largest accepted request body [bytes]; larger bodies get 413."
+    )
+    max_batch_cases: Annotated[int, Field(ge=1, le=10_000)] = Field(
+        default=64, description="Most cases in one POST /v1/simulate/batch request."
+    )
+    workers: Annotated[int, Field(ge=1, le=64)] = Field(
+        default=1, description="Background threads that train pattern sets."
+    )
+    max_pending_jobs: Annotated[int, Field(ge=1, le=10_000)] = Field(
+        default=16, description="Queued plus running training jobs before new ones are refused with 429."
+    )
+    log_level: LogLevel = Field(default="INFO", description="Log level of the service and the engine.")
+
+    @field_validator("log_level", mode="before")
+    @classmethod
+    def _upper_log_level(cls, value: object) -> object:
+        return value.strip().upper() if isinstance(value, str) else value
+
+    @field_validator("api_key")
+    @classmethod
+    def _check_api_key(cls, value: SecretStr | None) -> SecretStr | None:
+        if value is None:
+            return None
+        key = value.get_secret_value()
+        if len(key) < 8 or key != key.strip():
+            raise ValueError("api_key must be at least 8 characters without surrounding whitespace")
+        return value
+
+    @field_validator("db_path")
+    @classmethod
+    def _check_db_path(cls, value: Path) -> Path:
+        text = str(value)
+        if text in ("", ".", ":memory:") or text.startswith("file:"):
+            raise ValueError(f"db_path must be a database file path, got {text!r}")
+        return value.expanduser()
+
+
+@lru_cache
+def get_settings() -> Settings:
+    """The settings from the environment, read once per process."""
+    return Settings()

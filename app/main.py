@@ -1,0 +1,82 @@
+"""The FastAPI application: ``create_app(settings)`` and the module-level ``app`` for uvicorn.
+
+Run it with ``backlash serve`` (or ``uvicorn app.main:app``); settings come from
+``BACKLASH_*`` environment variables (:mod:`app.core.config`).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+from fastapi import FastAPI
+from fastapi.routing import APIRoute
+
+from app.api.errors import register_exception_handlers
+from app.api.main import api_router
+from app.api.middleware import ApiKeyMiddleware, BodySizeLimitMiddleware
+from app.api.openapi import install_openapi
+from app.api.routes import health
+from app.api.routes.health import package_version
+from app.core.config import API_V1_STR, Settings, get_settings
+from app.core.logging import setup_logging
+from app.jobs import JobManager
+from engine.constants import MODEL_VERSION
+from engine.storage import PatternStore
+
+logger = logging.getLogger(__name__)
+
+DESCRIPTION = f"""
+Diagnostic service for mechanical backlash in electric drives (reference model {MODEL_VERSION}).
+
+* **simulate** the backlash test of a case (`POST {API_V1_STR}/simulate`),
+* **train** a pattern set in the background (`POST {API_V1_STR}/pattern-sets`, then `GET {API_V1_STR}/jobs/{{id}}`),
+* **identify** the backlash width of a record (`POST {API_V1_STR}/identify`).
+
+Records are JSON (`{{"sample_interval", "event_index", "channels", "conditions"}}`) or CSV (a header row of
+channel names, one row per sample). When the service has an API key, every request but `/healthz`
+needs the header `X-API-Key`.
+"""
+
+
+def _operation_id(route: APIRoute) -> str:
+    return f"{route.tags[0]}-{route.name}" if route.tags else route.name
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """Build the application; the pattern store is opened and the job threads started on startup."""
+    settings = settings or get_settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        setup_logging(settings.log_level)
+        app.state.store = PatternStore(settings.db_path)
+        app.state.jobs = JobManager(workers=settings.workers, max_pending=settings.max_pending_jobs)
+        logger.info("pattern store %s (%d sets); %d training worker(s); API key %s",
+                    app.state.store.path, len(app.state.store), settings.workers,
+                    "required" if settings.api_key else "not required")
+        try:
+            yield
+        finally:
+            app.state.jobs.shutdown(wait=True)
+
+    app = FastAPI(
+        title="backlash",
+        version=package_version(),
+        description=DESCRIPTION,
+        lifespan=lifespan,
+        generate_unique_id_function=_operation_id,
+    )
+    app.state.settings = settings
+    register_exception_handlers(app)
+    app.add_middleware(BodySizeLimitMiddleware, max_body_bytes=settings.max_body_bytes)
+    if settings.api_key is not None:  # outermost: refuse before reading any body
+        app.add_middleware(ApiKeyMiddleware, api_key=settings.api_key.get_secret_value())
+    app.include_router(health.router)
+    app.include_router(api_router, prefix=API_V1_STR)
+    install_openapi(app)
+    return app
+
+
+app = create_app()

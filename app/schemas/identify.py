@@ -1,0 +1,46 @@
+"""Identification requests and responses."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from app.schemas.common import ChannelName, RecordIn
+
+
+class IdentifyCreate(BaseModel):
+    """Identify the backlash width of a record with a stored pattern set."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    record: RecordIn
+    channel: ChannelName = Field(description="Channel of the record to identify from; the pattern set's channel.")
+    pattern_set: str | None = Field(
+        default=None,
+        description="Id of the pattern set; default: the stored set of this channel whose c is nearest the "
+        "record's conditions.c (nominal c = 1.0 when the record does not give c).",
+    )
+    kind: str | None = Field(default=None, description="Only choose pattern sets of this identifier kind.")
+
+
+class IdentificationPublic(BaseModel):
+    D: list[float] = Field(description="D(i) = sum_j |Wt(j) - Ww(i,j)| for the six widths [-].")
+    index: int = Field(ge=1, le=6, description="1-based index of the smallest D (the paper's nr5).")
+    width: float = Field(description="Identified backlash zone width K [m].")
+    widths: list[float] = Field(description="The six widths K [m] that D refers to, in order.")
+    epochs: int = Field(description="Epochs the record's own network needed.")
+    rms: float = Field(description="RMS output error of the record's network [-].")
+    converged: bool = Field(description="Whether that network reached RMS < delta1 before the epoch cap.")
+    channel: str
+    pattern_set: str = Field(description="Id of the pattern set used.")
+    kind: str = Field(description="Identifier kind of the pattern set.")
+    pattern_set_c: float = Field(description="c of the pattern set used [pu].")
+    selection: Literal["requested", "exact", "nearest"] = Field(
+        description="requested: named in the request; exact: its c equals c_used; "
+        "nearest: the stored set with the nearest c."
+    )
+    c_used: float | None = Field(description="c [pu] used to choose the set (null when the set was requested).")
+    c_source: Literal["record", "nominal"] | None = Field(
+        description="Where c_used came from: the record's conditions, or the nominal c = 1.0."
+    )

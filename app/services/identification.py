@@ -1,0 +1,152 @@
+"""Identification for the service: choose a stored pattern set, rebuild its identifier, identify a record."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+from app.services.errors import IncompatibleError, NotFoundError
+from app.services.patterns import DEFAULT_KIND, identifier_from_pattern_set
+from engine.constants import EVENT_INDEX, K_GRID, MODEL_VERSION, SAMPLE_INTERVAL
+from engine.identification import IdentificationResult
+from engine.records import Record
+from engine.simulation import PlantParameters
+from engine.storage import PatternSet, PatternSetNotFound, PatternStore
+
+#: c used to choose a pattern set when the record's conditions do not give one (MODEL.md default).
+NOMINAL_C: float = PlantParameters().c
+
+
+@dataclass(frozen=True)
+class Selection:
+    """Which pattern set identifies a record, and why.
+
+    Attributes
+    ----------
+    pattern_set : PatternSet
+    how : {"requested", "exact", "nearest"}
+        ``requested``: named by the caller; ``exact``: its c equals the c used;
+        ``nearest``: the stored set of that channel with the nearest c.
+    c_used : float or None
+        c [pu] used to choose the set (``None`` when the set was requested).
+    c_source : {"record", "nominal"} or None
+        Where ``c_used`` came from: the record's conditions or the nominal c = 1.0.
+    """
+
+    pattern_set: PatternSet
+    how: Literal["requested", "exact", "nearest"]
+    c_used: float | None
+    c_source: Literal["record", "nominal"] | None
+
+
+def not_found_message(set_id: str) -> str:
+    return (
+        f"no pattern set with id {set_id!r} is stored; list the stored sets with GET /v1/pattern-sets "
+        "(or `backlash pattern-sets list`)"
+    )
+
+
+def get_pattern_set(store: PatternStore, set_id: str) -> PatternSet:
+    """The stored set ``set_id``; :class:`NotFoundError` if there is none."""
+    try:
+        return store.get(set_id)
+    except PatternSetNotFound:
+        raise NotFoundError(not_found_message(set_id)) from None
+
+
+def select_pattern_set(
+    store: PatternStore,
+    channel: str,
+    record: Record,
+    set_id: str | None = None,
+    kind: str | None = None,
+) -> Selection:
+    """The set named by ``set_id``, else the stored set of ``channel`` whose c is nearest the record's c.
+
+    The record's c comes from ``record.conditions["c"]``; without it the nominal
+    c = 1.0 is used. Only sets of the current model version (and of ``kind``, if
+    given) are chosen; among equally near sets the default kind wins, then the newest.
+    """
+    if set_id is not None:
+        ps = get_pattern_set(store, set_id)
+        if ps.channel != channel:
+            raise IncompatibleError(
+                f"pattern set {set_id!r} was trained on channel {ps.channel!r}, not {channel!r}; "
+                f"identify with channel {ps.channel!r} or choose a set of channel {channel!r}"
+            )
+        if kind is not None and ps.kind != kind:
+            raise IncompatibleError(f"pattern set {set_id!r} is of kind {ps.kind!r}, not {kind!r}")
+        if ps.model_version != MODEL_VERSION:
+            raise IncompatibleError(
+                f"pattern set {set_id!r} was trained on model version {ps.model_version}, this engine implements "
+                f"{MODEL_VERSION}; train a new set"
+            )
+        return Selection(ps, "requested", None, None)
+    c = record.conditions.get("c")
+    source: Literal["record", "nominal"] = "record" if c is not None else "nominal"
+    c_used = float(c) if c is not None else NOMINAL_C
+    ps = store.find_nearest(channel, c_used, kind=kind, model_version=MODEL_VERSION)
+    if ps is not None and kind is None and ps.kind != DEFAULT_KIND:
+        # equally near sets of several kinds: prefer the default kind over the most recent one
+        alt = store.find_nearest(channel, c_used, kind=DEFAULT_KIND, model_version=MODEL_VERSION)
+        if alt is not None and math.isclose(abs(alt.c - c_used), abs(ps.c - c_used), rel_tol=1e-9, abs_tol=1e-12):
+            ps = alt
+    if ps is None:
+        what = f"channel {channel!r}" + (f" and kind {kind!r}" if kind else "")
+        raise NotFoundError(
+            f"no pattern set for {what} (model version {MODEL_VERSION}) is stored; train one first, e.g. "
+            f'POST /v1/pattern-sets {{"channel": "{channel}", "c": {c_used:g}}}'
+        )
+    how: Literal["exact", "nearest"] = "exact" if math.isclose(ps.c, c_used, rel_tol=1e-9, abs_tol=1e-12) else "nearest"
+    return Selection(ps, how, c_used, source)
+
+
+def check_record(record: Record, channel: str) -> None:
+    """The record must hold ``channel`` and follow the test protocol the patterns are trained on.
+
+    Raises
+    ------
+    engine.records.RecordError
+        The record lacks the channel.
+    IncompatibleError
+        Another sample interval or event index than MODEL.md's.
+    """
+    record[channel]
+    if not math.isclose(record.sample_interval, SAMPLE_INTERVAL, rel_tol=1e-9) or record.event_index != EVENT_INDEX:
+        raise IncompatibleError(
+            f"the pattern sets are trained on records with sample_interval {SAMPLE_INTERVAL} s and event_index "
+            f"{EVENT_INDEX} (MODEL.md section 2); this record has sample_interval {record.sample_interval} s and "
+            f"event_index {record.event_index}: resample or realign it"
+        )
+
+
+def identify(record: Record, channel: str, pattern_set: PatternSet) -> IdentificationResult:
+    """Identify the backlash width of ``record`` on ``channel`` with a stored pattern set (see :func:`check_record`)."""
+    check_record(record, channel)
+    return identifier_from_pattern_set(pattern_set).identify(record[channel])
+
+
+def identify_from_store(
+    store: PatternStore, record: Record, channel: str, set_id: str | None = None, kind: str | None = None
+) -> dict:
+    """Choose the pattern set (:func:`select_pattern_set`), identify, and describe the outcome (JSON-ready)."""
+    check_record(record, channel)
+    sel = select_pattern_set(store, channel, record, set_id=set_id, kind=kind)
+    res = identify(record, channel, sel.pattern_set)
+    return {
+        "D": [float(d) for d in res.D],
+        "index": int(res.index),
+        "width": float(res.width),
+        "widths": [float(k) for k in K_GRID],
+        "epochs": int(res.epochs),
+        "rms": float(res.rms),
+        "converged": bool(res.converged),
+        "channel": channel,
+        "pattern_set": sel.pattern_set.id,
+        "kind": sel.pattern_set.kind,
+        "pattern_set_c": sel.pattern_set.c,
+        "selection": sel.how,
+        "c_used": sel.c_used,
+        "c_source": sel.c_source,
+    }

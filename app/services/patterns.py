@@ -1,0 +1,55 @@
+"""Identifier kinds and stored pattern sets, as the service presents them.
+
+Training and rebuilding identifiers is the engine's
+(:mod:`engine.identification.training`); this module turns its errors into the
+service's and describes stored sets as JSON.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from app.services.errors import IncompatibleError, InvalidInputError
+from engine.identification import training as engine_training
+from engine.storage import PatternSet, PatternSetSummary
+
+#: Identifier kinds the engine can train and load.
+IDENTIFIER_KINDS: tuple[str, ...] = tuple(engine_training.IDENTIFIERS)
+#: Kind used when a request names none (the engine's default).
+DEFAULT_KIND: str = engine_training.DEFAULT_KIND
+
+
+def check_identifier(kind: str, channel: str, params: dict[str, Any]) -> None:
+    """Raise :class:`InvalidInputError` if the engine cannot build this identifier (unknown kind or parameter)."""
+    try:
+        engine_training.make_identifier(kind, channel, **params)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(str(exc)) from None
+
+
+def identifier_from_pattern_set(pattern_set: PatternSet) -> Any:
+    """Rebuild the fitted identifier stored in ``pattern_set`` (:class:`IncompatibleError` if it cannot be)."""
+    try:
+        return engine_training.identifier_from_pattern_set(pattern_set)
+    except (TypeError, ValueError) as exc:
+        raise IncompatibleError(f"pattern set {pattern_set.id!r} cannot be loaded: {exc}; train it again") from None
+
+
+def describe(pattern_set: PatternSet | PatternSetSummary) -> dict[str, Any]:
+    """A stored set's metadata, JSON-ready (arrays listed by name and shape)."""
+    if isinstance(pattern_set, PatternSet):
+        shapes = {name: list(arr.shape) for name, arr in pattern_set.arrays.items()}
+    else:
+        shapes = {name: list(shape) for name, shape in pattern_set.array_shapes.items()}
+    return {
+        "id": pattern_set.id,
+        "kind": pattern_set.kind,
+        "channel": pattern_set.channel,
+        "c": pattern_set.c,
+        "J1_values": list(pattern_set.j1_values),
+        "wavelet": pattern_set.wavelet,
+        "params": pattern_set.params,
+        "model_version": pattern_set.model_version,
+        "created_at": pattern_set.created_at,
+        "arrays": shapes,
+    }

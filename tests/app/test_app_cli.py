@@ -1,0 +1,190 @@
+"""The ``backlash`` command (app/cli.py): subcommands mirror the endpoints; records as JSON or CSV files."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import types
+from pathlib import Path
+from typing import Any
+
+import pytest
+from servicekit import SMALL_TRAINING, clean_env
+
+from app import cli
+from engine.constants import CHANNELS, N_SAMPLES
+
+
+@pytest.fixture
+def env(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Path:
+    """No BACKLASH_* variables but the database path; returns the database path."""
+    for k in list(os.environ):
+        if k.startswith("BACKLASH_"):
+            monkeypatch.delenv(k)
+    db = tmp_path / "db" / "patterns.sqlite3"
+    monkeypatch.setenv("BACKLASH_DB_PATH", str(db))
+    return db
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    code = cli.main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _train(capsys: pytest.CaptureFixture[str]) -> dict[str, Any]:
+    j1 = [str(v) for v in SMALL_TRAINING["J1_values"]]
+    code, out, err = run(capsys, "train", "--channel", "v2", "--c", "1.0", "--J1", *j1, "--kind", "paper",
+                         "--max-epochs", str(SMALL_TRAINING["max_epochs"]))
+    assert code == 0, err
+    assert "[100%] done" in err
+    return json.loads(out)
+
+
+def test_simulate_train_identify_round_trip(env: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    csv_path, json_path = tmp_path / "rec.csv", tmp_path / "rec.json"
+    assert run(capsys, "simulate", "--K", "0.005", "--out", str(csv_path))[0] == 0
+    assert run(capsys, "simulate", "--K", "0.005", "--out", str(json_path))[0] == 0
+    lines = csv_path.read_text().splitlines()
+    assert lines[0].split(",") == list(CHANNELS) and len(lines) == N_SAMPLES + 1
+    rec = json.loads(json_path.read_text())
+    assert rec["conditions"]["K"] == 0.005 and rec["event_time"] > 0
+
+    stored = _train(capsys)
+    assert env.exists()
+    assert (stored["channel"], stored["c"], stored["J1_values"]) == ("v2", 1.0, SMALL_TRAINING["J1_values"])
+
+    code, out, err = run(capsys, "identify", str(csv_path), "--channel", "v2", "--c", "1.0")
+    assert code == 0, err
+    from_csv = json.loads(out)
+    assert (from_csv["index"], from_csv["width"], from_csv["pattern_set"]) == (3, 0.005, stored["id"])
+    assert (from_csv["selection"], from_csv["c_source"]) == ("exact", "record")
+    code, out, _ = run(capsys, "identify", str(json_path), "--channel", "v2", "--pattern-set", stored["id"])
+    assert code == 0 and json.loads(out)["D"] == from_csv["D"]
+
+
+def test_simulate_to_stdout_with_effects_and_batch(env: Path, tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "simulate", "--K", "0.0075", "--J1", "0.8", "--effect", "motor_coulomb_friction=0.02")
+    assert code == 0
+    assert json.loads(out)["conditions"] == {"J1": 0.8, "c": 1.0, "c1": 0.2, "K": 0.0075}
+    cases = tmp_path / "cases.json"
+    cases.write_text(json.dumps([{"K": 0.0025}, {"K": 0.01, "effects": {"supply_voltage": 0.9}}]))
+    code, out, _ = run(capsys, "simulate", "--cases", str(cases))
+    assert code == 0
+    batch = json.loads(out)
+    assert batch["count"] == 2 and [d["conditions"]["K"] for d in batch["data"]] == [0.0025, 0.01]
+
+
+def test_pattern_sets_list_show_delete(env: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    stored = _train(capsys)
+    code, out, _ = run(capsys, "pattern-sets", "list", "--channel", "v2")
+    assert code == 0 and [s["id"] for s in json.loads(out)["data"]] == [stored["id"]]
+    code, out, _ = run(capsys, "pattern-sets", "show", stored["id"])
+    assert code == 0 and json.loads(out)["arrays"]["patterns"] == [6, 15]
+    code, _, err = run(capsys, "pattern-sets", "delete", stored["id"])
+    assert code == 0 and stored["id"] in err
+    code, _, err = run(capsys, "pattern-sets", "show", stored["id"])
+    assert code == 2 and "no pattern set with id" in err
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["simulate", "--K", "0.5"], "K = 0.5 m is outside the accepted range"),
+    (["simulate", "--K", "0.005", "--effect", "magic=1"], "unknown effect 'magic'"),
+    (["simulate"], "give the backlash width with --K"),
+    (["train", "--channel", "v2", "--c", "1.0", "--J1", "0.87", "0.87"], "repeat a value"),
+    (["train", "--channel", "v2", "--c", "1.0", "--kind", "magic"], "unknown identifier kind 'magic'"),
+    (["train", "--channel", "v2", "--c", "1.0", "--kind", "template", "--max-epochs", "3"],
+     "has no parameter(s) ['max_epochs']"),
+    (["identify", "missing.csv", "--channel", "v2"], "cannot read record file"),
+    (["identify", "record.txt", "--channel", "v2"], "must end in .json or .csv"),
+    (["identify", "short.csv", "--channel", "v2"], "the CSV has 3 data rows"),
+    (["identify", "full.csv", "--channel", "v2"], "no pattern set for channel 'v2'"),
+    (["identify", "nan.json", "--channel", "v2"], "the JSON holds NaN, which is not a number"),
+    (["diagnose", "full.csv"], "not available yet"),
+])
+def test_user_errors_exit_2_with_a_message(env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                           capsys: pytest.CaptureFixture[str], argv: list[str], message: str) -> None:
+    monkeypatch.chdir(tmp_path)
+    Path("record.txt").write_text("x")
+    Path("short.csv").write_text("v2\n1\n2\n3\n")
+    Path("full.csv").write_text("v2\n" + "0.5\n" * N_SAMPLES)
+    Path("nan.json").write_text('{"channels": {"v2": [NaN]}}')
+    code, out, err = run(capsys, *argv)
+    assert code == 2, err
+    assert message in err and err.startswith("backlash: error:")
+    assert out == ""
+
+
+def test_bad_usage_is_argparse_exit_2(env: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["simulate", "--K", "0.005", "--effect", "no-equals-sign"])
+    assert exc.value.code == 2
+    assert "NAME=VALUE" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["simulate", "--K", "nan"])
+    assert "not a finite number" in capsys.readouterr().err
+
+
+def test_run_calls_the_main_job(env: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    calls: list[Any] = []
+    fake = types.ModuleType("engine.evaluation.main_job")
+    fake.run = lambda out_dir: calls.append(out_dir)  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "engine.evaluation.main_job", fake)
+    assert run(capsys, "run", "--out", "somewhere")[0] == 0
+    assert calls == [Path("somewhere")]
+
+
+def test_validate_calls_the_blind_validation(env: Path, monkeypatch: pytest.MonkeyPatch,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    calls: list[dict[str, Any]] = []
+
+    class Report:
+        def table(self) -> str:
+            return "| top-1 | 0.95 |"
+
+    def run_validation(**kwargs: Any) -> Report:
+        calls.append(kwargs)
+        return Report()
+
+    fake = types.ModuleType("engine.diagnosis.validation")
+    fake.run_validation = run_validation  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "engine.diagnosis.validation", fake)
+    code, out, _ = run(capsys, "validate", "--cases", "12", "--seed", "3", "--out", "v")
+    assert code == 0 and out.strip() == "| top-1 | 0.95 |"
+    assert calls == [{"n_cases": 12, "seed": 3, "out_dir": Path("v"), "workers": 1}]
+
+
+@pytest.mark.parametrize(("argv", "module", "message"), [
+    (["run"], "engine.evaluation.main_job", "the main job is not available yet"),
+    (["validate"], "engine.diagnosis.validation", "the blind validation of the diagnosis is not available yet"),
+])
+def test_missing_engine_parts_exit_2(env: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
+                                    argv: list[str], module: str, message: str) -> None:
+    monkeypatch.setitem(sys.modules, module, None)  # makes the import fail as if the module did not exist
+    code, _, err = run(capsys, *argv)
+    assert code == 2 and message in err
+
+
+def test_bench_runs_the_benchmark_script(env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(tmp_path)  # bench/ in the working directory comes first
+    (tmp_path / "bench").mkdir()
+    (tmp_path / "bench" / "bench_simulator.py").write_text(
+        "import sys\n\ndef main():\n    sys.stdout.write('args=' + ' '.join(sys.argv[1:]) + '\\nspeedup: 42.0x\\n')\n"
+    )
+    code, out, _ = run(capsys, "bench", "--quick")
+    assert code == 0
+    assert out.splitlines() == ["args=--quick", "speedup: 42.0x"]
+
+
+def test_console_script_is_installed(tmp_path: Path) -> None:
+    exe = Path(sys.executable).with_name("backlash")
+    assert exe.exists(), "the backlash console script is missing: pip install -e ."
+    proc = subprocess.run([str(exe), "--help"], env=clean_env(), cwd=tmp_path, capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0
+    for command in ("simulate", "train", "identify", "diagnose", "serve", "run", "bench", "validate"):
+        assert command in proc.stdout

@@ -1,0 +1,94 @@
+"""POST /v1/identify: JSON and CSV bodies, choice of the pattern set (app/api/routes/identify.py)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import httpx
+from servicekit import SMALL_TRAINING, train
+
+from engine.constants import K_GRID
+
+
+def _check_result(res: dict[str, Any], set_id: str) -> None:
+    assert len(res["D"]) == 6 and all(d >= 0 for d in res["D"])
+    assert res["index"] == 1 + min(range(6), key=res["D"].__getitem__)
+    assert res["widths"] == list(K_GRID)
+    assert res["width"] == K_GRID[res["index"] - 1]
+    assert res["epochs"] >= 1
+    assert res["pattern_set"] == set_id
+
+
+def test_identify_named_set(client: httpx.Client, trained_set: dict[str, Any], sim_record: dict[str, Any]) -> None:
+    set_id = trained_set["pattern_set_id"]
+    r = client.post("/v1/identify", json={"record": sim_record, "channel": "v2", "pattern_set": set_id})
+    assert r.status_code == 200, r.text
+    res = r.json()
+    _check_result(res, set_id)
+    assert res["width"] == 0.005 and res["index"] == 3  # the simulated width
+    assert (res["selection"], res["c_used"], res["c_source"]) == ("requested", None, None)
+
+
+def test_identify_chooses_by_the_records_c(client: httpx.Client, trained_set: dict[str, Any],
+                                           sim_record: dict[str, Any]) -> None:
+    set_id = trained_set["pattern_set_id"]
+    res = client.post("/v1/identify", json={"record": sim_record, "channel": "v2"}).json()
+    _check_result(res, set_id)
+    assert (res["selection"], res["c_used"], res["c_source"], res["pattern_set_c"]) == ("exact", 1.0, "record", 1.0)
+
+    far = {**sim_record, "conditions": {"c": 1.4}}
+    res = client.post("/v1/identify", json={"record": far, "channel": "v2"}).json()
+    assert (res["selection"], res["c_used"], res["c_source"]) == ("nearest", 1.4, "record")
+
+    bare = {"channels": {"v2": sim_record["channels"]["v2"]}}  # no conditions: nominal c
+    res = client.post("/v1/identify", json={"record": bare, "channel": "v2"}).json()
+    assert (res["selection"], res["c_used"], res["c_source"]) == ("exact", 1.0, "nominal")
+
+
+def test_identify_prefers_the_set_with_the_nearest_c(client: httpx.Client, trained_set: dict[str, Any],
+                                                     sim_record: dict[str, Any]) -> None:
+    other = train(client, {**SMALL_TRAINING, "c": 1.4})
+    try:
+        rec = {**sim_record, "conditions": {"c": 1.3}}
+        res = client.post("/v1/identify", json={"record": rec, "channel": "v2"}).json()
+        assert (res["pattern_set"], res["selection"]) == (other["pattern_set_id"], "nearest")
+    finally:
+        client.delete(f"/v1/pattern-sets/{other['pattern_set_id']}")
+
+
+def test_identify_csv_form(client: httpx.Client, trained_set: dict[str, Any], sim_record: dict[str, Any]) -> None:
+    csv_text = client.post("/v1/simulate", json={"K": 0.005}, headers={"Accept": "text/csv"}).text
+    r = client.post("/v1/identify", content=csv_text, headers={"Content-Type": "text/csv"},
+                    params={"channel": "v2", "c": 1.0, "sample_interval": 1e-4, "event_index": 48})
+    assert r.status_code == 200, r.text
+    res = r.json()
+    json_res = client.post("/v1/identify", json={"record": sim_record, "channel": "v2"}).json()
+    assert res["D"] == json_res["D"]  # the same record as CSV gives the same answer
+    assert (res["selection"], res["c_source"]) == ("exact", "record")
+
+
+def test_identify_a_record_with_one_channel(client: httpx.Client, trained_set: dict[str, Any],
+                                            sim_record: dict[str, Any]) -> None:
+    lines = ["v2", *map(repr, sim_record["channels"]["v2"])]
+    r = client.post("/v1/identify", content="\n".join(lines) + "\n", headers={"Content-Type": "text/csv"},
+                    params={"channel": "v2", "pattern_set": trained_set["pattern_set_id"]})
+    assert r.status_code == 200, r.text
+    assert r.json()["selection"] == "requested"
+
+
+def test_identify_prefers_the_default_kind_among_equally_near_sets(client: httpx.Client, sim_record: dict[str, Any],
+                                                                    trained_set: dict[str, Any]) -> None:
+    from engine.identification.training import DEFAULT_KIND
+
+    other_kind = next(k for k in ("paper", "template") if k != DEFAULT_KIND)
+    request = {"channel": "a1", "c": 1.0, "J1_values": [0.87, 0.8482]}
+    default = train(client, {**request, "kind": DEFAULT_KIND})
+    newer = train(client, {**request, "kind": other_kind})  # newest, same c, other kind
+    try:
+        res = client.post("/v1/identify", json={"record": sim_record, "channel": "a1"}).json()
+        assert res["pattern_set"] == default["pattern_set_id"]
+        res = client.post("/v1/identify", json={"record": sim_record, "channel": "a1", "kind": other_kind}).json()
+        assert res["pattern_set"] == newer["pattern_set_id"]
+    finally:
+        for out in (default, newer):
+            client.delete(out["pattern_set_url"])
