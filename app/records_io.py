@@ -5,9 +5,8 @@ header row of channel names (a non-empty subset of ``a1, m_el, omega1, a2, v2``)
 and one row per sample; ``sample_interval`` and ``event_index`` travel beside it
 (query parameters over HTTP, options on the command line).
 
-TODO(engine): ``record_from_csv`` / ``record_to_csv`` belong in ``engine.records``
-(e.g. ``Record.from_csv(text, ...)`` / ``Record.to_csv()``); this module is the
-thin adapter until then.
+The CSV form is a wire format of the service and the CLI (both in ``app``); the
+engine only knows :class:`~engine.records.Record`, so the codec lives here.
 """
 
 from __future__ import annotations
