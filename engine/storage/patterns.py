@@ -672,26 +672,25 @@ class PatternStore:
     def _not_found(self, set_id: object) -> str:
         return f"no pattern set with id {set_id!r} in {self.path}; list() shows the stored ids"
 
-    def _row_to_set(self, row: tuple[Any, ...]) -> PatternSet:
-        (set_id, kind, channel, c, j1_text, wavelet, params_text, model_version, created_at, sha, blob) = row
-        arrays = _decode_arrays(bytes(blob), sha, set_id, self.path)
+    def _metadata(self, row: tuple[Any, ...], *json_columns: str) -> dict[str, Any]:
+        """Common metadata of a row (its first nine columns), plus extra JSON columns decoded."""
+        (set_id, kind, channel, c, j1_text, wavelet, params_text, model_version, created_at) = row[:9]
         try:
             j1 = json.loads(j1_text)
             params = json.loads(params_text)
+            extra = [json.loads(t) for t in json_columns]
         except ValueError as exc:
             raise CorruptPatternSet(f"pattern set {set_id!r} in {self.path}: unreadable metadata: {exc}") from exc
-        return PatternSet(
-            id=set_id,
-            kind=kind,
-            channel=channel,
-            c=float(c),
-            j1_values=[float(v) for v in j1],
-            wavelet=wavelet,
-            params=params,
-            model_version=model_version,
-            created_at=created_at,
-            arrays=arrays,
+        return dict(
+            id=set_id, kind=kind, channel=channel, c=float(c), j1_values=[float(v) for v in j1], wavelet=wavelet,
+            params=params, model_version=model_version, created_at=created_at, _extra=extra,
         )
+
+    def _row_to_set(self, row: tuple[Any, ...]) -> PatternSet:
+        meta = self._metadata(row)
+        meta.pop("_extra")
+        sha, blob = row[9], row[10]
+        return PatternSet(**meta, arrays=_decode_arrays(bytes(blob), sha, meta["id"], self.path))
 
     _FULL_COLUMNS = (
         "id, kind, channel, c, j1_values, wavelet, params, model_version, created_at, arrays_sha256, arrays_blob"
@@ -785,25 +784,13 @@ class PatternStore:
         return where, args
 
     def _row_to_summary(self, row: tuple[Any, ...]) -> PatternSetSummary:
-        (set_id, kind, channel, c, j1_text, wavelet, params_text, model_version, created_at, meta_text, size) = row
-        try:
-            j1 = json.loads(j1_text)
-            params = json.loads(params_text)
-            meta = json.loads(meta_text)
-        except ValueError as exc:
-            raise CorruptPatternSet(f"pattern set {set_id!r} in {self.path}: unreadable metadata: {exc}") from exc
+        meta_text, size = row[9], row[10]
+        fields_ = self._metadata(row, meta_text)
+        (arrays_meta,) = fields_.pop("_extra")
         return PatternSetSummary(
-            id=set_id,
-            kind=kind,
-            channel=channel,
-            c=float(c),
-            j1_values=[float(v) for v in j1],
-            wavelet=wavelet,
-            params=params,
-            model_version=model_version,
-            created_at=created_at,
-            array_shapes={name: tuple(m["shape"]) for name, m in meta.items()},
-            array_dtypes={name: m["dtype"] for name, m in meta.items()},
+            **fields_,
+            array_shapes={name: tuple(m["shape"]) for name, m in arrays_meta.items()},
+            array_dtypes={name: m["dtype"] for name, m in arrays_meta.items()},
             size_bytes=int(size),
         )
 
