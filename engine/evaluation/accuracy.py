@@ -63,6 +63,20 @@ def _lojo_task(kind: str, channel: str, params: Mapping[str, Any], X, y, g) -> t
     return correct, n, float(np.mean(epochs))
 
 
+SPLITS_RANDOM: tuple[str, ...] = ("random",) + tuple(f"random + {db:g} dB" for db in NOISE_LEVELS_DB)
+
+
+def noisy_versions(random: SimulationResult, channels: Sequence[str], noise_seed: int = 7) -> dict[str, list[np.ndarray]]:
+    """Per channel: the clean records, then one noisy copy per level of ``NOISE_LEVELS_DB`` (seeded).
+
+    Every evaluation of the random cases draws its noise here, so all identifiers
+    are scored on the very same noisy records.
+    """
+    rng = np.random.default_rng(noise_seed)
+    return {ch: [random.channel(ch)] + [add_white_noise(random.channel(ch), db, rng) for db in NOISE_LEVELS_DB]
+            for ch in channels}
+
+
 def random_cases(n: int = 240, seed: int = 20261121) -> SimulationResult:
     """Held-out cases (b): J1 ~ U[0.75, 0.93], c ~ U[0.8, 1.5], width uniform over the six."""
     rng = np.random.default_rng(seed)
@@ -120,12 +134,10 @@ def evaluate(
     groups = sorted(grids)
     y = np.array([c.plant.K for c in grids[groups[0]].cases])
     g = np.array([c.plant.J1 for c in grids[groups[0]].cases])
-    rng = np.random.default_rng(noise_seed)
     truth = np.array([c.plant.K for c in random.cases])
     gidx = nearest_group_index(np.array([c.plant.c for c in random.cases]), groups)
-    splits = ["random"] + [f"random + {db:g} dB" for db in NOISE_LEVELS_DB]
-    X_random = {ch: [random.channel(ch)] + [add_white_noise(random.channel(ch), db, rng) for db in NOISE_LEVELS_DB]
-                for ch in channels}
+    splits = list(SPLITS_RANDOM)
+    X_random = noisy_versions(random, channels, noise_seed)
     tasks = []
     with ProcessPoolExecutor(max_workers=n_jobs or os.cpu_count() or 1) as pool:
         for kind, params in kinds.items():
