@@ -165,7 +165,12 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     record = _read_record(args)
     for name in args.effects or ():
         CATALOGUE[name]
-    output.write_json(diagnosis.diagnose(record, args.effects))
+    output.info("diagnosing (calibration, then one fit per candidate effect; typically 10-30 s)")
+    result = diagnosis.run(record, args.effects)
+    output.write_json(result.to_dict())
+    if args.plots:
+        for path in diagnosis.write_plots(record, result, args.plots):
+            output.info(f"wrote {path}")
     return EXIT_OK
 
 
@@ -327,6 +332,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("diagnose", help="diagnose the sim-to-real gap of a record (like POST /v1/diagnose)")
     _record_options(p)
     p.add_argument("--effects", nargs="+", metavar="NAME", help="candidate effects (default the whole catalogue)")
+    p.add_argument("--plots", type=Path, metavar="DIR", help="also write PNG plots (residual map, overlays) to DIR")
     p.set_defaults(func=cmd_diagnose)
 
     p = sub.add_parser("pattern-sets", help="list, show or delete stored pattern sets")

@@ -24,6 +24,7 @@ from app.services.errors import (
     NotFoundError,
     QueueFullError,
 )
+from engine.diagnosis import CalibrationError
 from engine.records import RecordError
 from engine.simulation import ParameterError, SimulationError, UnknownEffectError
 from engine.storage import (
@@ -43,6 +44,7 @@ USER_ERRORS: dict[type[Exception], int] = {
     UnknownEffectError: 422,
     ParameterError: 422,
     SimulationError: 422,
+    CalibrationError: 422,
     InvalidPatternSet: 422,
     InvalidInputError: 422,
     IncompatibleError: 422,

@@ -1,24 +1,34 @@
-"""The sim-to-real gap diagnosis (issue 4) as the service sees it."""
+"""The sim-to-real gap diagnosis (issue 4) as the service sees it: a thin call into the engine."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
-from app.services.errors import NotAvailableError
+from engine.diagnosis import DiagnosisResult
+from engine.diagnosis import diagnose as engine_diagnose
+from engine.diagnosis.identification import identification_hook
+from engine.diagnosis.plots import plot_overlays, plot_residual_map
 from engine.records import Record
+from engine.simulation import CATALOGUE, EffectLibrary
 
-NOT_AVAILABLE = (
-    "the sim-to-real gap diagnosis is not available yet in this version (the engine's diagnosis is not wired "
-    "into the service); simulate (POST /v1/simulate) and identify (POST /v1/identify) work"
-)
+
+def run(record: Record, effects: Sequence[str] | None = None) -> DiagnosisResult:
+    """Diagnose ``record`` against the catalogue (or the named subset of it), with identification before/after."""
+    library = CATALOGUE if not effects else EffectLibrary([CATALOGUE[name] for name in effects])
+    return engine_diagnose(record, library=library, identify=identification_hook())
 
 
 def diagnose(record: Record, effects: Sequence[str] | None = None) -> dict[str, Any]:
-    """Diagnose the gap between ``record`` and the model; the response format is defined by issue 4.
+    """JSON-ready diagnosis in the response shape of issue 4."""
+    return run(record, effects).to_dict()
 
-    TODO(engine): call the engine's diagnosis here (``engine.diagnosis``, issue 4) and
-    return its JSON-ready result; ``effects`` restricts the candidate catalogue.
-    Until then this raises :class:`NotAvailableError` (HTTP 501, CLI exit 2).
-    """
-    raise NotAvailableError(NOT_AVAILABLE)
+
+def write_plots(record: Record, result: DiagnosisResult, out_dir: Path) -> list[Path]:
+    """Residual maps (before, and after when an effect is named) and record-vs-simulation overlays, as PNG."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = [plot_residual_map(result, out_dir / "residual_map_before.png"), plot_overlays(record, result, out_dir / "overlays.png")]
+    if result.verdict.status == "explained":
+        paths.append(plot_residual_map(result, out_dir / "residual_map_after.png", after=True))
+    return paths

@@ -103,7 +103,7 @@ def test_pattern_sets_list_show_delete(env: Path, capsys: pytest.CaptureFixture[
     (["identify", "short.csv", "--channel", "v2"], "the CSV has 3 data rows"),
     (["identify", "full.csv", "--channel", "v2"], "no pattern set for channel 'v2'"),
     (["identify", "nan.json", "--channel", "v2"], "the JSON holds NaN, which is not a number"),
-    (["diagnose", "full.csv"], "not available yet"),
+    (["diagnose", "full.csv", "--effects", "magic"], "unknown effect 'magic'"),
 ])
 def test_user_errors_exit_2_with_a_message(env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                            capsys: pytest.CaptureFixture[str], argv: list[str], message: str) -> None:

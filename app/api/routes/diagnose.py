@@ -1,4 +1,4 @@
-"""POST /v1/diagnose: the sim-to-real gap diagnosis (issue 4; 501 until the engine provides it)."""
+"""POST /v1/diagnose: the sim-to-real gap diagnosis (issue 4; the engine's :func:`engine.diagnosis.diagnose`)."""
 
 from __future__ import annotations
 
@@ -22,8 +22,7 @@ router = APIRouter(prefix="/diagnose", tags=["diagnose"])
     summary="Diagnose the gap between a record and the model",
     openapi_extra=body_schema(DiagnoseCreate, csv=True),
     responses={
-        422: {"model": ErrorPublic, "description": "Invalid record or unknown effect"},
-        501: {"model": ErrorPublic, "description": "Not available in this version"},
+        422: {"model": ErrorPublic, "description": "Invalid record, unknown effect, or a record the model cannot fit"},
     },
 )
 async def diagnose(request: Request, csv_params: CSVRecordDep) -> Any:

@@ -1,0 +1,347 @@
+"""The sim-to-real gap diagnosis of one record: calibrate, localise, rank candidate effects, decide.
+
+Decision rule (thresholds in :class:`DiagnosisSettings`)
+--------------------------------------------------------
+Every candidate effect is fitted (with the calibration) and ranked by BIC.
+The fit statistic of a calibration is its noise-normalised residual energy
+per sample, ``chi2 / n`` (1 when the model reproduces the record to the
+noise), in total and per channel. The noise level comes from the record
+itself (:func:`~engine.diagnosis.calibration.estimate_noise`, relative
+standard error about 2.2 % per channel), so the statistic scatters by a few
+per cent around 1 even without a gap; the thresholds allow for that. A fit is
+"to the noise" when total ``chi2/n <= max_reduced_chi2`` and every channel's
+``chi2_j/n_j <= max_channel_chi2``.
+
+* Evidence for an effect: the best candidate lowers the BIC of the nominal
+  model by at least ``min_delta_bic`` (a likelihood-ratio test; unlike the
+  absolute fit statistic it does not depend on the noise estimate's error).
+* With evidence: ``explained`` when the best candidate fits to the noise and
+  the fitted effect moves the record clearly beyond the noise (some channel's
+  RMS change, fit with the effect minus the same calibration without it, above
+  ``min_strength`` = 3 noise standard deviations: the validation's rule);
+  ``no_gap`` when it fits but is weaker than that; ``unexplained`` when no
+  candidate fits to the noise.
+* Without evidence: ``no_gap`` when the nominal model fits to the noise, or
+  when its misfit is weaker than the rule above (RMS beyond the noise,
+  ``sqrt(chi2_j/n_j - 1)``, at most ``min_strength`` in every channel), else
+  ``unexplained``.
+
+Confidence (0..1): for ``no_gap`` and ``unexplained`` a logistic function of
+how far the deciding statistic lies from its threshold (in units of the
+statistic's scatter on clean records); for ``explained`` the same for the
+best candidate's fit, times its posterior weight among all candidates and the
+nominal model (BIC weights), so two effects that explain the record equally
+well share the confidence.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Mapping
+
+from scipy.special import expit
+
+from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings, calibrate, default_space
+from engine.diagnosis.candidates import Candidate, CandidateSettings, Gap, fit_candidates, gap_of
+from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, localise
+from engine.records import Record
+from engine.simulation import CATALOGUE, EffectLibrary
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["DiagnosisResult", "DiagnosisSettings", "IdentificationHook", "Verdict", "decide", "diagnose", "fit_statistic"]
+
+#: Hook for identification before/after (wired by the service, e.g.
+#: :func:`engine.diagnosis.identification.identification_hook`): called as
+#: ``hook(record, result)`` once the result is complete (verdict, calibration,
+#: ``before``/``after`` simulations); returns a JSON-ready dict stored under
+#: ``"identification"``.
+IdentificationHook = Callable[[Record, "DiagnosisResult"], dict]
+
+
+@dataclass(frozen=True)
+class DiagnosisSettings:
+    """Settings of :func:`diagnose`.
+
+    Parameters
+    ----------
+    calibration : CalibrationSettings
+        Search settings of the nominal calibration.
+    candidates : CandidateSettings
+        Search settings of the candidate fits.
+    max_reduced_chi2 : float
+        Largest total chi2/n of a fit "to the noise".
+    max_channel_chi2 : float
+        Largest chi2_j/n_j of any one channel of a fit "to the noise".
+    chi2_scatter : float
+        Scatter (standard deviation) of the total chi2/n on clean records; sets
+        the width of the confidence's logistic function.
+    min_delta_bic : float
+        Smallest BIC improvement of the best candidate over the nominal model
+        that counts as evidence for an effect.
+    min_strength : float
+        An explaining effect counts as a gap only when it moves some channel by
+        more than this many noise standard deviations (RMS); the blind
+        validation's rule for "clearly beyond the noise".
+    strength_scatter : float
+        Width of the logistic confidence around ``min_strength``.
+    n_cells : int or None
+        Localisation cells kept in :meth:`DiagnosisResult.to_dict`, largest
+        excess first (None: all 5 x 11 x 5 of a five-channel record; the object keeps all).
+    """
+
+    calibration: CalibrationSettings = CalibrationSettings(n_global=256, n_starts=2)
+    candidates: CandidateSettings = CandidateSettings()
+    max_reduced_chi2: float = 1.05
+    max_channel_chi2: float = 1.2
+    chi2_scatter: float = 0.02
+    min_delta_bic: float = 10.0
+    min_strength: float = 3.0
+    strength_scatter: float = 0.3
+    n_cells: int | None = None
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Answer of the diagnosis.
+
+    Attributes
+    ----------
+    status : {"explained", "unexplained", "no_gap"}
+        Outcome.
+    effect : str or None
+        Named effect (``explained`` only).
+    value : float or None
+        Its fitted value, in ``unit``.
+    uncertainty : float or None
+        One standard deviation of the value.
+    unit : str or None
+        Unit of the value.
+    confidence : float
+        0..1.
+    reason : str
+        One sentence on why.
+    """
+
+    status: str
+    effect: str | None
+    value: float | None
+    uncertainty: float | None
+    unit: str | None
+    confidence: float
+    reason: str
+
+    def to_dict(self) -> dict:
+        return {
+            "status": self.status, "effect": self.effect, "value": self.value, "uncertainty": self.uncertainty,
+            "unit": self.unit, "confidence": self.confidence, "reason": self.reason,
+        }
+
+
+@dataclass
+class DiagnosisResult:
+    """Everything the diagnosis found about one record.
+
+    Attributes
+    ----------
+    calibration : CalibrationResult
+        Calibration of the nominal model.
+    cells : list of Cell
+        Localisation of the nominal residual, largest excess first.
+    candidates : list of Candidate
+        Candidate effects, best (lowest BIC) first.
+    verdict : Verdict
+        The answer.
+    gap_before, gap_after : Gap, Gap or None
+        Gap of the nominal calibration and of the named effect's fit.
+    before, after : Record, Record or None
+        Calibrated simulations without and with the named effect.
+    cells_after : list of Cell
+        Localisation of the residual left by the named effect's fit (empty if none).
+    identification : dict or None
+        Filled by an :data:`IdentificationHook`, if one is given.
+    n_simulations : int
+        Simulations run in total.
+    seconds : float
+        Wall time [s].
+    """
+
+    calibration: CalibrationResult
+    cells: list[Cell]
+    candidates: list[Candidate]
+    verdict: Verdict
+    gap_before: Gap
+    gap_after: Gap | None
+    before: Record
+    after: Record | None
+    cells_after: list[Cell] = field(default_factory=list)
+    identification: dict | None = None
+    n_simulations: int = 0
+    seconds: float = 0.0
+    n_cells: int | None = None
+
+    def candidate(self, name: str) -> Candidate:
+        """The candidate of one effect (KeyError when it was not in the library)."""
+        for c in self.candidates:
+            if c.effect == name:
+                return c
+        raise KeyError(f"effect {name!r} was not among the candidates: {', '.join(c.effect for c in self.candidates)}")
+
+    def rank(self, name: str) -> int | None:
+        """1-based rank of an effect among the candidates (None when absent)."""
+        for i, c in enumerate(self.candidates):
+            if c.effect == name:
+                return i + 1
+        return None
+
+    def to_dict(self, include_records: bool = True) -> dict:
+        """JSON-ready result in the shape of issue 4."""
+        out = {
+            "calibration": self.calibration.to_dict(),
+            "cells": [c.to_dict() for c in self.cells[: self.n_cells]],
+            "candidates": [c.to_dict() for c in self.candidates],
+            "verdict": self.verdict.to_dict(),
+            "gap": {
+                "before": self.gap_before.to_dict(),
+                "after": self.gap_after.to_dict() if self.gap_after else None,
+                "shrinkage": self.candidate(self.verdict.effect).shrinkage if self.verdict.effect else None,
+            },
+            "cells_after": [c.to_dict() for c in self.cells_after[: self.n_cells]],
+            "identification": self.identification,
+            "n_simulations": self.n_simulations,
+            "seconds": self.seconds,
+        }
+        if include_records:
+            out["records"] = {
+                "before": self.before.to_dict(),
+                "after": self.after.to_dict() if self.after is not None else None,
+            }
+        return out
+
+
+def fit_statistic(cal: CalibrationResult) -> tuple[float, float]:
+    """Total chi2/n and the largest per-channel chi2_j/n_j of a calibration."""
+    n_per = cal.n_data / max(len(cal.chi2_per_channel), 1)
+    worst = max(c / n_per for c in cal.chi2_per_channel.values())
+    return cal.reduced_chi2, worst
+
+
+def _adequacy(cal: CalibrationResult, s: DiagnosisSettings) -> float:
+    """Probability-like score (0..1) that a fit is "to the noise"."""
+    total, worst = fit_statistic(cal)
+    m_total = (s.max_reduced_chi2 - total) / s.chi2_scatter
+    m_ch = (s.max_channel_chi2 - worst) / (2.0 * s.chi2_scatter)
+    return float(expit(min(m_total, m_ch)))
+
+
+def _fits_noise(cal: CalibrationResult, s: DiagnosisSettings) -> bool:
+    total, worst = fit_statistic(cal)
+    return total <= s.max_reduced_chi2 and worst <= s.max_channel_chi2
+
+
+def decide(nominal: CalibrationResult, candidates: list[Candidate], settings: DiagnosisSettings) -> Verdict:
+    """The verdict from the nominal calibration and the ranked candidates (see the module notes)."""
+    best = next((c for c in candidates if c.calibration is not None), None)
+    total, worst = fit_statistic(nominal)
+    dbic = nominal.bic - best.bic if best is not None else -math.inf
+    if dbic < settings.min_delta_bic:
+        what = (f"no candidate improves the fit significantly (best: {best.effect}, BIC lower by {dbic:.1f} < "
+                f"{settings.min_delta_bic:g})" if best else "no candidate could be fitted")
+        if _fits_noise(nominal, settings):
+            return Verdict("no_gap", None, None, None, None, _adequacy(nominal, settings),
+                           f"the calibrated nominal model fits to the noise (chi2/n = {total:.3f}, worst channel "
+                           f"{worst:.3f}) and {what}")
+        gap_rms = math.sqrt(max(worst - 1.0, 0.0))
+        if gap_rms <= settings.min_strength:
+            return Verdict("no_gap", None, None, None, None,
+                           float(expit((settings.min_strength - gap_rms) / settings.strength_scatter)),
+                           f"the nominal model leaves a small misfit (chi2/n = {total:.3g}, worst channel {worst:.3g}: "
+                           f"{gap_rms:.2f} noise RMS beyond the noise, <= {settings.min_strength:g}) and {what}: "
+                           f"no gap clearly beyond the noise")
+        return Verdict("unexplained", None, None, None, None, 1.0 - _adequacy(nominal, settings),
+                       f"the nominal model leaves a gap (chi2/n = {total:.3g}, worst channel {worst:.3g}) and {what}")
+    b_total, b_worst = fit_statistic(best.calibration)
+    if _fits_noise(best.calibration, settings):
+        strength = best.strength if best.strength is not None and math.isfinite(best.strength) else math.inf
+        sure = float(expit((strength - settings.min_strength) / settings.strength_scatter))
+        if strength <= settings.min_strength:
+            return Verdict("no_gap", None, None, None, None, 1.0 - sure,
+                           f"the best candidate, {best.effect} = {best.value:.4g} {best.unit}, fits the record but "
+                           f"moves it by only {strength:.2f} noise RMS (<= {settings.min_strength:g}): no gap clearly "
+                           f"beyond the noise")
+        return Verdict("explained", best.effect, best.value, best.uncertainty, best.unit,
+                       _adequacy(best.calibration, settings) * best.weight * sure,
+                       f"adding {best.effect} = {best.value:.4g} {best.unit} brings the fit to the noise "
+                       f"(chi2/n {total:.3g} -> {b_total:.3f}, worst channel {b_worst:.3f}); the effect moves the "
+                       f"record by {strength:.3g} noise RMS")
+    return Verdict("unexplained", None, None, None, None, 1.0 - _adequacy(best.calibration, settings),
+                   f"no candidate brings the fit to the noise: the best, {best.effect} = {best.value:.4g} "
+                   f"{best.unit}, leaves chi2/n = {b_total:.3g} (worst channel {b_worst:.3g})")
+
+
+def diagnose(
+    record: Record,
+    library: EffectLibrary = CATALOGUE,
+    settings: DiagnosisSettings = DiagnosisSettings(),
+    identify: IdentificationHook | None = None,
+    noise: Mapping[str, float] | None = None,
+) -> DiagnosisResult:
+    """Diagnose the sim-to-real gap of one record.
+
+    Parameters
+    ----------
+    record : Record
+        The measured record (any subset of channels; conditions may fix K [m],
+        J1 [kg m^2], c [pu], c1 [pu]).
+    library : EffectLibrary
+        Candidate effects (default: the full catalogue of issue 4).
+    settings : DiagnosisSettings
+        Search settings and decision thresholds.
+    identify : IdentificationHook, optional
+        Identification before/after the fix (stored under ``identification``).
+    noise : mapping of str to float, optional
+        Known noise standard deviation per channel (channel unit); estimated when omitted.
+
+    Returns
+    -------
+    DiagnosisResult
+
+    Raises
+    ------
+    CalibrationError
+        When the record cannot be fitted at all (no simulable parameter set).
+    """
+    t0 = time.perf_counter()
+    space = default_space(record)
+    nominal = calibrate(record, space, settings.calibration, noise=noise)
+    before = nominal.simulated_record(record)
+    cells = localise(record, before, nominal.sigma, DEFAULT_WINDOWS_MS)
+    gap_before = gap_of(nominal)
+    n_sim = nominal.n_simulations
+
+    cands = fit_candidates(record, nominal, space, library, settings.candidates)
+    n_sim += sum(c.calibration.n_simulations for c in cands if c.calibration)
+    verdict = decide(nominal, cands, settings)
+
+    after = None
+    gap_after = None
+    cells_after: list[Cell] = []
+    if verdict.status == "explained":
+        best_cal = cands[0].calibration
+        after = best_cal.simulated_record(record)
+        gap_after = gap_of(best_cal)
+        cells_after = localise(record, after, nominal.sigma, DEFAULT_WINDOWS_MS)
+    result = DiagnosisResult(
+        calibration=nominal, cells=cells, candidates=cands, verdict=verdict, gap_before=gap_before,
+        gap_after=gap_after, before=before, after=after, cells_after=cells_after,
+        n_simulations=n_sim, n_cells=settings.n_cells,
+    )
+    if identify is not None:
+        result.identification = identify(record, result)
+    result.seconds = time.perf_counter() - t0
+    logger.info("diagnosis: %s %s (confidence %.2f), %d simulations, %.1f s", verdict.status,
+                verdict.effect or "", verdict.confidence, n_sim, result.seconds)
+    return result

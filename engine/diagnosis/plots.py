@@ -1,0 +1,116 @@
+"""PNG plots of a diagnosis: the residual map and record-versus-simulation overlays.
+
+Uses matplotlib's object API (``Figure``), not pyplot, so it is safe in a
+server without a display and keeps no global state.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from engine.constants import CHANNEL_UNITS, CHANNELS, WAVELET_LEVEL
+from engine.diagnosis.diagnose import DiagnosisResult
+from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, level_band
+from engine.records import Record
+
+__all__ = ["plot_overlays", "plot_residual_map"]
+
+
+def _level_names(level: int = WAVELET_LEVEL) -> list[str]:
+    return [f"A{level}"] + [f"D{j}" for j in range(level, 0, -1)]
+
+
+def plot_residual_map(result: DiagnosisResult, path: str | Path, after: bool = False) -> Path:
+    """Residual map: one panel per channel, wavelet level x time window, coloured by energy over noise.
+
+    Parameters
+    ----------
+    result : DiagnosisResult
+        The diagnosis.
+    path : path
+        PNG file to write.
+    after : bool
+        Map the residual left by the named effect's fit instead of the nominal one.
+
+    Returns
+    -------
+    Path
+        The written file.
+    """
+    cells = result.cells_after if after and result.cells_after else result.cells
+    present = {c.channel for c in cells}
+    channels = [c for c in CHANNELS if c in present]
+    levels = _level_names()
+    windows = [w[0] for w in DEFAULT_WINDOWS_MS if any(c.window == w[0] for c in cells)]
+    fig = Figure(figsize=(3.2 * len(channels) + 1.5, 5.5), constrained_layout=True)
+    axes = fig.subplots(1, len(channels), squeeze=False)[0]
+    ts = result.before.sample_interval
+    vmax = 1.0
+    grids = {}
+    for ch in channels:
+        g = np.zeros((len(levels), len(windows)))
+        for c in cells:
+            if c.channel == ch and c.window in windows:
+                g[levels.index(c.level), windows.index(c.window)] = np.log10(max(c.energy, 1e-12) / max(c.noise_energy, 1e-12))
+        grids[ch] = g
+        vmax = max(vmax, float(np.max(g)))
+    im = None
+    for ax, ch in zip(axes, channels):
+        im = ax.imshow(grids[ch], aspect="auto", cmap="magma", vmin=-1.0, vmax=vmax, origin="upper")
+        ax.set_title(ch)
+        ax.set_xticks(range(len(windows)))
+        ax.set_xticklabels(windows, rotation=60, fontsize=7)
+        ax.set_yticks(range(len(levels)))
+        labels = []
+        for name in levels:
+            j = int(name[1:])
+            lo, hi = level_band(j, ts, approximation=name.startswith("A"))
+            labels.append(f"{name} {lo:.0f}-{hi:.0f} Hz")
+        ax.set_yticklabels(labels if ax is axes[0] else [], fontsize=7)
+    if im is not None:
+        fig.colorbar(im, ax=list(axes), label="log10(residual energy / noise energy)")
+    what = f"after adding {result.verdict.effect}" if after and result.cells_after else "nominal calibration"
+    fig.suptitle(f"Residual map ({what}); verdict: {result.verdict.status} {result.verdict.effect or ''}")
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def plot_overlays(record: Record, result: DiagnosisResult, path: str | Path) -> Path:
+    """Record versus the calibrated simulation before and after adding the named effect.
+
+    One row per channel of the record: the record (grey), the nominal
+    calibration (blue), the fit with the named effect (red, when there is one),
+    and below each, the residuals in noise standard deviations.
+
+    Returns
+    -------
+    Path
+        The written file.
+    """
+    channels = list(record.channels)
+    fig = Figure(figsize=(11, 2.6 * len(channels)), constrained_layout=True)
+    axes = fig.subplots(2 * len(channels), 1, sharex=True, gridspec_kw={"height_ratios": [3, 1] * len(channels)})
+    t = record.time * 1e3
+    sig = result.calibration.sigma
+    for i, ch in enumerate(channels):
+        ax, axr = axes[2 * i], axes[2 * i + 1]
+        ax.plot(t, record[ch], color="0.6", lw=0.8, label="record")
+        ax.plot(t, result.before[ch], color="tab:blue", lw=0.9, label="calibrated nominal")
+        axr.plot(t, (record[ch] - result.before[ch]) / sig[ch], color="tab:blue", lw=0.6)
+        if result.after is not None:
+            ax.plot(t, result.after[ch], color="tab:red", lw=0.9, ls="--", label=f"with {result.verdict.effect}")
+            axr.plot(t, (record[ch] - result.after[ch]) / sig[ch], color="tab:red", lw=0.6)
+        ax.set_ylabel(f"{ch} [{CHANNEL_UNITS[ch]}]")
+        axr.set_ylabel("res/sigma", fontsize=7)
+        if i == 0:
+            ax.legend(fontsize=7, loc="upper right")
+    axes[-1].set_xlabel("time from the event [ms]")
+    fig.suptitle(f"Verdict: {result.verdict.status} {result.verdict.effect or ''} "
+                 f"(confidence {result.verdict.confidence:.2f})")
+    path = Path(path)
+    fig.savefig(path, dpi=100)
+    return path

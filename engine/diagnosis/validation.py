@@ -1,0 +1,491 @@
+"""Blind validation of the gap diagnosis on simulated records whose cause is withheld.
+
+Protocol (issue 4)
+------------------
+1. :func:`generate_cases` draws cases of three kinds:
+
+   * ``effect``: one effect of the catalogue, drawn at random, at a random
+     value in its range (uniform; log-uniform for the multiplicative effects
+     spanning two decades or more: contact stiffness, contact damping, and the
+     sensor low-pass cut-off);
+   * ``left_out``: the same, but the effect is removed from the library handed
+     to the diagnosis (leave-one-effect-out);
+   * ``clean``: no effect.
+
+   Every case has a random operating point (K uniform in [0.0025, 0.01] m, J1
+   in [0.75, 0.93] kg m^2, c in [0.8, 1.5]), c1 = 0.2 as the record's only
+   condition (K, J1 and c are unknown to the diagnosis), and white Gaussian
+   noise of SNR uniform in [30, 50] dB on every channel (the project's
+   convention, :func:`engine.simulation.noise.noise_std`: noise standard
+   deviation = channel standard deviation * 10^(-SNR/20)).
+
+2. **Strength rule**: an effect counts only where it moves the record clearly
+   beyond the noise: the RMS of (record with the effect - record without it,
+   same operating point, noiseless) exceeds 3 times the noise standard
+   deviation on at least one channel. Weaker draws are scored as clean cases
+   (expected answer ``no_gap``).
+
+3. :func:`write_cases` writes the records (and the names of the effects the
+   diagnosis may use) to ``<out>/cases/`` and the answer key to
+   ``<out>/key/answer_key.json``. :func:`diagnose_cases` reads only
+   ``cases/`` and writes ``results/``; :func:`score` reads the key only after
+   every diagnosis is done.
+
+Expected answers: ``explained`` with the right effect (counting ``effect``
+cases), ``unexplained`` (counting ``left_out`` cases), ``no_gap`` (clean and
+weak cases).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import time
+from collections import Counter, defaultdict
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from engine.diagnosis.calibration import LOG_SCALED_EFFECTS
+from engine.diagnosis.diagnose import DiagnosisSettings, diagnose
+from engine.records import Record
+from engine.simulation import CATALOGUE, Case, EffectLibrary, PlantParameters, simulate_batch
+from engine.simulation.noise import noise_std
+
+logger = logging.getLogger(__name__)
+
+__all__ = [
+    "AnswerEntry",
+    "BlindCase",
+    "ValidationReport",
+    "diagnose_cases",
+    "generate_cases",
+    "run_validation",
+    "score",
+    "write_cases",
+]
+
+#: Operating-point ranges of the blind cases.
+K_RANGE = (0.0025, 0.01)
+J1_RANGE = (0.75, 0.93)
+C_RANGE = (0.8, 1.5)
+SNR_RANGE_DB = (30.0, 50.0)
+#: An effect counts when it moves some channel by more than this many noise standard deviations (RMS).
+STRENGTH_THRESHOLD = 3.0
+#: Default mix of case kinds.
+DEFAULT_FRACTIONS = {"effect": 0.6, "left_out": 0.2, "clean": 0.2}
+
+
+@dataclass(frozen=True)
+class BlindCase:
+    """What the diagnosis is given: a record and the names of the candidate effects."""
+
+    case_id: str
+    record: Record
+    library: tuple[str, ...]
+
+    def to_dict(self) -> dict:
+        return {"case_id": self.case_id, "record": self.record.to_dict(), "library": list(self.library)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "BlindCase":
+        return cls(d["case_id"], Record.from_dict(d["record"]), tuple(d["library"]))
+
+
+@dataclass(frozen=True)
+class AnswerEntry:
+    """The truth about one blind case (the scorer's answer key).
+
+    Attributes
+    ----------
+    case_id : str
+    kind : {"effect", "left_out", "clean"}
+    effect : str or None
+        The effect in the record.
+    value : float or None
+        Its value, in the effect's unit.
+    K, J1, c : float
+        Operating point [m], [kg m^2], [pu].
+    snr_db : float
+        Noise level [dB].
+    strength : float
+        Largest channel RMS change caused by the effect, in noise standard deviations.
+    counts : bool
+        ``strength > STRENGTH_THRESHOLD``.
+    expected_status : str
+        ``explained``, ``unexplained`` or ``no_gap``.
+    expected_effect : str or None
+        The effect the diagnosis should name.
+    """
+
+    case_id: str
+    kind: str
+    effect: str | None
+    value: float | None
+    K: float
+    J1: float
+    c: float
+    snr_db: float
+    strength: float
+    counts: bool
+    expected_status: str
+    expected_effect: str | None
+
+
+def _draw_value(name: str, library: EffectLibrary, rng: np.random.Generator) -> float:
+    lo, hi = library[name].bounds
+    if name in LOG_SCALED_EFFECTS and lo > 0:
+        return float(lo * (hi / lo) ** rng.uniform())
+    return float(rng.uniform(lo, hi))
+
+
+def generate_cases(
+    n_cases: int,
+    seed: int = 0,
+    library: EffectLibrary = CATALOGUE,
+    fractions: dict[str, float] | None = None,
+) -> tuple[list[BlindCase], list[AnswerEntry]]:
+    """Draw blind cases and their answer key (see the module notes).
+
+    Parameters
+    ----------
+    n_cases : int
+        Number of cases.
+    seed : int
+        Seed of the random generator.
+    library : EffectLibrary
+        The full catalogue.
+    fractions : dict, optional
+        Share of each kind (``effect``, ``left_out``, ``clean``); default 60/20/20 %.
+
+    Returns
+    -------
+    cases : list of BlindCase
+    key : list of AnswerEntry
+    """
+    fractions = dict(DEFAULT_FRACTIONS if fractions is None else fractions)
+    rng = np.random.default_rng(seed)
+    counts = {k: int(round(v * n_cases)) for k, v in fractions.items()}
+    counts["effect"] += n_cases - sum(counts.values())
+    kinds = [k for k, n in counts.items() for _ in range(n)]
+    rng.shuffle(kinds)
+    names = list(library)
+    pool: list[str] = []
+
+    def next_effect() -> str:
+        # random order, every effect once per round: balanced but unpredictable
+        if not pool:
+            pool.extend(rng.permutation(names).tolist())
+        return pool.pop()
+
+    draws = []
+    for i, kind in enumerate(kinds):
+        K, J1, c = rng.uniform(*K_RANGE), rng.uniform(*J1_RANGE), rng.uniform(*C_RANGE)
+        snr = rng.uniform(*SNR_RANGE_DB)
+        effect = next_effect() if kind != "clean" else None
+        value = _draw_value(effect, library, rng) if effect else None
+        draws.append((f"case{i:04d}", kind, effect, value, K, J1, c, snr))
+
+    plants = [Case(PlantParameters(K=d[4], J1=d[5], c=d[6])) for d in draws]
+    clean = simulate_batch(plants)
+    with_eff = simulate_batch(plants, effects=[{d[2]: d[3]} if d[2] else {} for d in draws])
+    cases, key = [], []
+    for i, (cid, kind, effect, value, K, J1, c, snr) in enumerate(draws):
+        x = with_eff.channels[i]
+        sd = noise_std(x, snr, axis=1)[:, 0]
+        noisy = x + rng.normal(size=x.shape) * sd[:, None]
+        strength = float(np.max(np.sqrt(np.mean((x - clean.channels[i]) ** 2, axis=1)) / sd)) if effect else 0.0
+        counted = bool(effect) and strength > STRENGTH_THRESHOLD
+        rec = with_eff.record(i)
+        record = Record(
+            {n: noisy[j] for j, n in enumerate(rec.channels)}, rec.sample_interval, rec.event_index,
+            conditions={"c1": PlantParameters().c1},
+        )
+        lib = tuple(n for n in names if not (kind == "left_out" and n == effect))
+        cases.append(BlindCase(cid, record, lib))
+        if not counted:
+            exp_status, exp_effect = "no_gap", None
+        elif kind == "effect":
+            exp_status, exp_effect = "explained", effect
+        else:
+            exp_status, exp_effect = "unexplained", None
+        key.append(AnswerEntry(cid, kind, effect, value, K, J1, c, snr, strength, counted, exp_status, exp_effect))
+    return cases, key
+
+
+def write_cases(cases: Sequence[BlindCase], key: Sequence[AnswerEntry], out_dir: str | Path) -> Path:
+    """Write the blind cases to ``out_dir/cases`` and the key, apart, to ``out_dir/key/answer_key.json``.
+
+    Returns the path of the key.
+    """
+    out = Path(out_dir)
+    (out / "cases").mkdir(parents=True, exist_ok=True)
+    (out / "key").mkdir(parents=True, exist_ok=True)
+    for c in cases:
+        (out / "cases" / f"{c.case_id}.json").write_text(json.dumps(c.to_dict()))
+    key_path = out / "key" / "answer_key.json"
+    key_path.write_text(json.dumps([asdict(k) for k in key], indent=1))
+    return key_path
+
+
+def _init_worker() -> None:
+    import numba
+
+    numba.set_num_threads(1)
+
+
+def _diagnose_file(path: str, results_dir: str, settings: DiagnosisSettings) -> str:
+    case = BlindCase.from_dict(json.loads(Path(path).read_text()))
+    library = EffectLibrary([CATALOGUE[n] for n in case.library])
+    t0 = time.perf_counter()
+    try:
+        res = diagnose(case.record, library, settings)
+        out = res.to_dict(include_records=False)
+        out["ranking"] = [c.effect for c in res.candidates]
+    except Exception as exc:  # noqa: BLE001 - a failed diagnosis is a scored outcome, not a crash of the run
+        logger.exception("diagnosis of %s failed", case.case_id)
+        out = {"verdict": {"status": "error", "effect": None, "value": None, "confidence": 0.0, "reason": repr(exc)},
+               "candidates": [], "ranking": []}
+    out["case_id"] = case.case_id
+    out["wall_seconds"] = time.perf_counter() - t0
+    (Path(results_dir) / f"{case.case_id}.json").write_text(json.dumps(out))
+    return case.case_id
+
+
+def diagnose_cases(
+    out_dir: str | Path, workers: int = 1, settings: DiagnosisSettings = DiagnosisSettings()
+) -> Path:
+    """Diagnose every case in ``out_dir/cases`` (never reading the key); results to ``out_dir/results``.
+
+    Parameters
+    ----------
+    out_dir : path
+        Directory written by :func:`write_cases`.
+    workers : int
+        Parallel processes (each with one numba thread); 1 runs in this process.
+    settings : DiagnosisSettings
+        Diagnosis settings.
+    """
+    out = Path(out_dir)
+    results = out / "results"
+    results.mkdir(parents=True, exist_ok=True)
+    files = sorted(str(p) for p in (out / "cases").glob("*.json"))
+    t0 = time.perf_counter()
+    if workers <= 1:
+        for i, f in enumerate(files):
+            _diagnose_file(f, str(results), settings)
+            logger.info("diagnosed %d/%d (%.0f s)", i + 1, len(files), time.perf_counter() - t0)
+    else:
+        import multiprocessing
+
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker) as ex:
+            futs = [ex.submit(_diagnose_file, f, str(results), settings) for f in files]
+            for i, fut in enumerate(futs):
+                fut.result()
+                logger.info("diagnosed %d/%d (%.0f s)", i + 1, len(files), time.perf_counter() - t0)
+    return results
+
+
+@dataclass
+class ValidationReport:
+    """Scores of a blind validation.
+
+    Attributes
+    ----------
+    n_cases : int
+        Cases scored.
+    n_by_expected : dict
+        Cases per expected answer (``explained``, ``unexplained``, ``no_gap``).
+    top1 : float or None
+        Counting effect cases whose verdict names the right effect (``explained``).
+    top2 : float or None
+        Counting effect cases whose effect is among the two best-ranked candidates.
+    rank1 : float or None
+        Counting effect cases whose effect is ranked first (whatever the verdict).
+    abstention : float or None
+        Counting left-out cases answered ``unexplained``.
+    false_alarm : float or None
+        Clean and weak cases not answered ``no_gap``.
+    value_error : dict
+        Over counting effect cases whose effect is ranked first: median and 90th
+        percentile of the absolute error relative to the effect's range width,
+        and the median |error| / reported uncertainty.
+    shrinkage : dict
+        Gap shrinkage ratio (excess energy before / after) of the true effect's
+        fit on counting effect cases: median, 10th percentile, share >= 5x.
+    confusion : dict
+        ``confusion[true_label][predicted_label]`` counts.
+    per_case : list of dict
+        One row per case (truth, verdict, rank of the true effect, value, shrinkage, time).
+    seconds : dict
+        Median and max diagnosis wall time [s].
+    identification : dict or None
+        Identification accuracy before/after (not wired yet).
+    """
+
+    n_cases: int
+    n_by_expected: dict[str, int]
+    top1: float | None
+    top2: float | None
+    rank1: float | None
+    abstention: float | None
+    false_alarm: float | None
+    value_error: dict
+    shrinkage: dict
+    confusion: dict
+    per_case: list[dict] = field(default_factory=list)
+    seconds: dict = field(default_factory=dict)
+    identification: dict | None = None
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    def table(self) -> str:
+        """Markdown summary table."""
+
+        def pct(x: float | None) -> str:
+            return "n/a" if x is None else f"{100 * x:.1f} %"
+
+        n = self.n_by_expected
+        rows = [
+            ("cases (explained / unexplained / no_gap expected)",
+             f"{self.n_cases} ({n.get('explained', 0)} / {n.get('unexplained', 0)} / {n.get('no_gap', 0)})"),
+            ("top-1 (verdict names the effect)", pct(self.top1)),
+            ("top-2 (effect among two best-ranked)", pct(self.top2)),
+            ("ranked first (any verdict)", pct(self.rank1)),
+            ("median gap shrinkage (true effect)", _fmt(self.shrinkage.get("median"), "x")),
+            ("share of shrinkage >= 5x", pct(self.shrinkage.get("share_ge_5"))),
+            ("median value error / range width", pct(self.value_error.get("median_rel_range"))),
+            ("abstention on left-out effects", pct(self.abstention)),
+            ("false alarms on clean cases", pct(self.false_alarm)),
+            ("diagnosis time median / max", f"{self.seconds.get('median', float('nan')):.1f} s / "
+                                            f"{self.seconds.get('max', float('nan')):.1f} s"),
+        ]
+        lines = ["| metric | value |", "| --- | --- |"] + [f"| {a} | {b} |" for a, b in rows]
+        return "\n".join(lines)
+
+    def confusion_table(self) -> str:
+        """Confusion matrix as Markdown (rows: truth, columns: verdict)."""
+        cols = sorted({p for row in self.confusion.values() for p in row})
+        lines = ["| truth \\ verdict | " + " | ".join(cols) + " |", "| --- |" + " --- |" * len(cols)]
+        for t in sorted(self.confusion):
+            lines.append(f"| {t} | " + " | ".join(str(self.confusion[t].get(c, "")) for c in cols) + " |")
+        return "\n".join(lines)
+
+
+def _fmt(x: float | None, unit: str) -> str:
+    return "n/a" if x is None else f"{x:.3g}{unit}"
+
+
+def _frac(xs: list[bool]) -> float | None:
+    return float(np.mean(xs)) if xs else None
+
+
+def score(out_dir: str | Path, library: EffectLibrary = CATALOGUE) -> ValidationReport:
+    """Score the results in ``out_dir/results`` against ``out_dir/key/answer_key.json``.
+
+    Call only after every diagnosis is done (this is the only reader of the key).
+    """
+    out = Path(out_dir)
+    key = [AnswerEntry(**k) for k in json.loads((out / "key" / "answer_key.json").read_text())]
+    confusion: dict[str, Counter] = defaultdict(Counter)
+    top1, top2, rank1, abst, fa, rel_err, pulls, shrink, secs, rows = [], [], [], [], [], [], [], [], [], []
+    for k in key:
+        path = out / "results" / f"{k.case_id}.json"
+        if not path.exists():
+            raise FileNotFoundError(f"no result for {k.case_id}: run diagnose_cases first")
+        res = json.loads(path.read_text())
+        v = res["verdict"]
+        pred = v["effect"] if v["status"] == "explained" else v["status"]
+        ranking = res.get("ranking", [])
+        truth = (k.expected_effect if k.expected_status == "explained"
+                 else f"left-out {k.effect}" if k.expected_status == "unexplained" else "no_gap")
+        confusion[truth][pred] += 1
+        row = {"case_id": k.case_id, "kind": k.kind, "effect": k.effect, "value": k.value, "strength": k.strength,
+               "snr_db": k.snr_db, "expected": k.expected_status, "status": v["status"], "named": v["effect"],
+               "confidence": v.get("confidence"), "seconds": res.get("wall_seconds")}
+        secs.append(res.get("wall_seconds", math.nan))
+        if k.expected_status == "explained":
+            r = ranking.index(k.effect) + 1 if k.effect in ranking else None
+            top1.append(v["status"] == "explained" and v["effect"] == k.effect)
+            top2.append(r is not None and r <= 2)
+            rank1.append(r == 1)
+            cand = next((c for c in res["candidates"] if c["effect"] == k.effect), None)
+            row["rank"] = r
+            if cand is not None and cand["value"] is not None:
+                row["fitted"] = cand["value"]
+                row["shrinkage"] = cand["shrinkage"]
+                shrink.append(cand["shrinkage"])
+                if r == 1:
+                    lo, hi = library[k.effect].bounds
+                    rel_err.append(abs(cand["value"] - k.value) / (hi - lo))
+                    if cand.get("uncertainty"):
+                        pulls.append(abs(cand["value"] - k.value) / cand["uncertainty"])
+        elif k.expected_status == "unexplained":
+            abst.append(v["status"] == "unexplained")
+        else:
+            fa.append(v["status"] != "no_gap")
+        rows.append(row)
+    sh = np.array(shrink, dtype=float)
+    return ValidationReport(
+        n_cases=len(key),
+        n_by_expected=dict(Counter(k.expected_status for k in key)),
+        top1=_frac(top1), top2=_frac(top2), rank1=_frac(rank1), abstention=_frac(abst), false_alarm=_frac(fa),
+        value_error={
+            "median_rel_range": float(np.median(rel_err)) if rel_err else None,
+            "p90_rel_range": float(np.percentile(rel_err, 90)) if rel_err else None,
+            "median_pull": float(np.median(pulls)) if pulls else None,
+        },
+        shrinkage={
+            "median": float(np.median(sh)) if sh.size else None,
+            "p10": float(np.percentile(sh, 10)) if sh.size else None,
+            "share_ge_5": float(np.mean(sh >= 5)) if sh.size else None,
+        },
+        confusion={t: dict(c) for t, c in confusion.items()},
+        per_case=rows,
+        seconds={"median": float(np.nanmedian(secs)), "max": float(np.nanmax(secs))} if secs else {},
+    )
+
+
+def run_validation(
+    n_cases: int,
+    seed: int,
+    out_dir: str | Path,
+    workers: int = 1,
+    settings: DiagnosisSettings = DiagnosisSettings(),
+    fractions: dict[str, float] | None = None,
+) -> ValidationReport:
+    """Generate, diagnose blind, then score; writes ``report.json`` and ``report.md`` in ``out_dir``.
+
+    Parameters
+    ----------
+    n_cases : int
+        Number of blind cases.
+    seed : int
+        Seed of the case generator.
+    out_dir : path
+        Working directory (``cases/``, ``key/``, ``results/``, reports).
+    workers : int
+        Parallel diagnosis processes.
+    settings : DiagnosisSettings
+        Diagnosis settings.
+    fractions : dict, optional
+        Mix of case kinds (see :func:`generate_cases`).
+    """
+    out = Path(out_dir)
+    cases, key = generate_cases(n_cases, seed, fractions=fractions)
+    write_cases(cases, key, out)
+    del key  # the diagnosis never sees it
+    diagnose_cases(out, workers, settings)
+    report = score(out)
+    (out / "report.json").write_text(json.dumps(report.to_dict(), indent=1))
+    (out / "report.md").write_text(
+        f"# Blind validation: {n_cases} cases, seed {seed}\n\n{report.table()}\n\n## Confusion matrix\n\n"
+        f"{report.confusion_table()}\n"
+    )
+    return report

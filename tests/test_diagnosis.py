@@ -1,0 +1,189 @@
+"""End-to-end gap diagnosis (engine.diagnosis.diagnose) and its blind validation (engine.diagnosis.validation)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict
+
+import numpy as np
+import pytest
+
+from engine.constants import CHANNELS
+from engine.diagnosis import diagnose
+from engine.diagnosis.validation import (
+    STRENGTH_THRESHOLD,
+    AnswerEntry,
+    generate_cases,
+    run_validation,
+    score,
+    write_cases,
+)
+from engine.records import Record
+from engine.simulation import CATALOGUE, PlantParameters, simulate
+from engine.simulation.noise import noise_std
+
+PLANT = PlantParameters(K=0.006, J1=0.82, c=1.1)
+
+
+def noisy(record: Record, snr_db: float, seed: int) -> Record:
+    rng = np.random.default_rng(seed)
+    ch = {k: v + rng.standard_normal(v.size) * noise_std(v, snr_db)[0] for k, v in record.channels.items()}
+    return Record(ch, conditions={"c1": 0.2})
+
+
+@pytest.fixture(scope="module")
+def rotor_case():
+    """The record of docs INVERSE-PROBLEM.md: r_r x 1.3 at K = 0.006, J1 = 0.82, c = 1.1, 45 dB."""
+    rec = noisy(simulate(PLANT, effects={"rotor_resistance_drift": 1.3}), 45.0, seed=11)
+    return rec, diagnose(rec)
+
+
+def test_strong_single_effect_is_ranked_first_and_explained(rotor_case):
+    rec, res = rotor_case
+    assert res.verdict.status == "explained"
+    assert res.verdict.effect == "rotor_resistance_drift"
+    assert res.candidates[0].effect == "rotor_resistance_drift"
+    assert res.verdict.value == pytest.approx(1.3, rel=0.01)
+    assert 0 < res.verdict.uncertainty < 0.05
+    assert res.verdict.confidence > 0.8
+    # the calibration with the effect recovers the operating point
+    cal = res.candidates[0].calibration
+    assert cal.values["K"] == pytest.approx(PLANT.K, rel=0.01)
+    assert cal.values["J1"] == pytest.approx(PLANT.J1, rel=0.01)
+    # how far: the gap shrinks by far more than 5x and the fit is at the noise
+    assert res.candidates[0].shrinkage > 5
+    assert res.gap_after.rms_over_noise < 1.05 < res.gap_before.rms_over_noise
+    # where: the cells are sorted by excess and their shares add up to one
+    assert [c.excess for c in res.cells] == sorted((c.excess for c in res.cells), reverse=True)
+    assert sum(c.share for c in res.cells) == pytest.approx(1.0)
+
+
+def test_result_is_json_ready_in_the_shape_of_issue_4(rotor_case):
+    rec, res = rotor_case
+    d = json.loads(json.dumps(res.to_dict()))
+    assert {"calibration", "cells", "candidates", "verdict", "records", "gap"} <= set(d)
+    assert set(d["verdict"]) >= {"status", "effect", "value", "confidence"}
+    assert 0.0 <= d["verdict"]["confidence"] <= 1.0
+    before = Record.from_dict(d["records"]["before"])
+    after = Record.from_dict(d["records"]["after"])
+    assert set(before.channels) == set(CHANNELS)
+    # the fit with the effect reproduces the record far better than the nominal one
+    err = lambda sim: float(np.mean([(np.mean((rec[c] - sim[c]) ** 2) / np.var(rec[c])) for c in CHANNELS]))
+    assert err(after) < 0.01 * err(before)
+    cell = d["cells"][0]
+    assert {"channel", "level", "band_hz", "window", "window_ms", "share"} <= set(cell)
+    assert len(d["candidates"]) == len(CATALOGUE)
+
+
+def test_clean_record_gives_no_gap():
+    rec = noisy(simulate(PlantParameters(K=0.0042, J1=0.9, c=0.95)), 40.0, seed=12)
+    seen = []
+
+    def hook(record, result):  # the identification hook sees the finished result
+        seen.append(result.verdict.status)
+        return {"width_before": result.calibration.values["K"]}
+
+    res = diagnose(rec, identify=hook)
+    assert res.verdict.status == "no_gap", res.verdict.reason
+    assert seen == ["no_gap"] and res.to_dict()["identification"]["width_before"] == res.calibration.values["K"]
+    assert res.verdict.effect is None
+    assert res.after is None
+    assert res.gap_before.rms_over_noise < 1.05
+
+
+def test_left_out_effect_is_unexplained():
+    rec = noisy(simulate(PlantParameters(K=0.0075, J1=0.78, c=1.3), effects={"load_inertia": 1.6}), 40.0, seed=13)
+    res = diagnose(rec, CATALOGUE.without("load_inertia"))
+    assert res.verdict.status == "unexplained", res.verdict.reason
+    assert "load_inertia" not in [c.effect for c in res.candidates]
+
+
+def test_generated_cases_are_blind_and_follow_the_strength_rule(tmp_path):
+    cases, key = generate_cases(12, seed=3)
+    key_path = write_cases(cases, key, tmp_path)
+    assert key_path.parent != tmp_path / "cases"
+    for c, k in zip(cases, key):
+        d = json.loads((tmp_path / "cases" / f"{c.case_id}.json").read_text())
+        # the diagnosis sees the record and the library only: no truth, no event time
+        assert set(d) == {"case_id", "record", "library"}
+        assert d["record"]["conditions"] == {"c1": 0.2}
+        assert "event_time" not in d["record"]
+        assert (k.effect in d["library"]) == (k.kind == "effect") or k.kind == "clean"
+        assert k.counts == (k.effect is not None and k.strength > STRENGTH_THRESHOLD)
+        expected = ("no_gap" if not k.counts else "explained" if k.kind == "effect" else "unexplained")
+        assert k.expected_status == expected
+        assert 30.0 <= k.snr_db <= 50.0
+    assert {k.kind for k in key} == {"effect", "left_out", "clean"}
+
+
+def test_scorer_counts_what_it_should(tmp_path):
+    """The scorer on hand-made results: one right and one wrong answer of each kind."""
+    truth = [
+        ("a", "effect", "load_inertia", 1.5, 50.0, "explained", "load_inertia"),
+        ("b", "effect", "supply_voltage", 0.9, 40.0, "explained", "supply_voltage"),
+        ("c", "left_out", "contact_damping", 5.0, 20.0, "unexplained", None),
+        ("d", "left_out", "contact_damping", 5.0, 20.0, "unexplained", None),
+        ("e", "clean", None, None, 0.0, "no_gap", None),
+        ("f", "effect", "motor_viscous_friction", 0.01, 1.0, "no_gap", None),  # weak draw: scored as clean
+    ]
+    verdicts = {
+        "a": ("explained", "load_inertia", ["load_inertia", "contact_damping"], 1.55, 100.0),
+        "b": ("explained", "rotor_resistance_drift", ["rotor_resistance_drift", "supply_voltage"], 0.95, 3.0),
+        "c": ("unexplained", None, ["resilient_stiffness"], None, None),
+        "d": ("explained", "resilient_stiffness", ["resilient_stiffness"], None, None),
+        "e": ("no_gap", None, [], None, None),
+        "f": ("explained", "motor_viscous_friction", ["motor_viscous_friction"], None, None),
+    }
+    key = [AnswerEntry(cid, kind, eff, val, 0.005, 0.85, 1.0, 40.0, st, st > STRENGTH_THRESHOLD, es, ee)
+           for cid, kind, eff, val, st, es, ee in truth]
+    (tmp_path / "key").mkdir()
+    (tmp_path / "results").mkdir()
+    (tmp_path / "key" / "answer_key.json").write_text(json.dumps([asdict(k) for k in key]))
+    for cid, (status, eff, ranking, value, shrink) in verdicts.items():
+        cands = [{"effect": n, "value": value if n == (key[ord(cid) - 97].effect) else 1.0, "uncertainty": 0.1,
+                  "shrinkage": shrink if n == key[ord(cid) - 97].effect else 1.0} for n in ranking]
+        res = {"verdict": {"status": status, "effect": eff, "value": None, "confidence": 0.9},
+               "candidates": cands, "ranking": ranking, "wall_seconds": 1.0}
+        (tmp_path / "results" / f"{cid}.json").write_text(json.dumps(res))
+    rep = score(tmp_path)
+    assert rep.n_by_expected == {"explained": 2, "unexplained": 2, "no_gap": 2}
+    assert rep.top1 == 0.5 and rep.top2 == 1.0 and rep.rank1 == 0.5
+    assert rep.abstention == 0.5
+    assert rep.false_alarm == 0.5
+    assert rep.confusion["supply_voltage"] == {"rotor_resistance_drift": 1}
+    assert rep.confusion["no_gap"] == {"no_gap": 1, "motor_viscous_friction": 1}
+    assert rep.shrinkage["median"] == pytest.approx(51.5)
+    assert rep.value_error["median_rel_range"] == pytest.approx(0.05 / 1.5)  # load_inertia range 0.5..2
+    assert "top-1" in rep.table() and "truth" in rep.confusion_table()
+
+
+def test_small_blind_validation(tmp_path):
+    """A small blind run end to end: generate, diagnose without the key, score."""
+    rep = run_validation(4, seed=5, out_dir=tmp_path, workers=2,
+                         fractions={"effect": 0.5, "left_out": 0.25, "clean": 0.25})
+    assert rep.n_cases == 4
+    assert (tmp_path / "report.md").exists() and (tmp_path / "report.json").exists()
+    statuses = [r["status"] for r in rep.per_case]
+    assert "error" not in statuses
+    right = sum(r["status"] == r["expected"] and (r["named"] == r["effect"] or r["expected"] != "explained")
+                for r in rep.per_case)
+    assert right >= 3, rep.per_case
+
+
+def test_plots_are_written(rotor_case, tmp_path):
+    from engine.diagnosis.plots import plot_overlays, plot_residual_map
+
+    rec, res = rotor_case
+    for path in (plot_residual_map(res, tmp_path / "map.png"), plot_residual_map(res, tmp_path / "after.png", after=True),
+                 plot_overlays(rec, res, tmp_path / "overlay.png")):
+        data = path.read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
+
+
+@pytest.mark.slow
+def test_blind_validation_ten_cases(tmp_path):
+    """Ten blind cases (the benchmark runs 200): at most one wrong answer."""
+    rep = run_validation(10, seed=11, out_dir=tmp_path, workers=2)
+    wrong = [r for r in rep.per_case
+             if not (r["status"] == r["expected"] and (r["named"] == r["effect"] or r["expected"] != "explained"))]
+    assert len(wrong) <= 1, wrong

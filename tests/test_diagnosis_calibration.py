@@ -1,0 +1,134 @@
+"""Noise estimation, calibration and localisation of the gap diagnosis (engine.diagnosis)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine.constants import CHANNELS, EVENT_INDEX, SAMPLE_INTERVAL
+from engine.diagnosis import CalibrationError, CalibrationSettings, calibrate, default_space, estimate_noise, level_band, localise
+from engine.records import Record
+from engine.simulation import PlantParameters, simulate
+from engine.simulation.noise import noise_std
+
+TRUTH = PlantParameters(K=0.0063, J1=0.845, c=1.22)
+
+
+def noisy(record: Record, snr_db: float, seed: int, conditions: dict | None = None,
+          channels: tuple[str, ...] = CHANNELS) -> tuple[Record, dict[str, float]]:
+    rng = np.random.default_rng(seed)
+    sd = {k: float(noise_std(record[k], snr_db)[0]) for k in channels}
+    ch = {k: record[k] + rng.standard_normal(record[k].size) * sd[k] for k in channels}
+    return Record(ch, conditions=conditions if conditions is not None else {"c1": 0.2}), sd
+
+
+@pytest.fixture(scope="module")
+def clean() -> Record:
+    return simulate(TRUTH)
+
+
+def test_noise_estimate_within_a_few_percent(clean):
+    for snr in (30.0, 50.0):
+        rec, sd = noisy(clean, snr, seed=int(snr))
+        est = estimate_noise(rec)
+        for ch in CHANNELS:
+            assert est[ch] == pytest.approx(sd[ch], rel=0.08), (snr, ch)
+
+
+def test_calibration_recovers_K_J1_c_on_held_out_noisy_record(clean):
+    rec, _ = noisy(clean, 40.0, seed=1)
+    cal = calibrate(rec)
+    assert set(cal.values) == {"K", "J1", "c"}  # c1 fixed by the conditions
+    assert cal.fixed["c1"] == 0.2
+    assert cal.values["K"] == pytest.approx(TRUTH.K, rel=0.005)
+    assert cal.values["J1"] == pytest.approx(TRUTH.J1, rel=0.005)
+    assert cal.values["c"] == pytest.approx(TRUTH.c, rel=0.02)
+    assert 0.9 < cal.reduced_chi2 < 1.1
+    assert 0 < cal.uncertainties["K"] < 0.01 * TRUTH.K
+    assert cal.n_simulations > 100
+    # the calibrated simulation comes back in the record format
+    sim = cal.simulated_record(rec)
+    assert sim.conditions["K"] == pytest.approx(cal.values["K"])
+    assert np.max(np.abs(sim["omega1"] - clean["omega1"])) < 0.01 * np.ptp(clean["omega1"])
+
+
+def test_calibration_uses_conditions_and_channel_subsets(clean):
+    rec, _ = noisy(clean, 35.0, seed=2, conditions={"J1": TRUTH.J1, "c": TRUTH.c, "c1": 0.2},
+                   channels=("omega1", "a2"))
+    space = default_space(rec)
+    assert space.names == ["K"]
+    cal = calibrate(rec, space)
+    assert cal.values["K"] == pytest.approx(TRUTH.K, rel=0.005)
+    assert set(cal.chi2_per_channel) == {"omega1", "a2"}
+    assert cal.n_data == 2 * clean["a2"].size
+
+
+def test_calibration_without_c1_condition_fits_c1(clean):
+    rec, _ = noisy(clean, 45.0, seed=3, conditions={})
+    cal = calibrate(rec)
+    assert "c1" in cal.values
+    assert cal.values["K"] == pytest.approx(TRUTH.K, rel=0.01)
+
+
+def test_calibration_raises_when_nothing_can_be_simulated(clean):
+    # resistances of 10 pu at 5 % voltage leave the motor without torque: no event anywhere in the box
+    rec, _ = noisy(clean, 40.0, seed=4, conditions={"c1": 0.2, "r_s": 10.0, "r_r": 10.0, "u": 0.05})
+    with pytest.raises(CalibrationError, match="could be simulated"):
+        calibrate(rec, settings=CalibrationSettings(n_global=16))
+
+
+def test_level_bands():
+    assert level_band(1, SAMPLE_INTERVAL) == pytest.approx((2500.0, 5000.0))
+    assert level_band(10, SAMPLE_INTERVAL) == pytest.approx((10000 / 2048, 10000 / 1024))
+    assert level_band(10, SAMPLE_INTERVAL, approximation=True) == pytest.approx((0.0, 10000 / 2048))
+
+
+def test_localisation_finds_an_injected_burst(clean):
+    rec, sd = noisy(clean, 40.0, seed=5)
+    t = rec.time
+    burst = (t >= 0.06) & (t < 0.09)
+    a2 = rec["a2"] + burst * 6 * sd["a2"] * np.sin(2 * np.pi * 100.0 * t)  # 100 Hz, 60-90 ms after the event
+    rec = Record({**rec.channels, "a2": a2}, conditions=rec.conditions)
+    cells = localise(rec, clean, sd)
+    top = cells[0]
+    assert top.channel == "a2"
+    assert top.window == "50-100 ms"
+    assert top.band_hz[0] <= 100.0 <= top.band_hz[1]
+    assert sum(c.share for c in cells) == pytest.approx(1.0)
+    assert top.share > 0.5
+    # windows are relative to the event; the pre-event window covers the 48 samples before it
+    pre = [c for c in cells if c.window == "pre-event"]
+    assert pre and pre[0].window_ms[0] == pytest.approx(-EVENT_INDEX * SAMPLE_INTERVAL * 1e3)
+
+
+def test_localisation_of_pure_noise_has_little_excess(clean):
+    rec, sd = noisy(clean, 40.0, seed=6)
+    cells = localise(rec, clean, sd)
+    total_energy = sum(c.energy for c in cells)
+    total_noise = sum(c.noise_energy for c in cells)
+    assert total_energy == pytest.approx(total_noise, rel=0.06)
+
+
+def test_width_estimate_from_a_single_channel_ignores_a_K_condition(clean):
+    from engine.diagnosis import estimate_width
+
+    rec, _ = noisy(clean, 40.0, seed=7, conditions={"c1": 0.2, "K": 0.009}, channels=("omega1",))
+    K, sK = estimate_width(rec)
+    assert K == pytest.approx(TRUTH.K, rel=0.005)
+    assert 0 < sK < 0.005 * TRUTH.K
+
+
+def test_speed_quantum_is_fitted_by_dense_scan():
+    from engine.diagnosis.candidates import fit_candidate
+    from engine.simulation import CATALOGUE
+
+    truth = simulate(TRUTH, effects={"speed_quantization": 0.37})
+    rec, _ = noisy(truth, 40.0, seed=8)
+    space = default_space(rec)
+    nominal = calibrate(rec, space)
+    assert nominal.chi2_per_channel["omega1"] > 5 * rec["omega1"].size  # rounding is far beyond the noise
+    cand = fit_candidate(rec, nominal, space, CATALOGUE["speed_quantization"])
+    assert cand.value == pytest.approx(0.37, rel=0.005)
+    assert 0 < cand.uncertainty < 0.01
+    assert cand.calibration.reduced_chi2 < 1.05
+    assert cand.calibration.values["K"] == pytest.approx(TRUTH.K, rel=0.005)
