@@ -137,7 +137,7 @@ def test_run_calls_the_main_job(env: Path, monkeypatch: pytest.MonkeyPatch, caps
     assert calls == [Path("somewhere")]
 
 
-def test_validate_calls_the_blind_validation(env: Path, monkeypatch: pytest.MonkeyPatch,
+def test_validate_calls_the_blind_validation(env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                              capsys: pytest.CaptureFixture[str]) -> None:
     calls: list[dict[str, Any]] = []
 
@@ -152,9 +152,17 @@ def test_validate_calls_the_blind_validation(env: Path, monkeypatch: pytest.Monk
     fake = types.ModuleType("engine.diagnosis.validation")
     fake.run_validation = run_validation  # type: ignore[attr-defined]
     monkeypatch.setitem(sys.modules, "engine.diagnosis.validation", fake)
+    scored: list[Path] = []
+    ident = types.ModuleType("engine.diagnosis.identification")
+    ident.score_identification = lambda out: scored.append(out) or {}  # type: ignore[attr-defined]
+    ident.identification_markdown = lambda score: "| after | 0.9 |"  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "engine.diagnosis.identification", ident)
+    monkeypatch.chdir(tmp_path)
+    Path("v").mkdir()
     code, out, _ = run(capsys, "validate", "--cases", "12", "--seed", "3", "--out", "v")
-    assert code == 0 and out.strip() == "| top-1 | 0.95 |"
-    assert calls == [{"n_cases": 12, "seed": 3, "out_dir": Path("v"), "workers": 1}]
+    assert code == 0 and out.startswith("| top-1 | 0.95 |") and "| after | 0.9 |" in out
+    assert calls == [{"n_cases": 12, "seed": 3, "out_dir": Path("v"), "workers": 2}]
+    assert scored == [Path("v")] and Path("v/identification.md").read_text() == "| after | 0.9 |"
 
 
 @pytest.mark.parametrize(("argv", "module", "message"), [
