@@ -120,10 +120,22 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             Path(args.out).write_text(json.dumps(data, allow_nan=False), encoding="utf-8")
             output.info(f"wrote {len(records)} records to {args.out}")
         return EXIT_OK
+    record = records[0]
+    if args.snr_db is not None or args.known is not None:
+        # a "measured-like" record: white noise, and only the conditions a user would know
+        import numpy as np
+
+        from engine.records import Record
+        from engine.simulation import add_white_noise
+
+        rng = np.random.default_rng(args.seed)
+        channels = {k: v if args.snr_db is None else add_white_noise(v, args.snr_db, rng) for k, v in record.channels.items()}
+        known = record.conditions if args.known is None else {k: v for k, v in record.conditions.items() if k in args.known}
+        record = Record(channels, record.sample_interval, record.event_index, known, record.event_time)
     if args.out is None:
-        output.write_json(records[0].to_dict())
+        output.write_json(record.to_dict())
     else:
-        write_record(records[0], args.out)
+        write_record(record, args.out)
         output.info(f"wrote the record (event at t_e = {records[0].event_time:.6f} s) to {args.out}")
     return EXIT_OK
 
@@ -310,6 +322,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="unmodelled effect (repeatable)")
     p.add_argument("--cases", type=Path, help="JSON file with a list of cases (the batch form); writes JSON")
     p.add_argument("--out", type=Path, help="output file, .json or .csv (default: JSON on stdout)")
+    p.add_argument("--snr-db", type=_finite, help="add white noise at this SNR [dB] to every channel (single case)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the noise (default 0)")
+    p.add_argument("--known", nargs="*", choices=["K", "J1", "c", "c1"],
+                   help="conditions the record states (default all; e.g. --known c1 hides K, J1 and c)")
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("train", help="train and store a pattern set (like POST /v1/pattern-sets)")

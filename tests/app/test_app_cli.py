@@ -10,6 +10,7 @@ import types
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from servicekit import SMALL_TRAINING, clean_env
 
@@ -196,3 +197,15 @@ def test_console_script_is_installed(tmp_path: Path) -> None:
     assert proc.returncode == 0
     for command in ("simulate", "train", "identify", "diagnose", "serve", "run", "bench", "validate"):
         assert command in proc.stdout
+
+
+def test_simulate_can_make_a_measured_like_record(env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert run(capsys, "simulate", "--K", "0.006", "--out", "clean.json")[0] == 0
+    assert run(capsys, "simulate", "--K", "0.006", "--snr-db", "30", "--known", "c1", "--out", "noisy.json")[0] == 0
+    clean, noisy = (json.loads(Path(f).read_text()) for f in ("clean.json", "noisy.json"))
+    assert noisy["conditions"] == {"c1": 0.2} and set(clean["conditions"]) == {"K", "J1", "c", "c1"}
+    v_clean, v_noisy = np.array(clean["channels"]["v2"]), np.array(noisy["channels"]["v2"])
+    snr = 10 * np.log10(np.var(v_clean) / np.var(v_noisy - v_clean))
+    assert 28.0 < snr < 32.0
