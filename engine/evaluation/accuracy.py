@@ -16,6 +16,7 @@ Three evaluations, none of which ever trains on a record it scores:
 from __future__ import annotations
 
 import logging
+import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -28,6 +29,10 @@ from engine.identification.training import fit_identifier, make_identifier
 from engine.simulation import PlantParameters, SimulationResult, add_white_noise, simulate_batch
 
 logger = logging.getLogger(__name__)
+
+#: Worker processes are spawned, never forked: the parent has run numba's parallel
+#: (OpenMP) kernel, and libgomp aborts a forked child that uses OpenMP again.
+_SPAWN = multiprocessing.get_context("spawn")
 
 NOISE_LEVELS_DB: tuple[float, ...] = (40.0, 30.0)
 
@@ -139,7 +144,7 @@ def evaluate(
     splits = list(SPLITS_RANDOM)
     X_random = noisy_versions(random, channels, noise_seed)
     tasks = []
-    with ProcessPoolExecutor(max_workers=n_jobs or os.cpu_count() or 1) as pool:
+    with ProcessPoolExecutor(max_workers=n_jobs or os.cpu_count() or 1, mp_context=_SPAWN) as pool:
         for kind, params in kinds.items():
             for ch in channels:
                 for cg in groups:

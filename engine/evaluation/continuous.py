@@ -16,6 +16,7 @@ the random records, not in the main job.
 from __future__ import annotations
 
 import logging
+import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -32,6 +33,10 @@ from engine.evaluation.accuracy import SPLITS_RANDOM, noisy_versions, random_cas
 from engine.records import Record
 
 logger = logging.getLogger(__name__)
+
+#: Worker processes are spawned, never forked: the parent has run numba's parallel
+#: (OpenMP) kernel, and libgomp aborts a forked child that uses OpenMP again.
+_SPAWN = multiprocessing.get_context("spawn")
 
 #: Calibration settings of the continuous estimate (two free parameters: K, J1).
 CONTINUOUS_SETTINGS = CalibrationSettings(n_global=128, n_starts=2)
@@ -71,7 +76,7 @@ def evaluate_continuous(n_cases: int = 20, channels: Sequence[str] = CHANNELS, n
     c = np.array([c.plant.c for c in random.cases])[:n_cases]
     versions = noisy_versions(random, channels)
     rows = []
-    with ProcessPoolExecutor(max_workers=n_jobs or os.cpu_count() or 1) as pool:
+    with ProcessPoolExecutor(max_workers=n_jobs or os.cpu_count() or 1, mp_context=_SPAWN) as pool:
         futures = {(ch, split): pool.submit(_task, ch, versions[ch][s][:n_cases], c)
                    for ch in channels for s, split in enumerate(SPLITS_RANDOM)}
         for (ch, split), fut in futures.items():
