@@ -169,13 +169,13 @@ class SolverSettings:
     ----------
     max_step : float
         Largest RK4 step [s]; every interval between sample instants is split
-        into equal steps no longer than this. 25 us (Ts / 4) meets MODEL.md
+        into equal steps no longer than this. 33 us (Ts / 3) meets MODEL.md
         section 4 with a wide margin (tests/test_simulation_accuracy.py).
     t_event_max : float
         Simulated time within which the backlash event must occur [s].
     """
 
-    max_step: float = 2.5e-5
+    max_step: float = 1e-4 / 3
     t_event_max: float = T_EVENT_MAX
 
     def validate(self) -> "SolverSettings":
