@@ -101,7 +101,8 @@ def run(out_dir: str | Path = "out", db_path: str | Path | None = None, n_random
     ids = train_and_store(store, grids, kinds)
 
     _step(3, n_steps, "re-running the paper's Tables 1-4")
-    tables = rerun_tables(progress=lambda i, n: logger.info("  table case %d/%d", i, n)) if "paper" in kinds else []
+    tables = (rerun_tables(progress=lambda i, n: logger.info("  table case %d/%d", i, n), grids=grids)
+              if "paper" in kinds else [])
 
     _step(4, n_steps, "scoring identifiers on held-out data (leave-one-J1-out, random J1/c, 40 and 30 dB noise)")
     acc = evaluate(grids, random, kinds, n_jobs=n_jobs,

@@ -93,8 +93,12 @@ def nearest_group(c: float) -> float:
     return min(C_GROUPS, key=lambda g: abs(g - c))
 
 
-def rerun_tables(max_epochs: int = 500, progress=None) -> list[TableRow]:
-    """Re-run every table case with the paper's identifier (see the module docstring)."""
+def rerun_tables(max_epochs: int = 500, progress=None, grids=None) -> list[TableRow]:
+    """Re-run every table case with the paper's identifier (see the module docstring).
+
+    ``grids`` maps c groups to already simulated training grids (else they are simulated).
+    """
+    grids = grids or {}
     records = simulate_batch([PlantParameters(K=tc.K, J1=tc.J1, c=tc.c) for tc in PAPER_TABLE_CASES])
     rows = []
     cache: dict[tuple, PaperIdentifier] = {}
@@ -102,7 +106,7 @@ def rerun_tables(max_epochs: int = 500, progress=None) -> list[TableRow]:
         group = nearest_group(tc.c)
         key = (tc.channel, group, tc.l, tc.delta1)
         if key not in cache:
-            ps = train_pattern_set(tc.channel, group, kind="paper",
+            ps = train_pattern_set(tc.channel, group, kind="paper", grid=grids.get(group),
                                    params={"learning_rate": tc.l, "delta1": tc.delta1, "max_epochs": max_epochs})
             cache[key] = identifier_from_pattern_set(ps)
         res = cache[key].identify(records.channel(tc.channel)[i])
