@@ -384,7 +384,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("validate", help="blind validation of the gap diagnosis")
     p.add_argument("--out", default="out/validation", help="working and report directory (default out/validation)")
     p.add_argument("--cases", type=int, default=200, help="number of blind cases (default 200)")
-    p.add_argument("--seed", type=int, default=2024, help="seed of the case generator (default 2024, the README table)")
+    p.add_argument("--seed", type=int, default=7, help="seed of the case generator (default 7, the README's blind run)")
     p.add_argument("--workers", type=int, default=2, help="parallel diagnosis processes (default 2)")
     p.set_defaults(func=cmd_validate, passthrough=True)
     return parser
