@@ -30,18 +30,27 @@ if TYPE_CHECKING:  # pragma: no cover
 logger = logging.getLogger(__name__)
 
 
+def _fit(grid: SimulationResult, channel: str, kind: str):
+    y = np.array([case.plant.K for case in grid.cases])
+    g = np.array([case.plant.J1 for case in grid.cases])
+    return fit_identifier(make_identifier(kind, channel), grid.channel(channel), y, g)
+
+
 @lru_cache(maxsize=8)
 def _nominal_grid(c_group: float) -> SimulationResult:
     return simulate_training_grid(c_group)
 
 
-def _identify_all(grid: SimulationResult, record: Record, kind: str) -> dict[str, dict]:
-    y = np.array([case.plant.K for case in grid.cases])
-    g = np.array([case.plant.J1 for case in grid.cases])
+@lru_cache(maxsize=64)
+def _nominal_identifier(c_group: float, channel: str, kind: str):
+    """Fitted identifier on the nominal grid: fitted once per (c, channel, kind), reused for every record."""
+    return _fit(_nominal_grid(c_group), channel, kind)
+
+
+def _identify_all(identifier_for, record: Record) -> dict[str, dict]:
     out = {}
     for ch, x in record.channels.items():
-        est = fit_identifier(make_identifier(kind, ch), grid.channel(ch), y, g)
-        res = est.identify(x)
+        res = identifier_for(ch).identify(x)
         out[ch] = {"index": res.index, "width": res.width, "D": [float(v) for v in res.D]}
     return out
 
@@ -83,10 +92,11 @@ def identify_before_after(
         where each entry has the 1-based ``index``, the ``width`` [m] and the ``D`` vector.
     """
     group = float(min(C_GROUPS, key=lambda g: abs(g - c))) if at_groups else float(c)
-    before = _identify_all(_nominal_grid(group), record, kind)
+    before = _identify_all(lambda ch: _nominal_identifier(group, ch, kind), record)
     after: Mapping[str, dict] = {}
     if effect is not None and value is not None:
-        after = _identify_all(simulate_training_grid(group, effects={effect: value}), record, kind)
+        grid = simulate_training_grid(group, effects={effect: value})
+        after = _identify_all(lambda ch: _fit(grid, ch, kind), record)
     return {
         "kind": kind,
         "c_group": group,
