@@ -7,14 +7,16 @@ Three parts, each optional:
   ``--snr`` dB) and report how often the fit lands in the basin (|K error| < 3 %
   and |J1 error| < 1.5 %), the K error, the spread of (error / reported
   uncertainty), simulations and time per calibration.
-* ``--timing``: wall time of one full diagnosis of the record of
-  docs/INVERSE-PROBLEM.md (rotor resistance x 1.3), with all the cores numba uses.
+* ``--timing [N]``: wall time of N (default 20) full diagnoses of blind cases
+  drawn like the validation's but with more left-out effects (the slowest
+  kind), with all the cores numba uses; median, 90th percentile, maximum and
+  the count over the 30 s budget.
 * ``--validation N``: the blind validation (``engine.diagnosis.validation``)
   with N cases, written to ``--out``.
 
 Examples::
 
-    python bench/bench_diagnosis.py --calibration 20 --timing
+    python bench/bench_diagnosis.py --calibration 20 --timing 20 --seed 11
     python bench/bench_diagnosis.py --validation 200 --workers 2 --out out/diagnosis-validation
 """
 
@@ -74,29 +76,56 @@ def bench_calibration(n: int, snr_db: float, seed: int) -> dict:
     }
 
 
-def bench_timing(seed: int) -> dict:
-    from engine.diagnosis import diagnose
-    from engine.records import Record
-    from engine.simulation import PlantParameters, simulate
-    from engine.simulation.noise import add_white_noise
+def bench_timing(n: int, seed: int, n_jobs: int | None = None) -> dict:
+    """Wall time of full diagnoses of ``n`` blind-validation-style cases, one after the other.
 
-    rng = np.random.default_rng(seed)
-    r = simulate(PlantParameters(K=0.006, J1=0.82, c=1.1), effects={"rotor_resistance_drift": 1.3})
-    rec = Record({k: add_white_noise(v, 45.0, rng) for k, v in r.channels.items()}, conditions={"c1": 0.2})
-    t0 = time.perf_counter()
-    res = diagnose(rec)
-    dt = time.perf_counter() - t0
+    The cases come from :func:`engine.diagnosis.validation.generate_cases`
+    with more left-out effects than the validation's mix (40 % effect, 40 %
+    left out, 20 % clean): a record no candidate explains is the slowest kind
+    (every candidate gets the global search). Each diagnosis uses every core
+    numba may use (candidate fits on ``n_jobs`` threads, default: numba's count).
+    """
     import numba
 
-    return {"seconds": dt, "threads": numba.get_num_threads(), "n_simulations": res.n_simulations,
-            "verdict": res.verdict.to_dict()}
+    from engine.diagnosis import diagnose
+    from engine.diagnosis.candidates import CandidateSettings
+    from engine.diagnosis.diagnose import DiagnosisSettings
+    from engine.diagnosis.validation import generate_cases
+    from engine.simulation import CATALOGUE, EffectLibrary
+
+    cases, key = generate_cases(n, seed, fractions={"effect": 0.4, "left_out": 0.4, "clean": 0.2})
+    settings = DiagnosisSettings(candidates=CandidateSettings(n_jobs=n_jobs))
+    diagnose(cases[0].record, EffectLibrary([CATALOGUE[x] for x in cases[0].library]), settings)  # JIT warm-up
+    rows = []
+    for case, truth in zip(cases, key):
+        lib = EffectLibrary([CATALOGUE[x] for x in case.library])
+        t0 = time.perf_counter()
+        res = diagnose(case.record, lib, settings)
+        dt = time.perf_counter() - t0
+        rows.append({"case": case.case_id, "kind": truth.kind, "effect": truth.effect,
+                     "status": res.verdict.status, "seconds": dt, "n_simulations": res.n_simulations})
+        print(f"  {case.case_id} {truth.kind:8s} {str(truth.effect):24s} -> {res.verdict.status:11s} "
+              f"{dt:5.1f} s, {res.n_simulations} simulations", file=sys.stderr)
+    t = np.array([r["seconds"] for r in rows])
+    by_status = {}
+    for st in sorted({r["status"] for r in rows}):
+        ts = np.array([r["seconds"] for r in rows if r["status"] == st])
+        by_status[st] = {"n": int(ts.size), "median_s": float(np.median(ts)), "max_s": float(ts.max())}
+    return {"n": n, "seed": seed, "numba_threads": numba.get_num_threads(),
+            "n_jobs": CandidateSettings(n_jobs=n_jobs).jobs(), "median_s": float(np.median(t)),
+            "p90_s": float(np.quantile(t, 0.9)), "max_s": float(t.max()),
+            "over_30_s": int(np.sum(t > 30.0)), "by_verdict": by_status}
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--calibration", type=int, default=0, help="records of the calibration benchmark")
     ap.add_argument("--snr", type=float, default=40.0, help="SNR of the calibration benchmark [dB]")
-    ap.add_argument("--timing", action="store_true", help="time one full diagnosis")
+    ap.add_argument("--timing", type=int, nargs="?", const=20, default=0, metavar="N",
+                    help="time N full diagnoses (default 20 when given without N)")
+    ap.add_argument("--jobs", type=int, default=None, help="candidate fits at once in --timing (default: numba threads)")
+    ap.add_argument("--baseline", action="store_true",
+                    help="with --timing, also time the same cases with one candidate fit at a time and print the ratio")
     ap.add_argument("--validation", type=int, default=0, help="blind validation cases")
     ap.add_argument("--workers", type=int, default=2, help="parallel diagnosis processes of the validation")
     ap.add_argument("--seed", type=int, default=2024)
@@ -106,12 +135,17 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("engine.diagnosis.calibration", "engine.diagnosis.candidates", "engine.diagnosis.diagnose"):
         logging.getLogger(name).setLevel(logging.WARNING)
     if not (args.calibration or args.timing or args.validation):
-        args.calibration, args.timing = 20, True
+        args.calibration, args.timing = 20, 20
     if args.calibration:
         res = bench_calibration(args.calibration, args.snr, args.seed)
         print(json.dumps({k: v for k, v in res.items() if k != "rows"}, indent=1))
     if args.timing:
-        print(json.dumps(bench_timing(args.seed), indent=1))
+        res = bench_timing(args.timing, args.seed, args.jobs)
+        print(json.dumps(res, indent=1))
+        if args.baseline:
+            base = bench_timing(args.timing, args.seed, 1)
+            print(json.dumps({"baseline_n_jobs_1": base, "speedup_median": base["median_s"] / res["median_s"],
+                              "speedup_max": base["max_s"] / res["max_s"]}, indent=1))
     if args.validation:
         from engine.diagnosis.validation import run_validation
 

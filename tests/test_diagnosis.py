@@ -168,6 +168,31 @@ def test_small_blind_validation(tmp_path):
     right = sum(r["status"] == r["expected"] and (r["named"] == r["effect"] or r["expected"] != "explained")
                 for r in rep.per_case)
     assert right >= 3, rep.per_case
+    # identification before/after on the same finished run (reads the key only now)
+    from engine.diagnosis.identification import identification_markdown, score_identification
+
+    ident = score_identification(tmp_path)
+    n = ident["n"]
+    assert n["twin"] == n["before"] == n["after"] == sum(r["expected"] == "explained" for r in rep.per_case)
+    assert n["clean"] == sum(r["kind"] == "clean" for r in rep.per_case)
+    for split in ("twin", "before", "after"):
+        assert 0.0 <= ident["accuracy"][split]["mean"] <= 1.0
+    assert "clean twins" in identification_markdown(ident)
+
+
+def test_clean_twin_keeps_the_noise_and_removes_the_effect():
+    from engine.diagnosis.identification import _clean_twins
+
+    truth = {"K": 0.0047, "J1": 0.8, "c": 1.25, "effect": "supply_voltage", "value": 0.9}
+    plant = PlantParameters(K=truth["K"], J1=truth["J1"], c=truth["c"])
+    with_eff, clean = simulate(plant, effects={"supply_voltage": 0.9}), simulate(plant)
+    rng = np.random.default_rng(3)
+    noise = {k: rng.standard_normal(v.size) * 0.01 * np.std(v) for k, v in with_eff.channels.items()}
+    rec = Record({k: v + noise[k] for k, v in with_eff.channels.items()}, conditions={"c1": 0.2})
+    twin = _clean_twins([truth], [rec])[0]
+    for k in rec.channels:
+        np.testing.assert_allclose(twin[k] - clean[k], noise[k], rtol=0, atol=1e-9 * np.std(clean[k]))
+        assert not np.allclose(twin[k], rec[k])
 
 
 def test_plots_are_written(rotor_case, tmp_path):
@@ -187,3 +212,54 @@ def test_blind_validation_ten_cases(tmp_path):
     wrong = [r for r in rep.per_case
              if not (r["status"] == r["expected"] and (r["named"] == r["effect"] or r["expected"] != "explained"))]
     assert len(wrong) <= 1, wrong
+
+
+def test_candidate_fits_do_not_depend_on_the_number_of_threads():
+    """Fitting candidates on two threads (each on one core) gives exactly the one-by-one result,
+    escalation included (no candidate of this library explains the record, so every one is escalated)."""
+    from engine.diagnosis.calibration import calibrate, default_space
+    from engine.diagnosis.candidates import CandidateSettings, fit_candidates
+    from engine.simulation import EffectLibrary
+
+    rec = noisy(simulate(PlantParameters(K=0.005, J1=0.86, c=1.2), effects={"load_inertia": 1.5}), 40.0, seed=21)
+    lib = EffectLibrary([CATALOGUE[n] for n in ("measurement_delay", "contact_damping", "supply_voltage")])
+    space = default_space(rec)
+    nominal = calibrate(rec, space)
+    runs = {n: fit_candidates(rec, nominal, space, lib, CandidateSettings(n_jobs=n)) for n in (1, 2)}
+    assert all(c.calibration.stages for c in runs[1])
+    for a, b in zip(runs[1], runs[2]):
+        assert (a.effect, a.value, a.bic, a.note) == (b.effect, b.value, b.bic, b.note)
+    assert runs[1][0].calibration.reduced_chi2 > 1.1  # the escalation really ran
+
+
+def test_inline_runner_defers_and_cancels():
+    from engine.diagnosis.candidates import _Runner
+
+    calls = []
+    with _Runner(1) as runner:
+        a = runner.submit(calls.append, "a")
+        b = runner.submit(calls.append, "b")
+        assert calls == []  # nothing runs before its result is asked for
+        a.result()
+        b.cancel()
+        assert calls == ["a"]
+    with _Runner(2) as runner:
+        assert runner.submit(sum, [1, 2]).result() == 3
+
+
+def test_a_running_fit_stops_when_cancelled():
+    import time
+    from concurrent.futures import CancelledError
+
+    from engine.diagnosis.calibration import CalibrationSettings, calibrate
+    from engine.diagnosis.candidates import _Runner
+    from engine.parallel import Cancelled
+
+    rec = noisy(simulate(PLANT), 40.0, seed=22)
+    slow = CalibrationSettings(n_global=512, n_starts=8)  # several seconds: far longer than the wait
+    with _Runner(2) as runner:
+        task = runner.submit(calibrate, rec, None, slow)
+        time.sleep(0.3)
+        task.cancel()
+        with pytest.raises((Cancelled, CancelledError)):  # stopped, not run to the end
+            task.result()

@@ -48,6 +48,7 @@ from scipy.optimize import least_squares
 from scipy.stats import qmc
 
 from engine.constants import CHANNEL_WAVELETS, CHANNELS, N_SAMPLES
+from engine.parallel import raise_if_cancelled, single_threaded_blas
 from engine.records import Record
 from engine.simulation import Case, Effect, PlantParameters, SolverSettings, run_cases
 
@@ -287,6 +288,7 @@ class Objective:
 
     def simulate(self, U: np.ndarray, solver: SolverSettings) -> tuple[np.ndarray, np.ndarray]:
         """Simulate unit-box points U (m, d): the record's channels (m, n_ch, 2048) and ok flags (m,)."""
+        raise_if_cancelled()  # a fit made redundant on another thread stops here
         U = np.atleast_2d(np.asarray(U, dtype=float))
         keys = [(solver.max_step, tuple(np.round(u, 14))) for u in U]
         todo = [i for i, k in enumerate(keys) if k not in self._cache]
@@ -592,6 +594,14 @@ def calibrate(
         When no point of the search box (nor any seed) can be simulated, or the
         fitted parameters cannot be simulated.
     """
+    with single_threaded_blas():
+        return _calibrate(record, space, settings, noise, seeds, polish)
+
+
+def _calibrate(
+    record: Record, space: ModelSpace | None, settings: CalibrationSettings, noise: Mapping[str, float] | None,
+    seeds: Sequence[Mapping[str, float]], polish: bool,
+) -> CalibrationResult:
     t0 = time.perf_counter()
     space = default_space(record) if space is None else space
     noise = estimate_noise(record) if noise is None else dict(noise)

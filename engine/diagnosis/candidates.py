@@ -27,6 +27,13 @@ calibration is refitted on the unrounded omega1 with the rounding treated as
 extra white noise (variance q^2/12), and q is scanned again (two rounds). Its
 uncertainty is the half-width of the interval where chi2 rises by 1.
 
+The candidates are independent, so each pass fits them on ``n_jobs`` threads,
+each running its simulations on one core (:func:`engine.simulation.serial_kernel`):
+the optimiser's single-point evaluations would otherwise leave all but one
+core idle. The escalation keeps its sequential meaning: its fits are
+collected in ranking order and the rest are cancelled once one fits to the
+noise, so the result does not depend on ``n_jobs``.
+
 Evidence: the Bayesian information criterion of a Gaussian likelihood with the
 estimated noise, ``BIC = chi2 + k ln(n)`` (k fitted parameters, n residuals),
 so an effect must lower chi2 by more than ln(n) (about 9 for five channels)
@@ -38,8 +45,11 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
+import time
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence, TypeVar
 
 import numpy as np
 
@@ -52,7 +62,8 @@ from engine.diagnosis.calibration import (
 )
 from engine.constants import N_SAMPLES
 from engine.records import Record
-from engine.simulation import CATALOGUE, Case, Effect, EffectLibrary, SolverSettings, run_cases
+from engine.parallel import cancel_scope
+from engine.simulation import CATALOGUE, Case, Effect, EffectLibrary, SolverSettings, run_cases, serial_kernel
 
 logger = logging.getLogger(__name__)
 
@@ -204,6 +215,10 @@ class CandidateSettings:
         Most candidates refined.
     n_quantum : int
         Values of the dense scan of a speed quantum.
+    n_jobs : int or None
+        Candidates fitted at once, on threads with one core each (None: numba's
+        thread count, i.e. the cores numba may use; 1 fits them one by one with
+        the batch-parallel simulator).
     """
 
     seeded: CalibrationSettings = CalibrationSettings(n_global=0, max_nfev=30)
@@ -216,6 +231,15 @@ class CandidateSettings:
     polish_within: float = 0.1
     max_polish: int = 6
     n_quantum: int = 4000
+    n_jobs: int | None = None
+
+    def jobs(self) -> int:
+        """Resolved ``n_jobs`` (at least 1)."""
+        if self.n_jobs is not None:
+            return max(1, int(self.n_jobs))
+        import numba
+
+        return max(1, int(numba.get_num_threads()))
 
 
 def shrinkage_ratio(before: CalibrationResult, after: CalibrationResult) -> float:
@@ -409,6 +433,68 @@ def effect_strength(cand: Candidate, space: ModelSpace, record: Record, noise: M
     return out
 
 
+_T = TypeVar("_T")
+
+
+def _on_one_core(event: threading.Event, fn: Callable[..., _T], *args, **kwargs) -> _T:
+    with serial_kernel(), cancel_scope(event):
+        return fn(*args, **kwargs)
+
+
+class _Task:
+    """A fit running on a thread; ``cancel()`` also stops it if it has started (:mod:`engine.parallel`)."""
+
+    def __init__(self, executor: ThreadPoolExecutor, fn: Callable[..., _T], *args, **kwargs):
+        self._event = threading.Event()
+        self._future: Future = executor.submit(_on_one_core, self._event, fn, *args, **kwargs)
+
+    def result(self) -> _T:
+        return self._future.result()
+
+    def cancel(self) -> bool:
+        self._event.set()
+        return self._future.cancel()
+
+
+class _Deferred:
+    """The inline stand-in of a future: computed on the first ``result()``, never if cancelled first."""
+
+    def __init__(self, thunk: Callable[[], _T]):
+        self._thunk: Callable[[], _T] | None = thunk
+        self._value: _T | None = None
+
+    def result(self) -> _T:
+        if self._thunk is not None:
+            self._value, self._thunk = self._thunk(), None
+        return self._value  # type: ignore[return-value]
+
+    def cancel(self) -> bool:
+        self._thunk = None
+        return True
+
+
+class _Runner:
+    """Runs independent fits on ``n_jobs`` threads (each on one core), or inline when ``n_jobs == 1``."""
+
+    def __init__(self, n_jobs: int):
+        self.n_jobs = n_jobs
+        self._ex = ThreadPoolExecutor(n_jobs, thread_name_prefix="candidate") if n_jobs > 1 else None
+
+    def submit(self, fn: Callable[..., _T], *args, **kwargs) -> "_Task | _Deferred":
+        """A handle on ``fn(*args, **kwargs)`` (``result()``, ``cancel()``); inline, the call runs
+        when its result is first asked for."""
+        if self._ex is not None:
+            return _Task(self._ex, fn, *args, **kwargs)
+        return _Deferred(lambda: fn(*args, **kwargs))
+
+    def __enter__(self) -> "_Runner":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._ex is not None:
+            self._ex.shutdown(wait=True, cancel_futures=True)
+
+
 def posterior_weights(bics: Mapping[str, float]) -> dict[str, float]:
     """Normalised ``exp(-BIC / 2)`` weights (infinite BIC gets weight 0)."""
     finite = {k: v for k, v in bics.items() if math.isfinite(v)}
@@ -450,50 +536,73 @@ def fit_candidates(
         ``1 - sum(weights)``).
     """
 
+    with _Runner(settings.jobs()) as runner:
+        return _fit_candidates(record, nominal, space, library, settings, runner)
+
+
+def _fit_candidates(
+    record: Record, nominal: CalibrationResult, space: ModelSpace, library: EffectLibrary,
+    settings: CandidateSettings, runner: _Runner,
+) -> list[Candidate]:
     def order(cs: list[Candidate]) -> list[Candidate]:
         return sorted(cs, key=lambda c: c.bic)
 
+    t0 = time.perf_counter()
     # pass 1: seeded fits at the search step
-    cands = order([fit_candidate(record, nominal, space, e, settings, polish=False) for e in library.values()])
+    futs = [runner.submit(fit_candidate, record, nominal, space, e, settings, polish=False) for e in library.values()]
+    cands = order([f.result() for f in futs])
+    logger.info("seeded fits of %d candidates: %.1f s", len(cands), time.perf_counter() - t0)
     fitted = [c for c in cands if c.calibration is not None]
 
     # pass 2: escalate (best seeded BIC first) when none fits to the noise, until one does
     if fitted and min(c.calibration.reduced_chi2 for c in fitted) > settings.escalate_above:
         n_esc = len(cands) if settings.n_escalate is None else settings.n_escalate
         logger.info("no candidate fits to the noise after the seeded fits; global search for up to %d", n_esc)
-        for i, c in enumerate(cands[:n_esc]):
-            if c.calibration is None:
-                continue
-            new = fit_candidate(record, nominal, space, library[c.effect], settings, polish=False,
-                                global_search=True, extra_seeds=[c.calibration.values])
+
+        def escalate(i: int):
+            return runner.submit(fit_candidate, record, nominal, space, library[cands[i].effect], settings,
+                                 polish=False, global_search=True, extra_seeds=[cands[i].calibration.values])
+
+        idx = [i for i, c in enumerate(cands[:n_esc]) if c.calibration is not None]
+        tasks = {}
+        for k, i in enumerate(idx):
+            if k == 1:  # the best seeded candidate ran alone (on every core); the rest run side by side
+                tasks = {j: escalate(j) for j in idx[1:]}
+            c = cands[i]
+            new = (tasks[i] if i in tasks else escalate(i)).result()
             new.calibration.n_simulations += c.calibration.n_simulations
             new.calibration.seconds += c.calibration.seconds
             cands[i] = new if new.bic < c.bic else c
             if cands[i].calibration.reduced_chi2 <= settings.escalate_above:
                 # one effect explains the record: the others keep their seeded fits
-                for rest in cands[i + 1:n_esc]:
+                for j, rest in enumerate(cands[i + 1:n_esc], start=i + 1):
                     rest.note = rest.note or f"seeded fit only: the escalation stopped once {c.effect} fitted to the noise"
+                    if j in tasks:
+                        tasks[j].cancel()  # stops it even if it is running
                 break
         cands = order(cands)
+        logger.info("escalation: %.1f s", time.perf_counter() - t0)
 
     # pass 3: refine the front runners at the final integrator step, from their search-step optimum
     fitted = [c for c in cands if c.calibration is not None]
     best_chi2 = fitted[0].calibration.chi2 if fitted else math.inf
     n_pol = sum(1 for i, c in enumerate(fitted[: settings.max_polish])
                 if i < settings.n_polish or c.calibration.chi2 <= (1 + settings.polish_within) * best_chi2)
-    for i, c in enumerate(cands[:n_pol]):
-        if c.calibration is None or c.calibration.step == settings.seeded.final_step:
-            continue
-        effect = library[c.effect]
-        cal = calibrate(record, space.with_effect(effect), settings.seeded, noise=nominal.noise,
-                        seeds=[c.calibration.values], polish=True)
+    futs = {i: runner.submit(calibrate, record, space.with_effect(library[c.effect]), settings.seeded,
+                             noise=nominal.noise, seeds=[c.calibration.values], polish=True)
+            for i, c in enumerate(cands[:n_pol])
+            if c.calibration is not None and c.calibration.step != settings.seeded.final_step}
+    for i, f in futs.items():
+        c, cal = cands[i], f.result()
         cal.n_simulations += c.calibration.n_simulations
         cal.seconds += c.calibration.seconds
-        cands[i] = _candidate(effect, cal, nominal)
+        cands[i] = _candidate(library[c.effect], cal, nominal)
     cands = order(cands)
-    for c in cands[:n_pol]:
-        if c.calibration is not None:
-            c.strength = effect_strength(c, space, record, nominal.noise)
+    futs = {i: runner.submit(effect_strength, c, space, record, nominal.noise)
+            for i, c in enumerate(cands[:n_pol]) if c.calibration is not None}
+    for i, f in futs.items():
+        cands[i].strength = f.result()
+    logger.info("candidate fits done in %.1f s (%d refined at the final step)", time.perf_counter() - t0, n_pol)
     w = posterior_weights({"<nominal>": nominal.bic, **{c.effect: c.bic for c in cands}})
     best = cands[0].bic if cands else math.inf
     for c in cands:

@@ -47,6 +47,7 @@ from scipy.special import expit
 from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings, calibrate, default_space
 from engine.diagnosis.candidates import Candidate, CandidateSettings, Gap, fit_candidates, gap_of
 from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, localise
+from engine.parallel import single_threaded_blas
 from engine.records import Record
 from engine.simulation import CATALOGUE, EffectLibrary
 
@@ -314,6 +315,14 @@ def diagnose(
     CalibrationError
         When the record cannot be fitted at all (no simulable parameter set).
     """
+    with single_threaded_blas():
+        return _diagnose(record, library, settings, identify, noise)
+
+
+def _diagnose(
+    record: Record, library: EffectLibrary, settings: DiagnosisSettings, identify: IdentificationHook | None,
+    noise: Mapping[str, float] | None,
+) -> DiagnosisResult:
     t0 = time.perf_counter()
     space = default_space(record)
     nominal = calibrate(record, space, settings.calibration, noise=noise)

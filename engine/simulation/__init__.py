@@ -11,10 +11,12 @@ from engine.simulation.parameters import (
     paper_grid,
 )
 from engine.simulation.noise import add_white_noise, noise_std
-from engine.simulation.simulator import SimulationError, SimulationResult, run_cases, simulate, simulate_batch
+from engine.simulation.simulator import (
+    SimulationError, SimulationResult, run_cases, serial_kernel, simulate, simulate_batch,
+)
 
 __all__ = [
     "CATALOGUE", "Case", "add_white_noise", "noise_std", "Effect", "EffectLibrary", "ParameterError", "PlantParameters", "SensorParameters",
     "SimulationError", "SimulationResult", "SolverSettings", "UnknownEffectError", "apply_effects", "full_grid",
-    "paper_grid", "run_cases", "simulate", "simulate_batch",
+    "paper_grid", "run_cases", "serial_kernel", "simulate", "simulate_batch",
 ]

@@ -333,3 +333,17 @@ def simulate_many(P_mat, out, t_e, status):
         s, te = simulate_one(P_mat[i], out[i])
         status[i] = s
         t_e[i] = te
+
+
+@njit(cache=True, nogil=True)
+def simulate_serial(P_mat, out, t_e, status):
+    """Run :func:`simulate_one` for every row of ``P_mat`` in this thread, without the GIL.
+
+    For callers that parallelise over threads themselves (several independent
+    fits at once): unlike :func:`simulate_many` it does not use numba's
+    threading layer, so any number of threads may run it concurrently.
+    """
+    for i in range(P_mat.shape[0]):
+        s, te = simulate_one(P_mat[i], out[i])
+        status[i] = s
+        t_e[i] = te

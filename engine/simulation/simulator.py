@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import logging
 import threading
+from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -33,6 +34,37 @@ _STATUS_TEXT = {
 #: kernel is launched from two threads at once; batches are short, so launches are
 #: serialised here and every caller (request threads, training jobs) is safe.
 _KERNEL_LOCK = threading.Lock()
+_THREAD = threading.local()
+_SERIAL_LOCK = threading.Lock()
+_n_serial = 0  # threads inside serial_kernel()
+
+
+@contextmanager
+def serial_kernel() -> Iterator[None]:
+    """Run this thread's simulations on one core while other threads do the same.
+
+    Inside the context, :func:`run_cases` (and everything built on it) uses the
+    serial kernel, which releases the GIL and needs neither numba's threading
+    layer nor the launch lock, as long as another thread is inside the context
+    too; a thread found alone there uses the parallel kernel for its batches.
+    For callers that parallelise over threads themselves, e.g. the candidate
+    fits of the diagnosis: n threads each inside ``serial_kernel()`` keep n
+    cores busy even when every call simulates one case, and the last one
+    running still gets every core. Results are identical either way.
+    """
+    global _n_serial
+    prev = getattr(_THREAD, "serial", False)
+    _THREAD.serial = True
+    if not prev:  # a thread counts once, however deeply nested
+        with _SERIAL_LOCK:
+            _n_serial += 1
+    try:
+        yield
+    finally:
+        if not prev:
+            with _SERIAL_LOCK:
+                _n_serial -= 1
+        _THREAD.serial = prev
 
 
 class SimulationError(RuntimeError):
@@ -116,7 +148,9 @@ def run_cases(
     out = np.zeros((n, kern.N_CHANNELS, N_SAMPLES))
     t_e = np.full(n, np.nan)
     status = np.zeros(n, dtype=np.int64)
-    if n:
+    if n == 1 or (n and getattr(_THREAD, "serial", False) and _n_serial > 1):
+        kern.simulate_serial(P, out, t_e, status)  # no threading layer: no lock needed
+    elif n:
         with _KERNEL_LOCK:
             kern.simulate_many(P, out, t_e, status)
     # sensor quantisation of omega1 (post-sampling: a property of the reading)
