@@ -274,14 +274,20 @@ def cmd_validate(args: argparse.Namespace) -> int:
         raise CommandError(f"unrecognized arguments: {' '.join(args.args)}")
     if not hasattr(module, "run_validation"):
         raise CommandError("engine.diagnosis.validation has neither main() nor run_validation()")
-    report = module.run_validation(n_cases=args.cases, seed=args.seed, out_dir=Path(args.out), workers=args.workers)
+    try:
+        report = module.run_validation(n_cases=args.cases, seed=args.seed, out_dir=Path(args.out),
+                                       workers=args.workers)
+    except FileExistsError as exc:
+        raise CommandError(str(exc)) from None
     table = getattr(report, "table", None)
     output.write(table() if callable(table) else str(report))
     # identification before/after the fix: a second scoring pass over the finished cases
     from engine.diagnosis.identification import identification_markdown, score_identification
 
-    ident = identification_markdown(score_identification(Path(args.out)))
+    scored = score_identification(Path(args.out))
+    ident = identification_markdown(scored)
     (Path(args.out) / "identification.md").write_text(ident)
+    (Path(args.out) / "identification.json").write_text(json.dumps(scored, indent=1))
     output.write("\n## Identification accuracy before/after the fix\n\n" + ident)
     output.info(f"wrote the validation report to {args.out}")
     return EXIT_OK

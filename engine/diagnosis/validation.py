@@ -476,8 +476,18 @@ def run_validation(
         Diagnosis settings.
     fractions : dict, optional
         Mix of case kinds (see :func:`generate_cases`).
+
+    Raises
+    ------
+    FileExistsError
+        When ``out_dir`` already holds cases or results of a run (nothing is overwritten).
     """
     out = Path(out_dir)
+    if any((out / "cases").glob("*.json")) or any((out / "results").glob("*.json")):
+        raise FileExistsError(
+            f"{out} already holds a validation run (cases/ or results/); choose a new output directory or delete "
+            f"it: mixing two runs' cases would corrupt the scores"
+        )
     cases, key = generate_cases(n_cases, seed, fractions=fractions)
     write_cases(cases, key, out)
     del key  # the diagnosis never sees it

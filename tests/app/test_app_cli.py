@@ -166,6 +166,17 @@ def test_validate_calls_the_blind_validation(env: Path, tmp_path: Path, monkeypa
     assert scored == [Path("v")] and Path("v/identification.md").read_text() == "| after | 0.9 |"
 
 
+def test_validate_refuses_a_directory_that_holds_a_run(env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "v" / "cases").mkdir(parents=True)
+    old = tmp_path / "v" / "cases" / "case0000.json"
+    old.write_text("{}")
+    code, _, err = run(capsys, "validate", "--cases", "2", "--out", "v")
+    assert code == 2 and "already holds a validation run" in err
+    assert old.read_text() == "{}" and not (tmp_path / "v" / "key").exists()  # nothing touched
+
+
 @pytest.mark.parametrize(("argv", "module", "message"), [
     (["run"], "engine.evaluation.main_job", "the main job is not available yet"),
     (["validate"], "engine.diagnosis.validation", "the blind validation of the diagnosis is not available yet"),
