@@ -263,3 +263,33 @@ def test_a_running_fit_stops_when_cancelled():
         task.cancel()
         with pytest.raises((Cancelled, CancelledError)):  # stopped, not run to the end
             task.result()
+
+
+def _cal(chi2_per_channel: dict[str, float], n_params: int):
+    from engine.diagnosis.calibration import CalibrationResult
+
+    values = {f"p{i}": 1.0 for i in range(n_params)}
+    return CalibrationResult(values=values, uncertainties={}, fixed={}, chi2=sum(chi2_per_channel.values()),
+                             chi2_per_channel=dict(chi2_per_channel), n_data=2048 * len(chi2_per_channel),
+                             noise={}, sigma={}, effect=None, n_simulations=0, seconds=0.0)
+
+
+@pytest.mark.parametrize(("nominal_omega1", "best_omega1", "strength", "expected"), [
+    (2.3, 2.2, 1.2, "no_gap"),        # significant but weak residue nobody fits: not clearly beyond the noise
+    (2.3, 2.2, 4.0, "unexplained"),   # the best candidate moves the record clearly: a real gap nobody explains
+    (12.0, 11.0, 1.0, "unexplained"),  # nominal misfit sqrt(11) > 3 noise RMS
+    (12.0, 1.0, 5.0, "explained"),    # a candidate fits, and the effect is clearly beyond the noise
+    (2.0, 1.0, 2.0, "no_gap"),        # a candidate fits, but the effect is weak
+])
+def test_decision_rule_uses_the_three_noise_rms_rule_in_every_branch(nominal_omega1, best_omega1, strength, expected):
+    from engine.diagnosis.candidates import Candidate
+    from engine.diagnosis.diagnose import DiagnosisSettings, decide
+
+    flat = {"a1": 2048.0, "m_el": 2048.0, "a2": 2048.0, "v2": 2048.0}
+    nominal = _cal({**flat, "omega1": 2048.0 * nominal_omega1}, 4)
+    best_cal = _cal({**flat, "omega1": 2048.0 * best_omega1}, 5)
+    assert nominal.bic - best_cal.bic >= 10  # evidence for the candidate in every row
+    best = Candidate("supply_voltage", 0.999, 1e-4, "x", best_cal, best_cal.bic, strength=strength, weight=1.0)
+    v = decide(nominal, [best], DiagnosisSettings())
+    assert v.status == expected, v.reason
+    assert 0.0 <= v.confidence <= 1.0
