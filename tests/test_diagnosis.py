@@ -228,7 +228,8 @@ def test_candidate_fits_do_not_depend_on_the_number_of_threads():
     runs = {n: fit_candidates(rec, nominal, space, lib, CandidateSettings(n_jobs=n)) for n in (1, 2)}
     assert all(c.calibration.stages for c in runs[1])
     for a, b in zip(runs[1], runs[2]):
-        assert (a.effect, a.value, a.bic, a.note) == (b.effect, b.value, b.bic, b.note)
+        assert (a.effect, a.note) == (b.effect, b.note)
+        assert a.value == pytest.approx(b.value, rel=1e-9, abs=1e-15) and a.bic == pytest.approx(b.bic, rel=1e-9)
     assert runs[1][0].calibration.reduced_chi2 > 1.1  # the escalation really ran
 
 

@@ -32,7 +32,7 @@ each running its simulations on one core (:func:`engine.simulation.serial_kernel
 the optimiser's single-point evaluations would otherwise leave all but one
 core idle. The escalation keeps its sequential meaning: its fits are
 collected in ranking order and the rest are cancelled once one fits to the
-noise, so the result does not depend on ``n_jobs``.
+noise, so the result does not depend on ``n_jobs`` (beyond rounding).
 
 Evidence: the Bayesian information criterion of a Gaussian likelihood with the
 estimated noise, ``BIC = chi2 + k ln(n)`` (k fitted parameters, n residuals),
@@ -62,7 +62,7 @@ from engine.diagnosis.calibration import (
 )
 from engine.constants import N_SAMPLES
 from engine.records import Record
-from engine.parallel import cancel_scope
+from engine.parallel import cancel_scope, single_threaded_blas
 from engine.simulation import CATALOGUE, Case, Effect, EffectLibrary, SolverSettings, run_cases, serial_kernel
 
 logger = logging.getLogger(__name__)
@@ -479,12 +479,15 @@ class _Runner:
     def __init__(self, n_jobs: int):
         self.n_jobs = n_jobs
         self._ex = ThreadPoolExecutor(n_jobs, thread_name_prefix="candidate") if n_jobs > 1 else None
+        self._tasks: list[_Task] = []
 
     def submit(self, fn: Callable[..., _T], *args, **kwargs) -> "_Task | _Deferred":
         """A handle on ``fn(*args, **kwargs)`` (``result()``, ``cancel()``); inline, the call runs
         when its result is first asked for."""
         if self._ex is not None:
-            return _Task(self._ex, fn, *args, **kwargs)
+            task = _Task(self._ex, fn, *args, **kwargs)
+            self._tasks.append(task)
+            return task
         return _Deferred(lambda: fn(*args, **kwargs))
 
     def __enter__(self) -> "_Runner":
@@ -492,6 +495,8 @@ class _Runner:
 
     def __exit__(self, *exc) -> None:
         if self._ex is not None:
+            for task in self._tasks:  # whatever is still running is no longer wanted (e.g. after an error)
+                task.cancel()
             self._ex.shutdown(wait=True, cancel_futures=True)
 
 
@@ -536,7 +541,7 @@ def fit_candidates(
         ``1 - sum(weights)``).
     """
 
-    with _Runner(settings.jobs()) as runner:
+    with single_threaded_blas(), _Runner(settings.jobs()) as runner:
         return _fit_candidates(record, nominal, space, library, settings, runner)
 
 
