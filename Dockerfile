@@ -42,7 +42,9 @@ RUN pip install --no-deps . \
 USER app
 
 # compile the numba kernels into NUMBA_CACHE_DIR now, so the first request is fast
-RUN python -c "from engine.simulation import PlantParameters, simulate; simulate(PlantParameters())"
+# (one case runs the serial kernel, a batch the parallel one)
+RUN python -c "from engine.simulation import PlantParameters, simulate, simulate_batch; \
+simulate(PlantParameters()); simulate_batch([PlantParameters(), PlantParameters(K=0.005)])"
 
 VOLUME ["/data"]
 EXPOSE 8000

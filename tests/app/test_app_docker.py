@@ -110,3 +110,12 @@ def test_the_images_command_serves_and_passes_its_health_check(dockerfile: list[
     finally:
         assert server.stop() == 0
     assert subprocess.run(check, capture_output=True, timeout=30).returncode != 0  # down -> unhealthy
+
+
+def test_the_kernel_warm_up_step_runs(dockerfile: list[tuple[str, str]], tmp_path: Path) -> None:
+    """The build step that compiles the numba kernels (serial and parallel) runs as written."""
+    args = dockerfile[_index(dockerfile, "RUN", "simulate_batch")][1]
+    argv = shlex.split(args)
+    assert argv[:2] == ["python", "-c"], args
+    done = subprocess.run([sys.executable, "-c", argv[2]], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
