@@ -166,7 +166,8 @@ def cmd_identify(args: argparse.Namespace) -> int:
     from app.services.identification import identify_from_store
 
     record = _read_record(args)
-    output.write_json(identify_from_store(_store(args), record, args.channel, args.pattern_set, args.kind))
+    output.write_json(identify_from_store(_store(args), record, args.channel, args.pattern_set, args.kind,
+                                          continuous=args.continuous))
     return EXIT_OK
 
 
@@ -354,6 +355,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--channel", required=True, choices=CHANNELS)
     p.add_argument("--pattern-set", help="pattern-set id (default: the stored set with the nearest c)")
     p.add_argument("--kind", help="only choose pattern sets of this kind")
+    p.add_argument("--continuous", action="store_true",
+                   help="also the calibrated K as a continuous width with its uncertainty (a few seconds)")
     _db_option(p)
     p.set_defaults(func=cmd_identify)
 

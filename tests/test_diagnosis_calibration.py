@@ -113,9 +113,10 @@ def test_width_estimate_from_a_single_channel_ignores_a_K_condition(clean):
     from engine.diagnosis import estimate_width
 
     rec, _ = noisy(clean, 40.0, seed=7, conditions={"c1": 0.2, "K": 0.009}, channels=("omega1",))
-    K, sK = estimate_width(rec)
-    assert K == pytest.approx(TRUTH.K, rel=0.005)
-    assert 0 < sK < 0.005 * TRUTH.K
+    est = estimate_width(rec)
+    assert est.K == pytest.approx(TRUTH.K, rel=0.005)
+    assert 0 < est.sigma_K < 0.005 * TRUTH.K
+    assert "K" not in est.calibration.fixed and est.calibration.values["K"] == est.K
 
 
 def test_speed_quantum_is_fitted_by_dense_scan():

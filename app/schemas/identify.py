@@ -22,6 +22,22 @@ class IdentifyCreate(BaseModel):
         "record's conditions.c (nominal c = 1.0 when the record does not give c).",
     )
     kind: str | None = Field(default=None, description="Only choose pattern sets of this identifier kind.")
+    continuous: bool = Field(
+        default=False,
+        description="Also estimate K as a continuous width by fitting the simulator to the channel (a few "
+        "seconds): K, its standard deviation and the fit.",
+    )
+
+
+class ContinuousWidthPublic(BaseModel):
+    K: float = Field(description="Calibrated backlash zone width [m] (continuous, beyond the six classes).")
+    sigma_K: float = Field(description="One standard deviation of K [m] (Gauss-Newton, measurement noise only; "
+                           "too small on a1 under noise: the true K lies within 2 sd in about half the cases).")
+    nearest_width: float = Field(description="The paper's width nearest to K [m].")
+    fitted: dict[str, float] = Field(description="Every fitted parameter (K [m], J1 [kg m^2], c [pu], c1 [pu]).")
+    fixed: dict[str, float] = Field(description="Parameters fixed by the record's conditions.")
+    reduced_chi2: float = Field(description="chi2 / n of the fit (about 1 when the model fits to the noise).")
+    seconds: float = Field(description="Time of the fit [s].")
 
 
 class IdentificationPublic(BaseModel):
@@ -43,4 +59,7 @@ class IdentificationPublic(BaseModel):
     c_used: float | None = Field(description="c [pu] used to choose the set (null when the set was requested).")
     c_source: Literal["record", "nominal"] | None = Field(
         description="Where c_used came from: the record's conditions, or the nominal c = 1.0."
+    )
+    continuous: ContinuousWidthPublic | None = Field(
+        default=None, description="The calibrated K as a continuous width (only when requested)."
     )

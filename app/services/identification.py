@@ -9,6 +9,8 @@ from typing import Literal
 from app.services.errors import IncompatibleError, NotFoundError
 from app.services.patterns import DEFAULT_KIND, identifier_from_pattern_set
 from engine.constants import EVENT_INDEX, K_GRID, MODEL_VERSION, SAMPLE_INTERVAL
+from engine.diagnosis.calibration import estimate_width
+from engine.evaluation.continuous import CONTINUOUS_SETTINGS
 from engine.identification import IdentificationResult
 from engine.records import Record
 from engine.simulation import PlantParameters
@@ -127,10 +129,37 @@ def identify(record: Record, channel: str, pattern_set: PatternSet) -> Identific
     return identifier_from_pattern_set(pattern_set).identify(record[channel])
 
 
+def continuous_width(record: Record, channel: str) -> dict:
+    """The calibrated K of ``record``'s ``channel`` as a continuous width, with its uncertainty (JSON-ready).
+
+    The simulator is fitted to that one channel (K free, J1 and c free unless the
+    record's conditions give them, c1 likewise; a K condition is ignored), as in
+    the README's "calibrated K as a continuous width estimate".
+    """
+    check_record(record, channel)
+    single = Record({channel: record[channel]}, record.sample_interval, record.event_index,
+                    dict(record.conditions), record.event_time)
+    est = estimate_width(single, CONTINUOUS_SETTINGS)
+    cal = est.calibration
+    return {
+        "K": est.K,
+        "sigma_K": est.sigma_K,
+        "nearest_width": float(min(K_GRID, key=lambda w: abs(w - est.K))),
+        "fitted": dict(cal.values),
+        "fixed": dict(cal.fixed),
+        "reduced_chi2": cal.reduced_chi2,
+        "seconds": cal.seconds,
+    }
+
+
 def identify_from_store(
-    store: PatternStore, record: Record, channel: str, set_id: str | None = None, kind: str | None = None
+    store: PatternStore, record: Record, channel: str, set_id: str | None = None, kind: str | None = None,
+    continuous: bool = False,
 ) -> dict:
-    """Choose the pattern set (:func:`select_pattern_set`), identify, and describe the outcome (JSON-ready)."""
+    """Choose the pattern set (:func:`select_pattern_set`), identify, and describe the outcome (JSON-ready).
+
+    With ``continuous``, also the calibrated K as a continuous width (:func:`continuous_width`, a few seconds).
+    """
     check_record(record, channel)
     sel = select_pattern_set(store, channel, record, set_id=set_id, kind=kind)
     res = identify(record, channel, sel.pattern_set)
@@ -149,4 +178,5 @@ def identify_from_store(
         "selection": sel.how,
         "c_used": sel.c_used,
         "c_source": sel.c_source,
+        "continuous": continuous_width(record, channel) if continuous else None,
     }

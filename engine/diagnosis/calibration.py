@@ -65,6 +65,7 @@ __all__ = [
     "default_space",
     "estimate_noise",
     "estimate_width",
+    "WidthEstimate",
 ]
 
 #: Default search box of the calibrated plant parameters: (low, high, unit).
@@ -707,7 +708,31 @@ def _uncertainties(space: ModelSpace, u: np.ndarray, J: np.ndarray, chi2: float,
     return out
 
 
-def estimate_width(record: Record, settings: CalibrationSettings = CalibrationSettings()) -> tuple[float, float]:
+@dataclass(frozen=True)
+class WidthEstimate:
+    """The calibrated K offered as a continuous backlash-width estimate.
+
+    Attributes
+    ----------
+    K : float
+        Estimated backlash zone width [m].
+    sigma_K : float
+        One standard deviation of K [m] (Gauss-Newton, measurement noise only;
+        too small on a1 under noise, see docs/diagnosis.md section 8).
+    calibration : CalibrationResult
+        The fit behind it (every fitted parameter, chi2, noise).
+    """
+
+    K: float
+    sigma_K: float
+    calibration: CalibrationResult = field(repr=False)
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (the calibration without arrays)."""
+        return {"K": self.K, "sigma_K": self.sigma_K, "calibration": self.calibration.to_dict()}
+
+
+def estimate_width(record: Record, settings: CalibrationSettings = CalibrationSettings()) -> WidthEstimate:
     """Continuous backlash-width estimate: the calibrated K and its one-sigma uncertainty.
 
     The record's other conditions (J1, c, c1) are used as known; a ``K``
@@ -723,10 +748,7 @@ def estimate_width(record: Record, settings: CalibrationSettings = CalibrationSe
 
     Returns
     -------
-    K : float
-        Estimated backlash zone width [m].
-    sigma_K : float
-        One standard deviation [m] (Gauss-Newton, noise only).
+    WidthEstimate
 
     Raises
     ------
@@ -737,4 +759,4 @@ def estimate_width(record: Record, settings: CalibrationSettings = CalibrationSe
         record = Record(record.channels, record.sample_interval, record.event_index,
                         {k: v for k, v in record.conditions.items() if k != "K"}, record.event_time)
     cal = calibrate(record, settings=settings)
-    return cal.values["K"], cal.uncertainties["K"]
+    return WidthEstimate(cal.values["K"], cal.uncertainties["K"], cal)

@@ -18,6 +18,7 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
+import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Sequence
@@ -25,8 +26,6 @@ from typing import Sequence
 import numpy as np
 
 from engine.constants import CHANNELS
-import time
-
 from engine.diagnosis.calibration import CalibrationSettings, estimate_width
 from engine.diagnosis.identification import nearest_grid_width
 from engine.evaluation.accuracy import SPLITS_RANDOM, noisy_versions, random_cases
@@ -60,8 +59,8 @@ class ContinuousRow:
 def calibrated_width(x: np.ndarray, channel: str, c: float, c1: float = 0.2) -> tuple[float, float, float]:
     """K_hat [m], its standard deviation [m] and the time [s] for one single-channel record."""
     t0 = time.perf_counter()
-    K, sd = estimate_width(Record(channels={channel: x}, conditions={"c": c, "c1": c1}), CONTINUOUS_SETTINGS)
-    return K, sd, time.perf_counter() - t0
+    est = estimate_width(Record(channels={channel: x}, conditions={"c": c, "c1": c1}), CONTINUOUS_SETTINGS)
+    return est.K, est.sigma_K, time.perf_counter() - t0
 
 
 def _task(channel: str, X: np.ndarray, c: np.ndarray) -> list[tuple[float, float, float]]:

@@ -64,6 +64,11 @@ def test_simulate_train_identify_round_trip(env: Path, tmp_path: Path, capsys: p
     assert (from_csv["selection"], from_csv["c_source"]) == ("exact", "record")
     code, out, _ = run(capsys, "identify", str(json_path), "--channel", "v2", "--pattern-set", stored["id"])
     assert code == 0 and json.loads(out)["D"] == from_csv["D"]
+    assert from_csv["continuous"] is None
+    code, out, err = run(capsys, "identify", str(json_path), "--channel", "v2", "--continuous")
+    assert code == 0, err
+    cont = json.loads(out)["continuous"]
+    assert abs(cont["K"] - 0.005) < 1e-5 and cont["nearest_width"] == 0.005 and cont["sigma_K"] > 0
 
 
 def test_simulate_to_stdout_with_effects_and_batch(env: Path, tmp_path: Path,

@@ -92,3 +92,26 @@ def test_identify_prefers_the_default_kind_among_equally_near_sets(client: httpx
     finally:
         for out in (default, newer):
             client.delete(out["pattern_set_url"])
+
+
+def test_identify_offers_the_calibrated_K_as_a_continuous_width(client: httpx.Client, trained_set: dict[str, Any],
+                                                                sim_record: dict[str, Any]) -> None:
+    plain = client.post("/v1/identify", json={"record": sim_record, "channel": "v2"}).json()
+    assert plain["continuous"] is None  # only on request: it fits the simulator (seconds)
+    r = client.post("/v1/identify", json={"record": sim_record, "channel": "v2", "continuous": True})
+    assert r.status_code == 200, r.text
+    res = r.json()
+    assert res["D"] == plain["D"]
+    cont = res["continuous"]
+    assert abs(cont["K"] - 0.005) < 1e-3 * 0.005 and 0 < cont["sigma_K"] < 1e-4 * 0.005
+    assert cont["nearest_width"] == 0.005
+    assert set(cont["fitted"]) | set(cont["fixed"]) == {"K", "J1", "c", "c1"} and "K" in cont["fitted"]
+    # CSV form: the query flag; a non-boolean is a 422 that names the parameter
+    csv_text = "v2\n" + "\n".join(map(repr, sim_record["channels"]["v2"])) + "\n"
+    r = client.post("/v1/identify", content=csv_text, headers={"Content-Type": "text/csv"},
+                    params={"channel": "v2", "continuous": "true",
+                            **{k: sim_record["conditions"][k] for k in ("J1", "c", "c1")}})
+    assert r.status_code == 200, r.text
+    assert abs(r.json()["continuous"]["K"] - cont["K"]) < 1e-6 * cont["K"]
+    r = client.post("/v1/identify", json={"record": sim_record, "channel": "v2", "continuous": "perhaps"})
+    assert r.status_code == 422 and "continuous" in r.text

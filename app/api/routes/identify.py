@@ -36,22 +36,27 @@ async def identify(
     channel: Annotated[ChannelName | None, Query(description="CSV form: the channel to identify from.")] = None,
     pattern_set: Annotated[str | None, Query(description="CSV form: id of the pattern set.")] = None,
     kind: Annotated[str | None, Query(description="CSV form: only choose sets of this kind.")] = None,
+    continuous: Annotated[bool, Query(description="CSV form: also the calibrated K as a continuous width.")] = False,
 ) -> Any:
     """Identify with the pattern set ``pattern_set``, or else the stored set of ``channel`` whose c
     is nearest the record's ``conditions.c`` (nominal c = 1.0 if the record has none); the answer
     says which set was used and why.
 
-    The body is ``{"record": ..., "channel": ..., "pattern_set": ...}`` as JSON, or the record's
-    CSV form (``Content-Type: text/csv``) with ``channel``, ``pattern_set``, ``sample_interval``,
-    ``event_index`` and the known conditions (``c``, ``J1``, ...) as query parameters.
+    With ``continuous`` the answer also carries the calibrated K as a continuous width with
+    its standard deviation (the simulator fitted to the channel; a few seconds).
+
+    The body is ``{"record": ..., "channel": ..., "pattern_set": ..., "continuous": ...}`` as JSON,
+    or the record's CSV form (``Content-Type: text/csv``) with ``channel``, ``pattern_set``,
+    ``continuous``, ``sample_interval``, ``event_index`` and the known conditions (``c``, ``J1``,
+    ...) as query parameters.
     """
     if body_kind(request) == "csv":
         if channel is None:
             raise InvalidInputError("with a CSV body, give the channel to identify from as query parameter ?channel=")
         record = await csv_record(request, csv_params)
-        args = (record, channel, pattern_set, kind)
+        args = (record, channel, pattern_set, kind, continuous)
     else:
-        reject_query(request, (*CSV_QUERY, "channel", "pattern_set", "kind"))
+        reject_query(request, (*CSV_QUERY, "channel", "pattern_set", "kind", "continuous"))
         body = await json_body(request, IdentifyCreate)
-        args = (body.record.to_record(), body.channel, body.pattern_set, body.kind)
+        args = (body.record.to_record(), body.channel, body.pattern_set, body.kind, body.continuous)
     return await run_in_threadpool(identification.identify_from_store, store, *args)
