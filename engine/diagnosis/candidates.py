@@ -586,7 +586,7 @@ def _fit_candidates(
                         tasks[j].cancel()  # stops it even if it is running
                 break
         cands = order(cands)
-        logger.info("escalation: %.1f s", time.perf_counter() - t0)
+        logger.info("escalation done, %.1f s into the candidate fits", time.perf_counter() - t0)
 
     # pass 3: refine the front runners at the final integrator step, from their search-step optimum
     fitted = [c for c in cands if c.calibration is not None]
