@@ -10,7 +10,7 @@ from app.services.errors import IncompatibleError, NotFoundError
 from app.services.patterns import DEFAULT_KIND, identifier_from_pattern_set
 from engine.constants import EVENT_INDEX, K_GRID, MODEL_VERSION, SAMPLE_INTERVAL
 from engine.diagnosis.calibration import estimate_width
-from engine.evaluation.continuous import CONTINUOUS_SETTINGS
+from engine.diagnosis.identification import nearest_grid_width
 from engine.identification import IdentificationResult
 from engine.records import Record
 from engine.simulation import PlantParameters
@@ -139,12 +139,12 @@ def continuous_width(record: Record, channel: str) -> dict:
     check_record(record, channel)
     single = Record({channel: record[channel]}, record.sample_interval, record.event_index,
                     dict(record.conditions), record.event_time)
-    est = estimate_width(single, CONTINUOUS_SETTINGS)
+    est = estimate_width(single)
     cal = est.calibration
     return {
         "K": est.K,
         "sigma_K": est.sigma_K,
-        "nearest_width": float(min(K_GRID, key=lambda w: abs(w - est.K))),
+        "nearest_width": nearest_grid_width(est.K),
         "fitted": dict(cal.values),
         "fixed": dict(cal.fixed),
         "reduced_chi2": cal.reduced_chi2,

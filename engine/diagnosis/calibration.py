@@ -65,6 +65,7 @@ __all__ = [
     "default_space",
     "estimate_noise",
     "estimate_width",
+    "WIDTH_SETTINGS",
     "WidthEstimate",
 ]
 
@@ -708,6 +709,11 @@ def _uncertainties(space: ModelSpace, u: np.ndarray, J: np.ndarray, chi2: float,
     return out
 
 
+#: Search settings of the continuous width estimate (two or three free parameters): the ones
+#: README's "calibrated K as a continuous width" table was measured with.
+WIDTH_SETTINGS = CalibrationSettings(n_global=128, n_starts=2)
+
+
 @dataclass(frozen=True)
 class WidthEstimate:
     """The calibrated K offered as a continuous backlash-width estimate.
@@ -732,7 +738,7 @@ class WidthEstimate:
         return {"K": self.K, "sigma_K": self.sigma_K, "calibration": self.calibration.to_dict()}
 
 
-def estimate_width(record: Record, settings: CalibrationSettings = CalibrationSettings()) -> WidthEstimate:
+def estimate_width(record: Record, settings: CalibrationSettings = WIDTH_SETTINGS) -> WidthEstimate:
     """Continuous backlash-width estimate: the calibrated K and its one-sigma uncertainty.
 
     The record's other conditions (J1, c, c1) are used as known; a ``K``
@@ -744,7 +750,7 @@ def estimate_width(record: Record, settings: CalibrationSettings = CalibrationSe
     record : Record
         The measured record.
     settings : CalibrationSettings
-        Search settings.
+        Search settings (default :data:`WIDTH_SETTINGS`).
 
     Returns
     -------

@@ -22,7 +22,7 @@ import numpy as np
 from engine.constants import C_GROUPS, K_GRID
 from engine.identification.training import DEFAULT_KIND, fit_identifier, make_identifier, simulate_training_grid
 from engine.records import Record
-from engine.simulation import SimulationResult
+from engine.simulation import Case, PlantParameters, SimulationResult, simulate_batch
 
 if TYPE_CHECKING:  # pragma: no cover
     from engine.diagnosis.diagnose import DiagnosisResult
@@ -125,8 +125,6 @@ def _clean_twins(truths: list[dict], records: list[Record]) -> list[Record]:
     generator simulates with the same defaults), and added to the noiseless
     simulation without the effect.
     """
-    from engine.simulation import Case, PlantParameters, simulate_batch
-
     cases = [Case(PlantParameters(K=t["K"], J1=t["J1"], c=t["c"])) for t in truths]
     if not cases:
         return []

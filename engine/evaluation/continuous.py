@@ -26,7 +26,7 @@ from typing import Sequence
 import numpy as np
 
 from engine.constants import CHANNELS
-from engine.diagnosis.calibration import CalibrationSettings, estimate_width
+from engine.diagnosis.calibration import estimate_width
 from engine.diagnosis.identification import nearest_grid_width
 from engine.evaluation.accuracy import SPLITS_RANDOM, noisy_versions, random_cases
 from engine.records import Record
@@ -36,9 +36,6 @@ logger = logging.getLogger(__name__)
 #: Worker processes are spawned, never forked: the parent has run numba's parallel
 #: (OpenMP) kernel, and libgomp aborts a forked child that uses OpenMP again.
 _SPAWN = multiprocessing.get_context("spawn")
-
-#: Calibration settings of the continuous estimate (two free parameters: K, J1).
-CONTINUOUS_SETTINGS = CalibrationSettings(n_global=128, n_starts=2)
 
 
 @dataclass(frozen=True)
@@ -59,7 +56,7 @@ class ContinuousRow:
 def calibrated_width(x: np.ndarray, channel: str, c: float, c1: float = 0.2) -> tuple[float, float, float]:
     """K_hat [m], its standard deviation [m] and the time [s] for one single-channel record."""
     t0 = time.perf_counter()
-    est = estimate_width(Record(channels={channel: x}, conditions={"c": c, "c1": c1}), CONTINUOUS_SETTINGS)
+    est = estimate_width(Record(channels={channel: x}, conditions={"c": c, "c1": c1}))
     return est.K, est.sigma_K, time.perf_counter() - t0
 
 
