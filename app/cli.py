@@ -103,8 +103,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         try:
             body = SimulateBatchCreate.model_validate({"cases": json.loads(Path(args.cases).read_text("utf-8"))})
         except (OSError, ValueError) as exc:
-            raise CommandError(f"{args.cases}: expected a JSON list of cases like "
-                               f'[{{"K": 0.005, "J1": 0.87, "effects": {{}}}}]: {exc}') from None
+            raise CommandError(
+                f'{args.cases}: expected a JSON list of cases like [{{"K": 0.005, "J1": 0.87, "effects": {{}}}}]: {exc}'
+            ) from None
         specs = [(c.K, c.J1, c.c, c.c1, c.effects) for c in body.cases]
     else:
         if args.K is None:
@@ -129,8 +130,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         from engine.simulation import add_white_noise
 
         rng = np.random.default_rng(args.seed)
-        channels = {k: v if args.snr_db is None else add_white_noise(v, args.snr_db, rng) for k, v in record.channels.items()}
-        known = record.conditions if args.known is None else {k: v for k, v in record.conditions.items() if k in args.known}
+        channels = {
+            k: v if args.snr_db is None else add_white_noise(v, args.snr_db, rng) for k, v in record.channels.items()
+        }
+        known = (
+            record.conditions if args.known is None else {k: v for k, v in record.conditions.items() if k in args.known}
+        )
         record = Record(channels, record.sample_interval, record.event_index, known, record.event_time)
     if args.out is None:
         output.write_json(record.to_dict())
@@ -148,8 +153,12 @@ def cmd_train(args: argparse.Namespace) -> int:
     named = {"learning_rate": args.l, "delta1": args.delta1, "max_epochs": args.max_epochs}
     params = {**dict(args.param or []), **{k: v for k, v in named.items() if v is not None}}
     spec = training.TrainingSpec(
-        channel=args.channel, c=args.c, J1_values=tuple(args.J1 or J1_GRID), kind=args.kind or DEFAULT_KIND,
-        params=params, effects=dict(args.effect or []),
+        channel=args.channel,
+        c=args.c,
+        J1_values=tuple(args.J1 or J1_GRID),
+        kind=args.kind or DEFAULT_KIND,
+        params=params,
+        effects=dict(args.effect or []),
     )
     training.check(spec)
     store = _store(args)
@@ -166,8 +175,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
     from app.services.identification import identify_from_store
 
     record = _read_record(args)
-    output.write_json(identify_from_store(_store(args), record, args.channel, args.pattern_set, args.kind,
-                                          continuous=args.continuous))
+    output.write_json(
+        identify_from_store(_store(args), record, args.channel, args.pattern_set, args.kind, continuous=args.continuous)
+    )
     return EXIT_OK
 
 
@@ -252,12 +262,15 @@ def _call_main(main: Callable[..., Any], argv: list[str], prog: str) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    candidates = [Path.cwd() / "bench" / "bench_simulator.py",
-                  Path(__file__).resolve().parent.parent / "bench" / "bench_simulator.py"]
+    candidates = [
+        Path.cwd() / "bench" / "bench_simulator.py",
+        Path(__file__).resolve().parent.parent / "bench" / "bench_simulator.py",
+    ]
     path = next((p for p in candidates if p.is_file()), None)
     if path is None:
-        raise CommandError("the benchmark is not available: bench/bench_simulator.py was not found "
-                           "(run from the repository root)")
+        raise CommandError(
+            "the benchmark is not available: bench/bench_simulator.py was not found (run from the repository root)"
+        )
     spec = importlib.util.spec_from_file_location("bench_simulator", path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
@@ -276,8 +289,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
     if not hasattr(module, "run_validation"):
         raise CommandError("engine.diagnosis.validation has neither main() nor run_validation()")
     try:
-        report = module.run_validation(n_cases=args.cases, seed=args.seed, out_dir=Path(args.out),
-                                       workers=args.workers)
+        report = module.run_validation(n_cases=args.cases, seed=args.seed, out_dir=Path(args.out), workers=args.workers)
     except FileExistsError as exc:
         raise CommandError(str(exc)) from None
     table = getattr(report, "table", None)
@@ -316,8 +328,12 @@ def build_parser() -> argparse.ArgumentParser:
         prog="backlash",
         description="Backlash diagnosis: simulate the backlash test, train pattern sets, identify the backlash width.",
     )
-    parser.add_argument("--log-level", choices=["DEBUG", "INFO", "WARNING", "ERROR"], type=str.upper,
-                        help="log level (default $BACKLASH_LOG_LEVEL or INFO)")
+    parser.add_argument(
+        "--log-level",
+        choices=["DEBUG", "INFO", "WARNING", "ERROR"],
+        type=str.upper,
+        help="log level (default $BACKLASH_LOG_LEVEL or INFO)",
+    )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("simulate", help="simulate the backlash test of a case (like POST /v1/simulate)")
@@ -325,14 +341,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--J1", type=_finite, help="motor-side inertia [kg m^2] (default 0.87)")
     p.add_argument("--c", type=_finite, help="apparent viscosity [pu] (default 1.0)")
     p.add_argument("--c1", type=_finite, help="absorber discontinuity [pu] (default 0.2)")
-    p.add_argument("--effect", type=_effect, action="append", metavar="NAME=VALUE",
-                   help="unmodelled effect (repeatable)")
+    p.add_argument(
+        "--effect", type=_effect, action="append", metavar="NAME=VALUE", help="unmodelled effect (repeatable)"
+    )
     p.add_argument("--cases", type=Path, help="JSON file with a list of cases (the batch form); writes JSON")
     p.add_argument("--out", type=Path, help="output file, .json or .csv (default: JSON on stdout)")
     p.add_argument("--snr-db", type=_finite, help="add white noise at this SNR [dB] to every channel (single case)")
     p.add_argument("--seed", type=int, default=0, help="seed of the noise (default 0)")
-    p.add_argument("--known", nargs="*", choices=["K", "J1", "c", "c1"],
-                   help="conditions the record states (default all; e.g. --known c1 hides K, J1 and c)")
+    p.add_argument(
+        "--known",
+        nargs="*",
+        choices=["K", "J1", "c", "c1"],
+        help="conditions the record states (default all; e.g. --known c1 hides K, J1 and c)",
+    )
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("train", help="train and store a pattern set (like POST /v1/pattern-sets)")
@@ -343,10 +364,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--l", type=_finite, help="paper kind: learning coefficient l")
     p.add_argument("--delta1", type=_finite, help="paper kind: stop at RMS < delta1")
     p.add_argument("--max-epochs", type=int, help="paper kind: epoch cap per network")
-    p.add_argument("--param", type=_param, action="append", metavar="NAME=VALUE",
-                   help="further identifier hyper-parameter; VALUE is JSON (e.g. window=600)")
-    p.add_argument("--effect", type=_effect, action="append", metavar="NAME=VALUE",
-                   help="unmodelled effect applied to every training case (repeatable)")
+    p.add_argument(
+        "--param",
+        type=_param,
+        action="append",
+        metavar="NAME=VALUE",
+        help="further identifier hyper-parameter; VALUE is JSON (e.g. window=600)",
+    )
+    p.add_argument(
+        "--effect",
+        type=_effect,
+        action="append",
+        metavar="NAME=VALUE",
+        help="unmodelled effect applied to every training case (repeatable)",
+    )
     _db_option(p)
     p.set_defaults(func=cmd_train)
 
@@ -355,8 +386,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--channel", required=True, choices=CHANNELS)
     p.add_argument("--pattern-set", help="pattern-set id (default: the stored set with the nearest c)")
     p.add_argument("--kind", help="only choose pattern sets of this kind")
-    p.add_argument("--continuous", action="store_true",
-                   help="also the calibrated K as a continuous width with its uncertainty (a few seconds)")
+    p.add_argument(
+        "--continuous",
+        action="store_true",
+        help="also the calibrated K as a continuous width with its uncertainty (a few seconds)",
+    )
     _db_option(p)
     p.set_defaults(func=cmd_identify)
 
@@ -386,15 +420,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="out", help="output directory (default out)")
     p.set_defaults(func=cmd_run)
 
-    p = sub.add_parser("bench", help="benchmark the simulator (bench/bench_simulator.py); "
-                                     "further arguments go to the benchmark")
+    p = sub.add_parser(
+        "bench", help="benchmark the simulator (bench/bench_simulator.py); further arguments go to the benchmark"
+    )
     p.set_defaults(func=cmd_bench, passthrough=True)
 
     p = sub.add_parser("validate", help="blind validation of the gap diagnosis")
     p.add_argument("--out", default="out/validation", help="working and report directory (default out/validation)")
     p.add_argument("--cases", type=int, default=200, help="number of blind cases (default 200)")
-    p.add_argument("--seed", type=int, default=53,
-                   help="seed of the case generator (default 53, the README's blind run of the current code)")
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=53,
+        help="seed of the case generator (default 53, the README's blind run of the current code)",
+    )
     p.add_argument("--workers", type=int, default=2, help="parallel diagnosis processes (default 2)")
     p.set_defaults(func=cmd_validate, passthrough=True)
     return parser
@@ -407,8 +446,16 @@ def _user_errors() -> tuple[type[BaseException], ...]:
     from engine.simulation import ParameterError, SimulationError
     from engine.storage import InvalidPatternSet, PatternStoreError
 
-    return (CommandError, RecordFormatError, RecordError, ParameterError, SimulationError, InvalidPatternSet,
-            PatternStoreError, ServiceError)
+    return (
+        CommandError,
+        RecordFormatError,
+        RecordError,
+        ParameterError,
+        SimulationError,
+        InvalidPatternSet,
+        PatternStoreError,
+        ServiceError,
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -431,7 +478,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         output.error("interrupted")
         return 130
-    except Exception as exc:  # noqa: BLE001 - last resort: one line, details in the log
+    except Exception as exc:
         logger.debug("unexpected failure", exc_info=True)
         output.error(f"unexpected failure: {type(exc).__name__}: {exc} (run with --log-level DEBUG for details)")
         return EXIT_FAILURE

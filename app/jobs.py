@@ -87,8 +87,16 @@ class JobManager:
     def submit(self, fn: Callable[[ProgressFn], Any], *, kind: str, meta: dict[str, Any] | None = None) -> Job:
         """Queue ``fn(progress)``; return the queued job's snapshot."""
         job = Job(
-            id=uuid.uuid4().hex, kind=kind, state=JobState.queued, progress=0.0, stage="queued", error=None,
-            created_at=_now(), started_at=None, finished_at=None, meta=dict(meta or {}),
+            id=uuid.uuid4().hex,
+            kind=kind,
+            state=JobState.queued,
+            progress=0.0,
+            stage="queued",
+            error=None,
+            created_at=_now(),
+            started_at=None,
+            finished_at=None,
+            meta=dict(meta or {}),
         )
         with self._lock:
             if self._closed:
@@ -131,7 +139,9 @@ class JobManager:
             for job_id, job in self._jobs.items():
                 if job.state is JobState.queued:
                     self._jobs[job_id] = replace(
-                        job, state=JobState.failed, error="the server shut down before the job started",
+                        job,
+                        state=JobState.failed,
+                        error="the server shut down before the job started",
                         finished_at=_now(),
                     )
         self._executor.shutdown(wait=wait, cancel_futures=True)
@@ -172,4 +182,3 @@ class JobManager:
             return
         self._update(job_id, state=JobState.done, progress=1.0, stage="done", result=result, finished_at=_now())
         logger.info("job %s done", job_id)
-

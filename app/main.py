@@ -53,9 +53,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         setup_logging(settings.log_level)
         app.state.store = PatternStore(settings.db_path)
         app.state.jobs = JobManager(workers=settings.workers, max_pending=settings.max_pending_jobs)
-        logger.info("pattern store %s (%d sets); %d training worker(s); API key %s",
-                    app.state.store.path, len(app.state.store), settings.workers,
-                    "required" if settings.api_key else "not required")
+        logger.info(
+            "pattern store %s (%d sets); %d training worker(s); API key %s",
+            app.state.store.path,
+            len(app.state.store),
+            settings.workers,
+            "required" if settings.api_key else "not required",
+        )
         try:
             yield
         finally:

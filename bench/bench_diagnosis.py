@@ -39,8 +39,10 @@ def bench_calibration(n: int, snr_db: float, seed: int) -> dict:
     from engine.simulation.noise import noise_std
 
     rng = np.random.default_rng(seed)
-    plants = [PlantParameters(K=rng.uniform(0.0025, 0.01), J1=rng.uniform(0.75, 0.93), c=rng.uniform(0.8, 1.5))
-              for _ in range(n)]
+    plants = [
+        PlantParameters(K=rng.uniform(0.0025, 0.01), J1=rng.uniform(0.75, 0.93), c=rng.uniform(0.8, 1.5))
+        for _ in range(n)
+    ]
     sims = simulate_batch([Case(p) for p in plants])
     rows = []
     for i, p in enumerate(plants):
@@ -53,18 +55,34 @@ def bench_calibration(n: int, snr_db: float, seed: int) -> dict:
         eK = cal.values["K"] / p.K - 1
         eJ = cal.values["J1"] / p.J1 - 1
         ec = cal.values["c"] / p.c - 1
-        rows.append({"K": p.K, "J1": p.J1, "c": p.c, "eK": eK, "eJ1": eJ, "ec": ec,
-                     "pull_K": (cal.values["K"] - p.K) / cal.uncertainties["K"], "chi2_n": cal.reduced_chi2,
-                     "n_sim": cal.n_simulations, "seconds": dt})
-        print(f"  {i + 1:3d}/{n}: K {p.K:.5f} J1 {p.J1:.4f} c {p.c:.3f} -> K err {100 * eK:+.4f} %, "
-              f"J1 err {100 * eJ:+.4f} %, c err {100 * ec:+.3f} %, chi2/n {cal.reduced_chi2:.3f}, "
-              f"{cal.n_simulations} sims, {dt:.1f} s", file=sys.stderr)
+        rows.append(
+            {
+                "K": p.K,
+                "J1": p.J1,
+                "c": p.c,
+                "eK": eK,
+                "eJ1": eJ,
+                "ec": ec,
+                "pull_K": (cal.values["K"] - p.K) / cal.uncertainties["K"],
+                "chi2_n": cal.reduced_chi2,
+                "n_sim": cal.n_simulations,
+                "seconds": dt,
+            }
+        )
+        print(
+            f"  {i + 1:3d}/{n}: K {p.K:.5f} J1 {p.J1:.4f} c {p.c:.3f} -> K err {100 * eK:+.4f} %, "
+            f"J1 err {100 * eJ:+.4f} %, c err {100 * ec:+.3f} %, chi2/n {cal.reduced_chi2:.3f}, "
+            f"{cal.n_simulations} sims, {dt:.1f} s",
+            file=sys.stderr,
+        )
     eK = np.array([r["eK"] for r in rows])
     eJ = np.array([r["eJ1"] for r in rows])
     inb = (np.abs(eK) < 0.03) & (np.abs(eJ) < 0.015)
     pulls = np.array([r["pull_K"] for r in rows])[inb]
     return {
-        "n": n, "snr_db": snr_db, "in_basin": int(inb.sum()),
+        "n": n,
+        "snr_db": snr_db,
+        "in_basin": int(inb.sum()),
         "median_abs_K_error_pct": float(100 * np.median(np.abs(eK))),
         "max_abs_K_error_pct_in_basin": float(100 * np.max(np.abs(eK[inb]))) if inb.any() else None,
         "median_abs_J1_error_pct": float(100 * np.median(np.abs(eJ))),
@@ -102,30 +120,60 @@ def bench_timing(n: int, seed: int, n_jobs: int | None = None) -> dict:
         t0 = time.perf_counter()
         res = diagnose(case.record, lib, settings)
         dt = time.perf_counter() - t0
-        rows.append({"case": case.case_id, "kind": truth.kind, "effect": truth.effect,
-                     "status": res.verdict.status, "seconds": dt, "n_simulations": res.n_simulations})
-        print(f"  {case.case_id} {truth.kind:8s} {str(truth.effect):24s} -> {res.verdict.status:11s} "
-              f"{dt:5.1f} s, {res.n_simulations} simulations", file=sys.stderr)
+        rows.append(
+            {
+                "case": case.case_id,
+                "kind": truth.kind,
+                "effect": truth.effect,
+                "status": res.verdict.status,
+                "seconds": dt,
+                "n_simulations": res.n_simulations,
+            }
+        )
+        print(
+            f"  {case.case_id} {truth.kind:8s} {truth.effect!s:24s} -> {res.verdict.status:11s} "
+            f"{dt:5.1f} s, {res.n_simulations} simulations",
+            file=sys.stderr,
+        )
     t = np.array([r["seconds"] for r in rows])
     by_status = {}
     for st in sorted({r["status"] for r in rows}):
         ts = np.array([r["seconds"] for r in rows if r["status"] == st])
         by_status[st] = {"n": int(ts.size), "median_s": float(np.median(ts)), "max_s": float(ts.max())}
-    return {"n": n, "seed": seed, "numba_threads": numba.get_num_threads(),
-            "n_jobs": CandidateSettings(n_jobs=n_jobs).jobs(), "median_s": float(np.median(t)),
-            "p90_s": float(np.quantile(t, 0.9)), "max_s": float(t.max()),
-            "over_30_s": int(np.sum(t > 30.0)), "by_verdict": by_status}
+    return {
+        "n": n,
+        "seed": seed,
+        "numba_threads": numba.get_num_threads(),
+        "n_jobs": CandidateSettings(n_jobs=n_jobs).jobs(),
+        "median_s": float(np.median(t)),
+        "p90_s": float(np.quantile(t, 0.9)),
+        "max_s": float(t.max()),
+        "over_30_s": int(np.sum(t > 30.0)),
+        "by_verdict": by_status,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--calibration", type=int, default=0, help="records of the calibration benchmark")
     ap.add_argument("--snr", type=float, default=40.0, help="SNR of the calibration benchmark [dB]")
-    ap.add_argument("--timing", type=int, nargs="?", const=20, default=0, metavar="N",
-                    help="time N full diagnoses (default 20 when given without N)")
-    ap.add_argument("--jobs", type=int, default=None, help="candidate fits at once in --timing (default: numba threads)")
-    ap.add_argument("--baseline", action="store_true",
-                    help="with --timing, also time the same cases with one candidate fit at a time and print the ratio")
+    ap.add_argument(
+        "--timing",
+        type=int,
+        nargs="?",
+        const=20,
+        default=0,
+        metavar="N",
+        help="time N full diagnoses (default 20 when given without N)",
+    )
+    ap.add_argument(
+        "--jobs", type=int, default=None, help="candidate fits at once in --timing (default: numba threads)"
+    )
+    ap.add_argument(
+        "--baseline",
+        action="store_true",
+        help="with --timing, also time the same cases with one candidate fit at a time and print the ratio",
+    )
     ap.add_argument("--validation", type=int, default=0, help="blind validation cases")
     ap.add_argument("--workers", type=int, default=2, help="parallel diagnosis processes of the validation")
     ap.add_argument("--seed", type=int, default=2024)
@@ -144,8 +192,16 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(res, indent=1))
         if args.baseline:
             base = bench_timing(args.timing, args.seed, 1)
-            print(json.dumps({"baseline_n_jobs_1": base, "speedup_median": base["median_s"] / res["median_s"],
-                              "speedup_max": base["max_s"] / res["max_s"]}, indent=1))
+            print(
+                json.dumps(
+                    {
+                        "baseline_n_jobs_1": base,
+                        "speedup_median": base["median_s"] / res["median_s"],
+                        "speedup_max": base["max_s"] / res["max_s"],
+                    },
+                    indent=1,
+                )
+            )
     if args.validation:
         from engine.diagnosis.validation import run_validation
 

@@ -47,8 +47,17 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     logging.getLogger("engine.identification").setLevel(logging.ERROR)  # cap / tie warnings are counted below
 
-    params = {k: v for k, v in {"target": args.target, "test_rows": args.test_rows, "max_epochs": args.max_epochs,
-                                "learning_rate": args.learning_rate, "delta1": args.delta1}.items() if v is not None}
+    params = {
+        k: v
+        for k, v in {
+            "target": args.target,
+            "test_rows": args.test_rows,
+            "max_epochs": args.max_epochs,
+            "learning_rate": args.learning_rate,
+            "delta1": args.delta1,
+        }.items()
+        if v is not None
+    }
     grid = simulate_batch(paper_grid(args.c))
     y = np.asarray([c.plant.K for c in grid.cases])
     g = np.asarray([c.plant.J1 for c in grid.cases])
@@ -72,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
             res = ident.identify_batch(X[te_mask])
             for r, k in zip(res, y[te_mask]):
                 correct += int(np.isclose(r.width, k))
-                ties += int(np.count_nonzero(r.D == r.D.min()) > 1)
+                ties += int(np.count_nonzero(r.D.min() == r.D) > 1)
                 te.append(r.epochs)
                 tcap += int(not r.converged)
             pe.extend(ident.epochs_.tolist())
@@ -84,8 +93,10 @@ def main(argv: list[str] | None = None) -> int:
             s = f"{min(v)}..{max(v)}" if min(v) != max(v) else f"{min(v)}"
             return s + (f" ({cap} cap)" if cap else "")
 
-        print(f"| {ch} | {correct}/{n} | {rng(pe, pcap)} | {rng(te, tcap)} | {ties} | "
-              f"{np.median(fit_t):.3g} | {np.median(id_t):.3g} |")
+        print(
+            f"| {ch} | {correct}/{n} | {rng(pe, pcap)} | {rng(te, tcap)} | {ties} | "
+            f"{np.median(fit_t):.3g} | {np.median(id_t):.3g} |"
+        )
         sys.stdout.flush()
     print(f"total: {total}/{len(args.channels) * len(y)}")
     return 0

@@ -26,6 +26,46 @@ OMEGA_B: Final[float] = W_B / POLE_PAIRS
 #: Mechanical time constant per unit inertia: T_i = J_i * TM_PER_J [s / (kg m^2)].
 TM_PER_J: Final[float] = 0.86 / 0.87
 
+# --- reference plant (MODEL.md section 1) ----------------------------------
+# Induction motor (section 1.1), per unit.
+#: Stator resistance r_s [pu] (paper).
+R_S: Final[float] = 0.059
+#: Rotor resistance r_r [pu] (paper: r_w).
+R_R: Final[float] = 0.048
+#: Total stator reactance x_s [pu] (paper).
+X_S: Final[float] = 1.92
+#: Total rotor reactance x_r [pu] (paper).
+X_R: Final[float] = 1.92
+#: Magnetising reactance x_m [pu] (paper).
+X_M: Final[float] = 1.82
+#: Supply voltage amplitude u [pu] (chosen: direct-on-line).
+U_SUPPLY: Final[float] = 1.0
+#: Supply frequency f [pu of 50 Hz] (chosen: direct-on-line).
+F_SUPPLY: Final[float] = 1.0
+# Mechanics (section 1.2).
+#: Drive-wheel inertia J2 [kg m^2] (paper).
+J2: Final[float] = 0.348
+#: Mechanical time constant of the mass m2 referred to the motor shaft, T_3 [s] (chosen).
+T3: Final[float] = 0.30
+#: Drive-wheel radius r [m] (chosen).
+WHEEL_RADIUS: Final[float] = 0.1
+#: Contact stiffness of the clutch k_12 [pu/rad] (chosen: contact mode near 60 Hz).
+K12: Final[float] = 222.0
+#: Contact damping of the clutch d_12 [pu torque / pu speed] (chosen).
+D12: Final[float] = 0.5
+#: Stiffness of the resilient element k_2 [pu/rad] (chosen: resilient mode near 15 Hz).
+K2: Final[float] = 9.0
+#: Damping of the resilient element d_2 [pu torque / pu speed] (chosen).
+D2: Final[float] = 0.02
+#: Nominal backlash zone width K [m]: the middle of the paper's grid, used where a record gives none.
+K_NOMINAL: Final[float] = 0.005
+#: Nominal apparent viscosity of the absorber c [pu]: used where a record gives none.
+C_NOMINAL: Final[float] = 1.0
+#: Discontinuity at zero speed of the absorber characteristic c_1 [pu torque] (paper).
+C1_NOMINAL: Final[float] = 0.2
+#: Speed scale of the smoothed sign functions tanh(w / W_SMOOTH) [pu] (MODEL.md section 1.2).
+W_SMOOTH: Final[float] = 1e-3
+
 # --- test protocol (MODEL.md section 2) ------------------------------------
 #: Sample interval Ts [s].
 SAMPLE_INTERVAL: Final[float] = 1e-4

@@ -16,8 +16,8 @@ inside :func:`cancel_scope` with an event, and long loops call
 from __future__ import annotations
 
 import threading
+from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Iterator
 
 from threadpoolctl import threadpool_limits
 

@@ -8,8 +8,8 @@ format (issue 3): ``{"sample_interval", "event_index", "channels", "conditions"}
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Mapping
 
 import numpy as np
 
@@ -97,7 +97,7 @@ class Record:
         return out
 
     @classmethod
-    def from_dict(cls, data: Mapping) -> "Record":
+    def from_dict(cls, data: Mapping) -> Record:
         """Build a record from the service's JSON record format."""
         if "channels" not in data:
             raise RecordError("a record needs a 'channels' object mapping channel names to sample lists")

@@ -110,7 +110,7 @@ def test_generated_cases_are_blind_and_follow_the_strength_rule(tmp_path):
         assert "event_time" not in d["record"]
         assert (k.effect in d["library"]) == (k.kind == "effect") or k.kind == "clean"
         assert k.counts == (k.effect is not None and k.strength > STRENGTH_THRESHOLD)
-        expected = ("no_gap" if not k.counts else "explained" if k.kind == "effect" else "unexplained")
+        expected = "no_gap" if not k.counts else "explained" if k.kind == "effect" else "unexplained"
         assert k.expected_status == expected
         assert 30.0 <= k.snr_db <= 50.0
     assert {k.kind for k in key} == {"effect", "left_out", "clean"}
@@ -134,16 +134,29 @@ def test_scorer_counts_what_it_should(tmp_path):
         "e": ("no_gap", None, [], None, None),
         "f": ("explained", "motor_viscous_friction", ["motor_viscous_friction"], None, None),
     }
-    key = [AnswerEntry(cid, kind, eff, val, 0.005, 0.85, 1.0, 40.0, st, st > STRENGTH_THRESHOLD, es, ee)
-           for cid, kind, eff, val, st, es, ee in truth]
+    key = [
+        AnswerEntry(cid, kind, eff, val, 0.005, 0.85, 1.0, 40.0, st, st > STRENGTH_THRESHOLD, es, ee)
+        for cid, kind, eff, val, st, es, ee in truth
+    ]
     (tmp_path / "key").mkdir()
     (tmp_path / "results").mkdir()
     (tmp_path / "key" / "answer_key.json").write_text(json.dumps([asdict(k) for k in key]))
     for cid, (status, eff, ranking, value, shrink) in verdicts.items():
-        cands = [{"effect": n, "value": value if n == (key[ord(cid) - 97].effect) else 1.0, "uncertainty": 0.1,
-                  "shrinkage": shrink if n == key[ord(cid) - 97].effect else 1.0} for n in ranking]
-        res = {"verdict": {"status": status, "effect": eff, "value": None, "confidence": 0.9},
-               "candidates": cands, "ranking": ranking, "wall_seconds": 1.0}
+        cands = [
+            {
+                "effect": n,
+                "value": value if n == (key[ord(cid) - 97].effect) else 1.0,
+                "uncertainty": 0.1,
+                "shrinkage": shrink if n == key[ord(cid) - 97].effect else 1.0,
+            }
+            for n in ranking
+        ]
+        res = {
+            "verdict": {"status": status, "effect": eff, "value": None, "confidence": 0.9},
+            "candidates": cands,
+            "ranking": ranking,
+            "wall_seconds": 1.0,
+        }
         (tmp_path / "results" / f"{cid}.json").write_text(json.dumps(res))
     rep = score(tmp_path)
     assert rep.n_by_expected == {"explained": 2, "unexplained": 2, "no_gap": 2}
@@ -159,14 +172,17 @@ def test_scorer_counts_what_it_should(tmp_path):
 
 def test_small_blind_validation(tmp_path):
     """A small blind run end to end: generate, diagnose without the key, score."""
-    rep = run_validation(4, seed=5, out_dir=tmp_path, workers=2,
-                         fractions={"effect": 0.5, "left_out": 0.25, "clean": 0.25})
+    rep = run_validation(
+        4, seed=5, out_dir=tmp_path, workers=2, fractions={"effect": 0.5, "left_out": 0.25, "clean": 0.25}
+    )
     assert rep.n_cases == 4
     assert (tmp_path / "report.md").exists() and (tmp_path / "report.json").exists()
     statuses = [r["status"] for r in rep.per_case]
     assert "error" not in statuses
-    right = sum(r["status"] == r["expected"] and (r["named"] == r["effect"] or r["expected"] != "explained")
-                for r in rep.per_case)
+    right = sum(
+        r["status"] == r["expected"] and (r["named"] == r["effect"] or r["expected"] != "explained")
+        for r in rep.per_case
+    )
     assert right >= 3, rep.per_case
     # identification before/after on the same finished run (reads the key only now)
     from engine.diagnosis.identification import identification_markdown, score_identification
@@ -199,8 +215,11 @@ def test_plots_are_written(rotor_case, tmp_path):
     from engine.diagnosis.plots import plot_overlays, plot_residual_map
 
     rec, res = rotor_case
-    for path in (plot_residual_map(res, tmp_path / "map.png"), plot_residual_map(res, tmp_path / "after.png", after=True),
-                 plot_overlays(rec, res, tmp_path / "overlay.png")):
+    for path in (
+        plot_residual_map(res, tmp_path / "map.png"),
+        plot_residual_map(res, tmp_path / "after.png", after=True),
+        plot_overlays(rec, res, tmp_path / "overlay.png"),
+    ):
         data = path.read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
 
@@ -209,8 +228,11 @@ def test_plots_are_written(rotor_case, tmp_path):
 def test_blind_validation_ten_cases(tmp_path):
     """Ten blind cases (the benchmark runs 200): at most one wrong answer."""
     rep = run_validation(10, seed=11, out_dir=tmp_path, workers=2)
-    wrong = [r for r in rep.per_case
-             if not (r["status"] == r["expected"] and (r["named"] == r["effect"] or r["expected"] != "explained"))]
+    wrong = [
+        r
+        for r in rep.per_case
+        if not (r["status"] == r["expected"] and (r["named"] == r["effect"] or r["expected"] != "explained"))
+    ]
     assert len(wrong) <= 1, wrong
 
 
@@ -270,18 +292,31 @@ def _cal(chi2_per_channel: dict[str, float], n_params: int):
     from engine.diagnosis.calibration import CalibrationResult
 
     values = {f"p{i}": 1.0 for i in range(n_params)}
-    return CalibrationResult(values=values, uncertainties={}, fixed={}, chi2=sum(chi2_per_channel.values()),
-                             chi2_per_channel=dict(chi2_per_channel), n_data=2048 * len(chi2_per_channel),
-                             noise={}, sigma={}, effect=None, n_simulations=0, seconds=0.0)
+    return CalibrationResult(
+        values=values,
+        uncertainties={},
+        fixed={},
+        chi2=sum(chi2_per_channel.values()),
+        chi2_per_channel=dict(chi2_per_channel),
+        n_data=2048 * len(chi2_per_channel),
+        noise={},
+        sigma={},
+        effect=None,
+        n_simulations=0,
+        seconds=0.0,
+    )
 
 
-@pytest.mark.parametrize(("nominal_omega1", "best_omega1", "strength", "expected"), [
-    (2.3, 2.2, 1.2, "no_gap"),        # significant but weak residue nobody fits: not clearly beyond the noise
-    (2.3, 2.2, 4.0, "unexplained"),   # the best candidate moves the record clearly: a real gap nobody explains
-    (12.0, 11.0, 1.0, "unexplained"),  # nominal misfit sqrt(11) > 3 noise RMS
-    (12.0, 1.0, 5.0, "explained"),    # a candidate fits, and the effect is clearly beyond the noise
-    (2.0, 1.0, 2.0, "no_gap"),        # a candidate fits, but the effect is weak
-])
+@pytest.mark.parametrize(
+    ("nominal_omega1", "best_omega1", "strength", "expected"),
+    [
+        (2.3, 2.2, 1.2, "no_gap"),  # significant but weak residue nobody fits: not clearly beyond the noise
+        (2.3, 2.2, 4.0, "unexplained"),  # the best candidate moves the record clearly: a real gap nobody explains
+        (12.0, 11.0, 1.0, "unexplained"),  # nominal misfit sqrt(11) > 3 noise RMS
+        (12.0, 1.0, 5.0, "explained"),  # a candidate fits, and the effect is clearly beyond the noise
+        (2.0, 1.0, 2.0, "no_gap"),  # a candidate fits, but the effect is weak
+    ],
+)
 def test_decision_rule_uses_the_three_noise_rms_rule_in_every_branch(nominal_omega1, best_omega1, strength, expected):
     from engine.diagnosis.candidates import Candidate
     from engine.diagnosis.diagnose import DiagnosisSettings, decide

@@ -6,7 +6,15 @@ import numpy as np
 import pytest
 
 from engine.constants import CHANNELS, EVENT_INDEX, SAMPLE_INTERVAL
-from engine.diagnosis import CalibrationError, CalibrationSettings, calibrate, default_space, estimate_noise, level_band, localise
+from engine.diagnosis import (
+    CalibrationError,
+    CalibrationSettings,
+    calibrate,
+    default_space,
+    estimate_noise,
+    level_band,
+    localise,
+)
 from engine.records import Record
 from engine.simulation import PlantParameters, simulate
 from engine.simulation.noise import noise_std
@@ -14,8 +22,9 @@ from engine.simulation.noise import noise_std
 TRUTH = PlantParameters(K=0.0063, J1=0.845, c=1.22)
 
 
-def noisy(record: Record, snr_db: float, seed: int, conditions: dict | None = None,
-          channels: tuple[str, ...] = CHANNELS) -> tuple[Record, dict[str, float]]:
+def noisy(
+    record: Record, snr_db: float, seed: int, conditions: dict | None = None, channels: tuple[str, ...] = CHANNELS
+) -> tuple[Record, dict[str, float]]:
     rng = np.random.default_rng(seed)
     sd = {k: float(noise_std(record[k], snr_db)[0]) for k in channels}
     ch = {k: record[k] + rng.standard_normal(record[k].size) * sd[k] for k in channels}
@@ -53,8 +62,7 @@ def test_calibration_recovers_K_J1_c_on_held_out_noisy_record(clean):
 
 
 def test_calibration_uses_conditions_and_channel_subsets(clean):
-    rec, _ = noisy(clean, 35.0, seed=2, conditions={"J1": TRUTH.J1, "c": TRUTH.c, "c1": 0.2},
-                   channels=("omega1", "a2"))
+    rec, _ = noisy(clean, 35.0, seed=2, conditions={"J1": TRUTH.J1, "c": TRUTH.c, "c1": 0.2}, channels=("omega1", "a2"))
     space = default_space(rec)
     assert space.names == ["K"]
     cal = calibrate(rec, space)
@@ -114,7 +122,7 @@ def test_width_estimate_from_a_single_channel_ignores_a_K_condition(clean):
 
     rec, _ = noisy(clean, 40.0, seed=7, conditions={"c1": 0.2, "K": 0.009}, channels=("omega1",))
     est = estimate_width(rec)
-    assert est.K == pytest.approx(TRUTH.K, rel=0.005)
+    assert pytest.approx(TRUTH.K, rel=0.005) == est.K
     assert 0 < est.sigma_K < 0.005 * TRUTH.K
     assert "K" not in est.calibration.fixed and est.calibration.values["K"] == est.K
 

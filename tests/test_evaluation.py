@@ -1,7 +1,6 @@
 """Evaluation bookkeeping and a small main-job run."""
 
 import numpy as np
-import pytest
 
 from engine.constants import C_GROUPS, K_GRID
 from engine.evaluation.accuracy import evaluate, random_cases

@@ -32,8 +32,8 @@ def synthetic(n_j1: int = 7) -> tuple[np.ndarray, np.ndarray]:
     for K in K_GRID:
         for p in range(n_j1):
             s = 1.0 + 0.01 * (p - n_j1 // 2)
-            f = (30.0 + 400.0 * K / 0.01) * s       # Hz
-            tau = 0.02 + 2.0 * K                     # s
+            f = (30.0 + 400.0 * K / 0.01) * s  # Hz
+            tau = 0.02 + 2.0 * K  # s
             X.append(0.5 + np.exp(-t / tau) * np.sin(2 * np.pi * f * t) * (t > 0.0048))
             y.append(K)
     return np.asarray(X), np.asarray(y)
@@ -63,9 +63,16 @@ def test_init_stores_only_params() -> None:
     params = ident.get_params()
     assert vars(ident) == params
     assert params == {
-        "channel": "not-a-channel", "wavelet": None, "level": 10, "mode": "periodization",
-        "n_hidden": 15, "learning_rate": -1.0, "delta1": 0.08, "max_epochs": 500,
-        "target": "abs", "test_rows": "match",
+        "channel": "not-a-channel",
+        "wavelet": None,
+        "level": 10,
+        "mode": "periodization",
+        "n_hidden": 15,
+        "learning_rate": -1.0,
+        "delta1": 0.08,
+        "max_epochs": 500,
+        "target": "abs",
+        "test_rows": "match",
     }
     assert not [k for k in vars(ident) if k.endswith("_")]
 
@@ -286,7 +293,7 @@ def test_test_network_row_counts_follow_each_pattern(data, monkeypatch) -> None:
 
     def spy(self, X1, label):
         seen.append(X1.shape[0])
-        assert np.all(X1 == X1[0])  # the record, replicated
+        assert np.all(X1[0] == X1)  # the record, replicated
         return original(self, X1, label)
 
     monkeypatch.setattr(PaperIdentifier, "_train", spy)
@@ -317,7 +324,6 @@ def test_gram_form_training_equals_explicit_reference(max_epochs: int, delta1: f
         np.testing.assert_allclose(wa, wb, rtol=1e-12, atol=1e-14)
 
 
-
 def test_epoch_cap_respected_and_logged(data, caplog) -> None:
     X, y = data
     with caplog.at_level(logging.WARNING, logger="engine.identification"):
@@ -342,7 +348,7 @@ def test_initial_weights_cycle_m1() -> None:
     w = initial_weights(np.resize([1.0, 2.0, 3.0], 15), 8, 15, 6)
     np.testing.assert_array_equal(w.W1[:, 0], np.resize([1.0, 2.0, 3.0], 15))
     np.testing.assert_array_equal(w.W3[:, 5], [1, 2, 3, 1, 2, 3])
-    assert np.all(w.W2 == w.W2[:, :1])
+    assert np.all(w.W2[:, :1] == w.W2)
 
 
 # --- normalisation -----------------------------------------------------------------------------
@@ -375,7 +381,7 @@ def test_normalisation_terms_hand_checked() -> None:
     assert t["h6"] == pytest.approx(3.5 * 256.0)
     assert (t["h19"], t["h20"], t["m5"]) == pytest.approx((256.0, 6 * 256.0, 3.5 * 256.0))
     assert t["h11"] == pytest.approx((256 + 700) - (1536 + 700) - (896 + 700))
-    assert t["m1"] == pytest.approx(1279 * 1280 / 2 / N)   # mean of the smallest-width row
+    assert t["m1"] == pytest.approx(1279 * 1280 / 2 / N)  # mean of the smallest-width row
     assert t["m2"] == pytest.approx(3.5 * 1279 * 1280 / 2 / N)
     # samples above the row mean: j >= 400 (880 of them) in every row
     assert (t["h17"], t["h18"], t["h14"]) == pytest.approx((6 * 1279.0 * 880,) * 3)
@@ -383,7 +389,7 @@ def test_normalisation_terms_hand_checked() -> None:
     sd = base.std()
     count_sd = int(np.count_nonzero(base > sd))
     assert (t["h13"], t["h8"], t["m3"], t["h12"]) == pytest.approx((6 * 1279.0 * count_sd,) * 4)
-    assert t["h7"] == pytest.approx(t["h13"])          # h13 + (m3 - h8) with m3 == h8
+    assert t["h7"] == pytest.approx(t["h13"])  # h13 + (m3 - h8) with m3 == h8
     # h7 > h8 is false only if h13 <= h8: here h7 == h8, so case 1 (h7 <= h8) applies
     assert t["case"] == 1.0
     assert (t["h3"], t["h4"]) == pytest.approx((3.5 * (100 - 256), 3.5 * (256 - 100)))
@@ -407,5 +413,5 @@ def test_tie_at_minimum_is_logged(fitted, data, caplog) -> None:
     )
     with caplog.at_level(logging.WARNING, logger="engine.identification"):
         r = tied.identify(X[0])
-    assert r.index == 1 and np.all(r.D == r.D[0])
+    assert r.index == 1 and np.all(r.D[0] == r.D)
     assert any("tie" in m for m in caplog.messages)

@@ -77,7 +77,12 @@ def test_no_event_raises_with_reason():
 
 @pytest.mark.parametrize(
     "overrides,match",
-    [({"K": -0.001}, "K = -0.001"), ({"J1": float("nan")}, "finite"), ({"x_m": 1.95}, "x_s \\* x_r"), ({"u": 5.0}, "u = 5.0")],
+    [
+        ({"K": -0.001}, "K = -0.001"),
+        ({"J1": float("nan")}, "finite"),
+        ({"x_m": 1.95}, "x_s \\* x_r"),
+        ({"u": 5.0}, "u = 5.0"),
+    ],
 )
 def test_absurd_parameters_raise(overrides, match):
     with pytest.raises(ParameterError, match=match):

@@ -92,8 +92,10 @@ def validation_answer(errors: list[dict[str, Any]]) -> JSONResponse:
         )
     if len(errors) == 1 and errors[0].get("type") == "missing" and tuple(errors[0].get("loc", ())) == ("body",):
         return JSONResponse(error_body("the request needs a JSON body", "RequestValidationError"), status_code=422)
-    listed = [{"loc": list(e.get("loc", ())), "msg": e.get("msg", ""), "type": e.get("type", "")}
-              for e in errors[:MAX_LISTED_ERRORS]]
+    listed = [
+        {"loc": list(e.get("loc", ())), "msg": e.get("msg", ""), "type": e.get("type", "")}
+        for e in errors[:MAX_LISTED_ERRORS]
+    ]
     parts = [f"{_loc(e['loc'])}: {e['msg']}" for e in listed[:3]]
     more = f" (and {len(errors) - 3} more)" if len(errors) > 3 else ""
     return JSONResponse(
@@ -105,20 +107,30 @@ def validation_answer(errors: list[dict[str, Any]]) -> JSONResponse:
 async def _request_validation(request: Request, exc: RequestValidationError) -> JSONResponse:
     errors = list(exc.errors())
     media = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    if media and media != "application/json" and not media.endswith("+json") and any(
-        tuple(e.get("loc", ())) == ("body",) for e in errors
+    if (
+        media
+        and media != "application/json"
+        and not media.endswith("+json")
+        and any(tuple(e.get("loc", ())) == ("body",) for e in errors)
     ):  # FastAPI reads a body of another media type as bytes, then fails to validate it
         return JSONResponse(
-            error_body(f"unsupported Content-Type {media!r}: send the body as JSON with Content-Type: application/json",
-                       "UnsupportedMediaType"),
+            error_body(
+                f"unsupported Content-Type {media!r}: send the body as JSON with Content-Type: application/json",
+                "UnsupportedMediaType",
+            ),
             status_code=415,
         )
     return validation_answer(errors)
 
 
 async def _http_exception(request: Request, exc: StarletteHTTPException) -> JSONResponse:
-    name = {401: "Unauthorized", 404: "NotFound", 405: "MethodNotAllowed", 413: "ContentTooLarge",
-            415: "UnsupportedMediaType"}.get(exc.status_code, "HTTPException")
+    name = {
+        401: "Unauthorized",
+        404: "NotFound",
+        405: "MethodNotAllowed",
+        413: "ContentTooLarge",
+        415: "UnsupportedMediaType",
+    }.get(exc.status_code, "HTTPException")
     return JSONResponse(error_body(str(exc.detail), name), status_code=exc.status_code, headers=exc.headers)
 
 
@@ -136,8 +148,9 @@ async def _server_error(request: Request, exc: Exception) -> JSONResponse:
 
 async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
     logger.exception("%s %s failed unexpectedly", request.method, request.url.path)
-    return JSONResponse(error_body("internal server error; the server log has the details", "InternalServerError"),
-                        status_code=500)
+    return JSONResponse(
+        error_body("internal server error; the server log has the details", "InternalServerError"), status_code=500
+    )
 
 
 def register_exception_handlers(app: FastAPI) -> None:

@@ -13,12 +13,17 @@ API_KEY_HEADER = "X-API-Key"
 
 async def _send_json(send: Send, status: int, body: dict, headers: list[tuple[bytes, bytes]] | None = None) -> None:
     data = json.dumps(body).encode()
-    await send({
-        "type": "http.response.start",
-        "status": status,
-        "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(data)).encode()),
-                    *(headers or [])],
-    })
+    await send(
+        {
+            "type": "http.response.start",
+            "status": status,
+            "headers": [
+                (b"content-type", b"application/json"),
+                (b"content-length", str(len(data)).encode()),
+                *(headers or []),
+            ],
+        }
+    )
     await send({"type": "http.response.body", "body": data})
 
 
@@ -38,9 +43,12 @@ class ApiKeyMiddleware:
         if given is None or not hmac.compare_digest(given, self._key):
             what = "missing" if given is None else "wrong"
             await _send_json(
-                send, 401,
-                {"detail": f"{what} API key: send the service's key in the {API_KEY_HEADER} header",
-                 "error": "Unauthorized"},
+                send,
+                401,
+                {
+                    "detail": f"{what} API key: send the service's key in the {API_KEY_HEADER} header",
+                    "error": "Unauthorized",
+                },
                 [(b"www-authenticate", API_KEY_HEADER.encode())],
             )
             return
@@ -78,8 +86,12 @@ class BodySizeLimitMiddleware:
                 await _send_json(send, 400, {"detail": detail, "error": "BadRequest"})
                 return
             if length > self.max_body_bytes:
-                await _send_json(send, 413, {"detail": self._message(f"{length} bytes"), "error": "ContentTooLarge"},
-                                 [(b"connection", b"close")])
+                await _send_json(
+                    send,
+                    413,
+                    {"detail": self._message(f"{length} bytes"), "error": "ContentTooLarge"},
+                    [(b"connection", b"close")],
+                )
                 return
         received = 0
 

@@ -23,8 +23,11 @@ def body_schema(model: type[BaseModel], csv: bool = False) -> dict[str, Any]:
     content: dict[str, Any] = {"application/json": {"schema": {"$ref": f"#/components/schemas/{model.__name__}"}}}
     if csv:
         content["text/csv"] = {
-            "schema": {"type": "string", "description": "Header row of channel names, then one row per sample "
-                                                         "(2048); the other values as query parameters."},
+            "schema": {
+                "type": "string",
+                "description": "Header row of channel names, then one row per sample "
+                "(2048); the other values as query parameters.",
+            },
             "example": _CSV_EXAMPLE,
         }
     return {"requestBody": {"required": True, "content": content}}

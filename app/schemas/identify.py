@@ -31,8 +31,10 @@ class IdentifyCreate(BaseModel):
 
 class ContinuousWidthPublic(BaseModel):
     K: float = Field(description="Calibrated backlash zone width [m] (continuous, beyond the six classes).")
-    sigma_K: float = Field(description="One standard deviation of K [m] (Gauss-Newton, measurement noise only; "
-                           "too small on a1 under noise: the true K lies within 2 sd in about half the cases).")
+    sigma_K: float = Field(
+        description="One standard deviation of K [m] (Gauss-Newton, measurement noise only; "
+        "too small on a1 under noise: the true K lies within 2 sd in about half the cases)."
+    )
     nearest_width: float = Field(description="The paper's width nearest to K [m].")
     fitted: dict[str, float] = Field(description="Every fitted parameter (K [m], J1 [kg m^2], c [pu], c1 [pu]).")
     fixed: dict[str, float] = Field(description="Parameters fixed by the record's conditions.")

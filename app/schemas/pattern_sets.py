@@ -19,8 +19,12 @@ class PatternSetCreate(BaseModel):
 
     model_config = ConfigDict(
         extra="forbid",
-        json_schema_extra={"examples": [{"channel": "v2", "c": 1.0},
-                                        {"channel": "v2", "c": 1.0, "kind": "paper", "l": 0.9, "delta1": 0.08}]},
+        json_schema_extra={
+            "examples": [
+                {"channel": "v2", "c": 1.0},
+                {"channel": "v2", "c": 1.0, "kind": "paper", "l": 0.9, "delta1": 0.08},
+            ]
+        },
     )
 
     channel: ChannelName = Field(description="Channel the identifier works on.")
@@ -28,13 +32,15 @@ class PatternSetCreate(BaseModel):
         description="Apparent-viscosity group of the training cases [pu] (paper: 0.8, 1.0, 1.25, 1.4)."
     )
     J1_values: list[FiniteFloat] | None = Field(
-        default=None, min_length=1, max_length=32,
+        default=None,
+        min_length=1,
+        max_length=32,
         description=f"Motor-side inertias of the training cases [kg m^2]; default the paper's grid {list(J1_GRID)}.",
     )
     kind: IdentifierKind = Field(
         default=DEFAULT_KIND, description=f"Identifier kind: {', '.join(IDENTIFIER_KINDS)} (default {DEFAULT_KIND})."
     )
-    l: FiniteFloat | None = Field(  # noqa: E741 - the paper's name
+    l: FiniteFloat | None = Field(
         default=None, gt=0, description="paper kind: learning coefficient l [-] (default 0.9)."
     )
     delta1: FiniteFloat | None = Field(

@@ -7,7 +7,7 @@ from pydantic import BaseModel, ConfigDict, Field, FiniteFloat
 from app.schemas.common import RecordPublic
 
 _EFFECTS_DOC = (
-    "Unmodelled effects by catalogue name and value, e.g. {\"motor_coulomb_friction\": 0.02}; see the "
+    'Unmodelled effects by catalogue name and value, e.g. {"motor_coulomb_friction": 0.02}; see the '
     "effects catalogue (engine.simulation.CATALOGUE) for names, meanings and ranges."
 )
 

@@ -28,7 +28,10 @@ def diagnose(record: Record, effects: Sequence[str] | None = None) -> dict[str, 
 def write_plots(record: Record, result: DiagnosisResult, out_dir: Path) -> list[Path]:
     """Residual maps (before, and after when an effect is named) and record-vs-simulation overlays, as PNG."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    paths = [plot_residual_map(result, out_dir / "residual_map_before.png"), plot_overlays(record, result, out_dir / "overlays.png")]
+    paths = [
+        plot_residual_map(result, out_dir / "residual_map_before.png"),
+        plot_overlays(record, result, out_dir / "overlays.png"),
+    ]
     if result.verdict.status == "explained":
         paths.append(plot_residual_map(result, out_dir / "residual_map_after.png", after=True))
     return paths

@@ -137,8 +137,13 @@ def continuous_width(record: Record, channel: str) -> dict:
     the README's "calibrated K as a continuous width estimate".
     """
     check_record(record, channel)
-    single = Record({channel: record[channel]}, record.sample_interval, record.event_index,
-                    dict(record.conditions), record.event_time)
+    single = Record(
+        {channel: record[channel]},
+        record.sample_interval,
+        record.event_index,
+        dict(record.conditions),
+        record.event_time,
+    )
     est = estimate_width(single)
     cal = est.calibration
     return {
@@ -153,7 +158,11 @@ def continuous_width(record: Record, channel: str) -> dict:
 
 
 def identify_from_store(
-    store: PatternStore, record: Record, channel: str, set_id: str | None = None, kind: str | None = None,
+    store: PatternStore,
+    record: Record,
+    channel: str,
+    set_id: str | None = None,
+    kind: str | None = None,
     continuous: bool = False,
 ) -> dict:
     """Choose the pattern set (:func:`select_pattern_set`), identify, and describe the outcome (JSON-ready).

@@ -76,8 +76,14 @@ def train_pattern_set(
     progress(0.02, f"simulating {len(cases)} cases (6 widths x {len(spec.J1_values)} J1 values) at c = {spec.c:g}")
     grid = simulation.run(cases)
     pattern_set = engine_training.train_pattern_set(
-        spec.channel, spec.c, kind=spec.kind, J1_values=tuple(spec.J1_values), params=dict(spec.params),
-        effects=dict(spec.effects), grid=grid, progress=progress,
+        spec.channel,
+        spec.c,
+        kind=spec.kind,
+        J1_values=tuple(spec.J1_values),
+        params=dict(spec.params),
+        effects=dict(spec.effects),
+        grid=grid,
+        progress=progress,
     )
     pattern_set.id = set_id
     saved = store.save(pattern_set)

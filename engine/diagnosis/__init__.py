@@ -8,10 +8,10 @@ from engine.diagnosis.calibration import (
     CalibrationResult,
     CalibrationSettings,
     ModelSpace,
+    WidthEstimate,
     calibrate,
     default_space,
     estimate_noise,
-    WidthEstimate,
     estimate_width,
 )
 from engine.diagnosis.candidates import Candidate, CandidateSettings, Gap, fit_candidates, gap_of
@@ -19,7 +19,26 @@ from engine.diagnosis.diagnose import DiagnosisResult, DiagnosisSettings, Identi
 from engine.diagnosis.localisation import Cell, level_band, localise
 
 __all__ = [
-    "CalibrationError", "CalibrationResult", "CalibrationSettings", "Candidate", "CandidateSettings", "Cell",
-    "DiagnosisResult", "DiagnosisSettings", "Gap", "IdentificationHook", "ModelSpace", "Verdict", "WidthEstimate", "calibrate",
-    "default_space", "diagnose", "estimate_noise", "estimate_width", "fit_candidates", "gap_of", "level_band", "localise",
+    "CalibrationError",
+    "CalibrationResult",
+    "CalibrationSettings",
+    "Candidate",
+    "CandidateSettings",
+    "Cell",
+    "DiagnosisResult",
+    "DiagnosisSettings",
+    "Gap",
+    "IdentificationHook",
+    "ModelSpace",
+    "Verdict",
+    "WidthEstimate",
+    "calibrate",
+    "default_space",
+    "diagnose",
+    "estimate_noise",
+    "estimate_width",
+    "fit_candidates",
+    "gap_of",
+    "level_band",
+    "localise",
 ]

@@ -39,8 +39,8 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
 
 import numpy as np
 import pywt
@@ -55,18 +55,18 @@ from engine.simulation import Case, Effect, PlantParameters, SolverSettings, run
 logger = logging.getLogger(__name__)
 
 __all__ = [
+    "WIDTH_SETTINGS",
     "CalibrationError",
     "CalibrationResult",
     "CalibrationSettings",
     "FreeParameter",
     "ModelSpace",
     "Objective",
+    "WidthEstimate",
     "calibrate",
     "default_space",
     "estimate_noise",
     "estimate_width",
-    "WIDTH_SETTINGS",
-    "WidthEstimate",
 ]
 
 #: Default search box of the calibrated plant parameters: (low, high, unit).
@@ -130,7 +130,9 @@ def estimate_noise(record: Record) -> dict[str, float]:
 
 #: Clipping of the noise estimate [sigma] and the variance of a unit normal truncated there.
 _CLIP = 4.0
-_CLIP_VARIANCE = 1.0 - 2.0 * _CLIP * math.exp(-_CLIP**2 / 2.0) / math.sqrt(2.0 * math.pi) / math.erf(_CLIP / math.sqrt(2.0))
+_CLIP_VARIANCE = 1.0 - 2.0 * _CLIP * math.exp(-(_CLIP**2) / 2.0) / math.sqrt(2.0 * math.pi) / math.erf(
+    _CLIP / math.sqrt(2.0)
+)
 
 
 def noise_weights(record: Record, noise: Mapping[str, float]) -> dict[str, float]:
@@ -233,7 +235,7 @@ class ModelSpace:
             case = self.effect.apply(case, vals[self.effect.name])
         return case
 
-    def with_effect(self, effect: Effect) -> "ModelSpace":
+    def with_effect(self, effect: Effect) -> ModelSpace:
         """This space plus one effect's value as an extra free parameter."""
         lo, hi = effect.bounds
         log = effect.name in LOG_SCALED_EFFECTS and lo > 0
@@ -328,7 +330,12 @@ class Objective:
         return out
 
     def jacobian(
-        self, u: np.ndarray, horizon: int, solver: SolverSettings, fd_step: float, r0: np.ndarray | None = None,
+        self,
+        u: np.ndarray,
+        horizon: int,
+        solver: SolverSettings,
+        fd_step: float,
+        r0: np.ndarray | None = None,
         central: bool = False,
     ) -> np.ndarray:
         """Finite-difference Jacobian (n_res, d) of the residuals in unit-box coordinates, one batch of simulations."""
@@ -366,8 +373,15 @@ class Objective:
             return self.jacobian(u, horizon, solver, fd_step, r0)
 
         res = least_squares(
-            fun, np.clip(u0, 0.0, 1.0), jac=jac, bounds=(np.zeros(d), np.ones(d)),
-            method="trf", x_scale=np.full(d, 0.05), max_nfev=max_nfev, xtol=1e-6, ftol=1e-6,
+            fun,
+            np.clip(u0, 0.0, 1.0),
+            jac=jac,
+            bounds=(np.zeros(d), np.ones(d)),
+            method="trf",
+            x_scale=np.full(d, 0.05),
+            max_nfev=max_nfev,
+            xtol=1e-6,
+            ftol=1e-6,
         )
         return res.x, float(2.0 * res.cost), res.jac, int(res.nfev)
 
@@ -419,8 +433,12 @@ class CalibrationSettings:
 
     def horizons(self, record: Record) -> list[int]:
         """Horizons as sample counts from the start of the record."""
-        hs = sorted({min(N_SAMPLES, record.event_index + int(round(h * 1e-3 / record.sample_interval)))
-                     for h in self.horizons_ms})
+        hs = sorted(
+            {
+                min(N_SAMPLES, record.event_index + int(round(h * 1e-3 / record.sample_interval)))
+                for h in self.horizons_ms
+            }
+        )
         if hs[-1] != N_SAMPLES:
             hs.append(N_SAMPLES)
         return hs
@@ -601,8 +619,12 @@ def calibrate(
 
 
 def _calibrate(
-    record: Record, space: ModelSpace | None, settings: CalibrationSettings, noise: Mapping[str, float] | None,
-    seeds: Sequence[Mapping[str, float]], polish: bool,
+    record: Record,
+    space: ModelSpace | None,
+    settings: CalibrationSettings,
+    noise: Mapping[str, float] | None,
+    seeds: Sequence[Mapping[str, float]],
+    polish: bool,
 ) -> CalibrationResult:
     t0 = time.perf_counter()
     space = default_space(record) if space is None else space
@@ -652,7 +674,9 @@ def _calibrate(
             u_best, c2, _, nfev = obj.local_fit(
                 u_best, N_SAMPLES, final, settings.polish_nfev, 3 * settings.fd_step_uncertainty
             )
-            stages.append({"start": "polish", "horizon": N_SAMPLES, "chi2": c2, "step": settings.final_step, "nfev": nfev})
+            stages.append(
+                {"start": "polish", "horizon": N_SAMPLES, "chi2": c2, "step": settings.final_step, "nfev": nfev}
+            )
 
     case = space.case(u_best)
     ch_all, t_e, st = run_cases([case], final)
@@ -669,15 +693,31 @@ def _calibrate(
         J = obj.jacobian(u_best, N_SAMPLES, final, settings.fd_step_uncertainty, central=True)
         unc = _uncertainties(space, u_best, J, chi2, n_data)
     res = CalibrationResult(
-        values=space.values(u_best), uncertainties=unc, fixed=fixed, chi2=chi2, chi2_per_channel=chi2_ch,
-        n_data=n_data, noise=noise, sigma=dict(sigma), effect=space.effect.name if space.effect else None,
-        n_simulations=obj.n_simulations, seconds=time.perf_counter() - t0, stages=stages,
-        case=case, simulation=ch_all[0], event_time=float(t_e[0]), step=final.max_step, lowfreq_ratio=lowfreq,
+        values=space.values(u_best),
+        uncertainties=unc,
+        fixed=fixed,
+        chi2=chi2,
+        chi2_per_channel=chi2_ch,
+        n_data=n_data,
+        noise=noise,
+        sigma=dict(sigma),
+        effect=space.effect.name if space.effect else None,
+        n_simulations=obj.n_simulations,
+        seconds=time.perf_counter() - t0,
+        stages=stages,
+        case=case,
+        simulation=ch_all[0],
+        event_time=float(t_e[0]),
+        step=final.max_step,
+        lowfreq_ratio=lowfreq,
     )
     logger.info(
         "calibration%s: %s chi2/n %.3f (%d simulations, %.1f s)",
         f" with {res.effect}" if res.effect else "",
-        ", ".join(f"{k}={v:.5g}" for k, v in res.values.items()), res.reduced_chi2, res.n_simulations, res.seconds,
+        ", ".join(f"{k}={v:.5g}" for k, v in res.values.items()),
+        res.reduced_chi2,
+        res.n_simulations,
+        res.seconds,
     )
     return res
 
@@ -762,7 +802,12 @@ def estimate_width(record: Record, settings: CalibrationSettings = WIDTH_SETTING
         When the record cannot be fitted.
     """
     if "K" in record.conditions:
-        record = Record(record.channels, record.sample_interval, record.event_index,
-                        {k: v for k, v in record.conditions.items() if k != "K"}, record.event_time)
+        record = Record(
+            record.channels,
+            record.sample_interval,
+            record.event_index,
+            {k: v for k, v in record.conditions.items() if k != "K"},
+            record.event_time,
+        )
     cal = calibrate(record, settings=settings)
     return WidthEstimate(cal.values["K"], cal.uncertainties["K"], cal)

@@ -47,12 +47,14 @@ import logging
 import math
 import threading
 import time
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Callable, Mapping, Sequence, TypeVar
+from typing import TypeVar
 
 import numpy as np
 
+from engine.constants import N_SAMPLES
 from engine.diagnosis.calibration import (
     CalibrationResult,
     CalibrationSettings,
@@ -60,16 +62,22 @@ from engine.diagnosis.calibration import (
     Objective,
     calibrate,
 )
-from engine.constants import N_SAMPLES
-from engine.records import Record
 from engine.parallel import cancel_scope, single_threaded_blas
+from engine.records import Record
 from engine.simulation import CATALOGUE, Case, Effect, EffectLibrary, SolverSettings, run_cases, serial_kernel
 
 logger = logging.getLogger(__name__)
 
 __all__ = [
-    "Candidate", "CandidateSettings", "Gap", "effect_strength", "fit_candidate", "fit_candidates", "gap_of",
-    "posterior_weights", "shrinkage_ratio",
+    "Candidate",
+    "CandidateSettings",
+    "Gap",
+    "effect_strength",
+    "fit_candidate",
+    "fit_candidates",
+    "gap_of",
+    "posterior_weights",
+    "shrinkage_ratio",
 ]
 
 
@@ -223,7 +231,8 @@ class CandidateSettings:
 
     seeded: CalibrationSettings = CalibrationSettings(n_global=0, max_nfev=30)
     escalated: CalibrationSettings = CalibrationSettings(
-        n_global=256, n_starts=2, horizons_ms=(10.0, 20.0, 40.0, 80.0, 200.0))
+        n_global=256, n_starts=2, horizons_ms=(10.0, 20.0, 40.0, 80.0, 200.0)
+    )
     n_scan: int = 9
     n_escalate: int | None = None
     escalate_above: float = 1.1
@@ -259,7 +268,9 @@ def shrinkage_ratio(before: CalibrationResult, after: CalibrationResult) -> floa
 def _identifiable(effect: Effect, space: ModelSpace, record: Record) -> str:
     """Empty string, or why the effect cannot be told apart from the calibration."""
     if effect.target == "plant" and effect.field in space.names:
-        return f"{effect.field} is calibrated (not fixed by the record's conditions), so this effect is degenerate with it"
+        return (
+            f"{effect.field} is calibrated (not fixed by the record's conditions), so this effect is degenerate with it"
+        )
     if _is_quantisation(effect) and "omega1" not in record.channels:
         return "the record has no omega1 channel, which is the only channel this effect changes"
     return ""
@@ -269,8 +280,9 @@ def _is_quantisation(effect: Effect) -> bool:
     return effect.target == "sensors" and effect.field == "speed_quantum"
 
 
-def _seeds(record: Record, nominal: CalibrationResult, space: ModelSpace, settings: CandidateSettings,
-           search_step: float) -> list[dict[str, float]]:
+def _seeds(
+    record: Record, nominal: CalibrationResult, space: ModelSpace, settings: CandidateSettings, search_step: float
+) -> list[dict[str, float]]:
     """Seeds of a joint fit: the nominal calibration with the effect at its neutral value
     (nearest bound when the neutral value is outside the range) and with the best value
     of a 1-D scan of the effect."""
@@ -310,7 +322,11 @@ def _quantum_scan(omega: np.ndarray, data: np.ndarray, sigma: float, q: np.ndarr
 
 
 def _fit_quantisation(
-    record: Record, nominal: CalibrationResult, space: ModelSpace, effect: Effect, settings: CandidateSettings,
+    record: Record,
+    nominal: CalibrationResult,
+    space: ModelSpace,
+    effect: Effect,
+    settings: CandidateSettings,
     global_search: bool = False,
 ) -> Candidate:
     """Fit a speed quantum by dense scans around refits of the calibration (see module notes).
@@ -345,8 +361,10 @@ def _fit_quantisation(
     rounded = q_best * np.round(omega / q_best) if q_best > 0 else omega
     cal.simulation = cal.simulation.copy()
     cal.simulation[j] = rounded
-    others = {n: float(np.sum(((cal.simulation[CHANNELS.index(n)] - record[n]) / nominal.sigma[n]) ** 2))
-              for n in record.channels}
+    others = {
+        n: float(np.sum(((cal.simulation[CHANNELS.index(n)] - record[n]) / nominal.sigma[n]) ** 2))
+        for n in record.channels
+    }
     cal.chi2_per_channel = others
     cal.chi2 = float(sum(others.values()))
     cal.case = Case(cal.case.plant, cal.case.sensors.replace(speed_quantum=q_best))
@@ -481,7 +499,7 @@ class _Runner:
         self._ex = ThreadPoolExecutor(n_jobs, thread_name_prefix="candidate") if n_jobs > 1 else None
         self._tasks: list[_Task] = []
 
-    def submit(self, fn: Callable[..., _T], *args, **kwargs) -> "_Task | _Deferred":
+    def submit(self, fn: Callable[..., _T], *args, **kwargs) -> _Task | _Deferred:
         """A handle on ``fn(*args, **kwargs)`` (``result()``, ``cancel()``); inline, the call runs
         when its result is first asked for."""
         if self._ex is not None:
@@ -490,7 +508,7 @@ class _Runner:
             return task
         return _Deferred(lambda: fn(*args, **kwargs))
 
-    def __enter__(self) -> "_Runner":
+    def __enter__(self) -> _Runner:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -546,8 +564,12 @@ def fit_candidates(
 
 
 def _fit_candidates(
-    record: Record, nominal: CalibrationResult, space: ModelSpace, library: EffectLibrary,
-    settings: CandidateSettings, runner: _Runner,
+    record: Record,
+    nominal: CalibrationResult,
+    space: ModelSpace,
+    library: EffectLibrary,
+    settings: CandidateSettings,
+    runner: _Runner,
 ) -> list[Candidate]:
     def order(cs: list[Candidate]) -> list[Candidate]:
         return sorted(cs, key=lambda c: c.bic)
@@ -565,8 +587,17 @@ def _fit_candidates(
         logger.info("no candidate fits to the noise after the seeded fits; global search for up to %d", n_esc)
 
         def escalate(i: int):
-            return runner.submit(fit_candidate, record, nominal, space, library[cands[i].effect], settings,
-                                 polish=False, global_search=True, extra_seeds=[cands[i].calibration.values])
+            return runner.submit(
+                fit_candidate,
+                record,
+                nominal,
+                space,
+                library[cands[i].effect],
+                settings,
+                polish=False,
+                global_search=True,
+                extra_seeds=[cands[i].calibration.values],
+            )
 
         idx = [i for i, c in enumerate(cands[:n_esc]) if c.calibration is not None]
         tasks = {}
@@ -580,8 +611,10 @@ def _fit_candidates(
             cands[i] = new if new.bic < c.bic else c
             if cands[i].calibration.reduced_chi2 <= settings.escalate_above:
                 # one effect explains the record: the others keep their seeded fits
-                for j, rest in enumerate(cands[i + 1:n_esc], start=i + 1):
-                    rest.note = rest.note or f"seeded fit only: the escalation stopped once {c.effect} fitted to the noise"
+                for j, rest in enumerate(cands[i + 1 : n_esc], start=i + 1):
+                    rest.note = (
+                        rest.note or f"seeded fit only: the escalation stopped once {c.effect} fitted to the noise"
+                    )
                     if j in tasks:
                         tasks[j].cancel()  # stops it even if it is running
                 break
@@ -591,20 +624,35 @@ def _fit_candidates(
     # pass 3: refine the front runners at the final integrator step, from their search-step optimum
     fitted = [c for c in cands if c.calibration is not None]
     best_chi2 = fitted[0].calibration.chi2 if fitted else math.inf
-    n_pol = sum(1 for i, c in enumerate(fitted[: settings.max_polish])
-                if i < settings.n_polish or c.calibration.chi2 <= (1 + settings.polish_within) * best_chi2)
-    futs = {i: runner.submit(calibrate, record, space.with_effect(library[c.effect]), settings.seeded,
-                             noise=nominal.noise, seeds=[c.calibration.values], polish=True)
-            for i, c in enumerate(cands[:n_pol])
-            if c.calibration is not None and c.calibration.step != settings.seeded.final_step}
+    n_pol = sum(
+        1
+        for i, c in enumerate(fitted[: settings.max_polish])
+        if i < settings.n_polish or c.calibration.chi2 <= (1 + settings.polish_within) * best_chi2
+    )
+    futs = {
+        i: runner.submit(
+            calibrate,
+            record,
+            space.with_effect(library[c.effect]),
+            settings.seeded,
+            noise=nominal.noise,
+            seeds=[c.calibration.values],
+            polish=True,
+        )
+        for i, c in enumerate(cands[:n_pol])
+        if c.calibration is not None and c.calibration.step != settings.seeded.final_step
+    }
     for i, f in futs.items():
         c, cal = cands[i], f.result()
         cal.n_simulations += c.calibration.n_simulations
         cal.seconds += c.calibration.seconds
         cands[i] = _candidate(library[c.effect], cal, nominal)
     cands = order(cands)
-    futs = {i: runner.submit(effect_strength, c, space, record, nominal.noise)
-            for i, c in enumerate(cands[:n_pol]) if c.calibration is not None}
+    futs = {
+        i: runner.submit(effect_strength, c, space, record, nominal.noise)
+        for i, c in enumerate(cands[:n_pol])
+        if c.calibration is not None
+    }
     for i, f in futs.items():
         cands[i].strength = f.result()
     logger.info("candidate fits done in %.1f s (%d refined at the final step)", time.perf_counter() - t0, n_pol)
@@ -613,6 +661,11 @@ def _fit_candidates(
     for c in cands:
         c.delta_bic = c.bic - best
         c.weight = w[c.effect]
-        logger.debug("candidate %s: value %s, chi2/n %s, dBIC %.1f", c.effect, c.value,
-                     c.calibration.reduced_chi2 if c.calibration else None, c.delta_bic)
+        logger.debug(
+            "candidate %s: value %s, chi2/n %s, dBIC %.1f",
+            c.effect,
+            c.value,
+            c.calibration.reduced_chi2 if c.calibration else None,
+            c.delta_bic,
+        )
     return cands

@@ -45,8 +45,8 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Callable, Mapping
 
 from scipy.special import expit
 
@@ -59,7 +59,15 @@ from engine.simulation import CATALOGUE, EffectLibrary
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["DiagnosisResult", "DiagnosisSettings", "IdentificationHook", "Verdict", "decide", "diagnose", "fit_statistic"]
+__all__ = [
+    "DiagnosisResult",
+    "DiagnosisSettings",
+    "IdentificationHook",
+    "Verdict",
+    "decide",
+    "diagnose",
+    "fit_statistic",
+]
 
 #: Hook for identification before/after (wired by the service, e.g.
 #: :func:`engine.diagnosis.identification.identification_hook`): called as
@@ -143,8 +151,13 @@ class Verdict:
 
     def to_dict(self) -> dict:
         return {
-            "status": self.status, "effect": self.effect, "value": self.value, "uncertainty": self.uncertainty,
-            "unit": self.unit, "confidence": self.confidence, "reason": self.reason,
+            "status": self.status,
+            "effect": self.effect,
+            "value": self.value,
+            "uncertainty": self.uncertainty,
+            "unit": self.unit,
+            "confidence": self.confidence,
+            "reason": self.reason,
         }
 
 
@@ -255,48 +268,98 @@ def decide(nominal: CalibrationResult, candidates: list[Candidate], settings: Di
     total, worst = fit_statistic(nominal)
     dbic = nominal.bic - best.bic if best is not None else -math.inf
     if dbic < settings.min_delta_bic:
-        what = (f"no candidate improves the fit significantly (best: {best.effect}, BIC lower by {dbic:.1f} < "
-                f"{settings.min_delta_bic:g})" if best else "no candidate could be fitted")
+        what = (
+            f"no candidate improves the fit significantly (best: {best.effect}, BIC lower by {dbic:.1f} < "
+            f"{settings.min_delta_bic:g})"
+            if best
+            else "no candidate could be fitted"
+        )
         if _fits_noise(nominal, settings):
-            return Verdict("no_gap", None, None, None, None, _adequacy(nominal, settings),
-                           f"the calibrated nominal model fits to the noise (chi2/n = {total:.3f}, worst channel "
-                           f"{worst:.3f}) and {what}")
+            return Verdict(
+                "no_gap",
+                None,
+                None,
+                None,
+                None,
+                _adequacy(nominal, settings),
+                f"the calibrated nominal model fits to the noise (chi2/n = {total:.3f}, worst channel "
+                f"{worst:.3f}) and {what}",
+            )
         gap_rms = math.sqrt(max(worst - 1.0, 0.0))
         if gap_rms <= settings.min_strength:
-            return Verdict("no_gap", None, None, None, None,
-                           float(expit((settings.min_strength - gap_rms) / settings.strength_scatter)),
-                           f"the nominal model leaves a small misfit (chi2/n = {total:.3g}, worst channel {worst:.3g}: "
-                           f"{gap_rms:.2f} noise RMS beyond the noise, <= {settings.min_strength:g}) and {what}: "
-                           f"no gap clearly beyond the noise")
-        return Verdict("unexplained", None, None, None, None, 1.0 - _adequacy(nominal, settings),
-                       f"the nominal model leaves a gap (chi2/n = {total:.3g}, worst channel {worst:.3g}) and {what}")
+            return Verdict(
+                "no_gap",
+                None,
+                None,
+                None,
+                None,
+                float(expit((settings.min_strength - gap_rms) / settings.strength_scatter)),
+                f"the nominal model leaves a small misfit (chi2/n = {total:.3g}, worst channel {worst:.3g}: "
+                f"{gap_rms:.2f} noise RMS beyond the noise, <= {settings.min_strength:g}) and {what}: "
+                f"no gap clearly beyond the noise",
+            )
+        return Verdict(
+            "unexplained",
+            None,
+            None,
+            None,
+            None,
+            1.0 - _adequacy(nominal, settings),
+            f"the nominal model leaves a gap (chi2/n = {total:.3g}, worst channel {worst:.3g}) and {what}",
+        )
     b_total, b_worst = fit_statistic(best.calibration)
     if _fits_noise(best.calibration, settings):
         strength = best.strength if best.strength is not None and math.isfinite(best.strength) else math.inf
         sure = float(expit((strength - settings.min_strength) / settings.strength_scatter))
         if strength <= settings.min_strength:
-            return Verdict("no_gap", None, None, None, None, 1.0 - sure,
-                           f"the best candidate, {best.effect} = {best.value:.4g} {best.unit}, fits the record but "
-                           f"moves it by only {strength:.2f} noise RMS (<= {settings.min_strength:g}): no gap clearly "
-                           f"beyond the noise")
-        return Verdict("explained", best.effect, best.value, best.uncertainty, best.unit,
-                       _adequacy(best.calibration, settings) * best.weight * sure,
-                       f"adding {best.effect} = {best.value:.4g} {best.unit} brings the fit to the noise "
-                       f"(chi2/n {total:.3g} -> {b_total:.3f}, worst channel {b_worst:.3f}); the effect moves the "
-                       f"record by {strength:.3g} noise RMS")
+            return Verdict(
+                "no_gap",
+                None,
+                None,
+                None,
+                None,
+                1.0 - sure,
+                f"the best candidate, {best.effect} = {best.value:.4g} {best.unit}, fits the record but "
+                f"moves it by only {strength:.2f} noise RMS (<= {settings.min_strength:g}): no gap clearly "
+                f"beyond the noise",
+            )
+        return Verdict(
+            "explained",
+            best.effect,
+            best.value,
+            best.uncertainty,
+            best.unit,
+            _adequacy(best.calibration, settings) * best.weight * sure,
+            f"adding {best.effect} = {best.value:.4g} {best.unit} brings the fit to the noise "
+            f"(chi2/n {total:.3g} -> {b_total:.3f}, worst channel {b_worst:.3f}); the effect moves the "
+            f"record by {strength:.3g} noise RMS",
+        )
     gap_rms = math.sqrt(max(worst - 1.0, 0.0))
     strength = best.strength if best.strength is not None and math.isfinite(best.strength) else math.inf
     weakest = max(gap_rms, strength)
     if weakest <= settings.min_strength:
-        return Verdict("no_gap", None, None, None, None,
-                       float(expit((settings.min_strength - weakest) / settings.strength_scatter)),
-                       f"no candidate brings the fit to the noise (the best, {best.effect} = {best.value:.4g} "
-                       f"{best.unit}, leaves chi2/n = {b_total:.3g}), but the gap is weak: the nominal misfit is "
-                       f"{gap_rms:.2f} noise RMS beyond the noise and the best candidate moves the record by "
-                       f"{strength:.2f} noise RMS (both <= {settings.min_strength:g}): no gap clearly beyond the noise")
-    return Verdict("unexplained", None, None, None, None, 1.0 - _adequacy(best.calibration, settings),
-                   f"no candidate brings the fit to the noise: the best, {best.effect} = {best.value:.4g} "
-                   f"{best.unit}, leaves chi2/n = {b_total:.3g} (worst channel {b_worst:.3g})")
+        return Verdict(
+            "no_gap",
+            None,
+            None,
+            None,
+            None,
+            float(expit((settings.min_strength - weakest) / settings.strength_scatter)),
+            f"no candidate brings the fit to the noise (the best, {best.effect} = {best.value:.4g} "
+            f"{best.unit}, leaves chi2/n = {b_total:.3g}), but the gap is weak: the nominal misfit is "
+            f"{gap_rms:.2f} noise RMS beyond the noise and the best candidate moves the record by "
+            f"{strength:.2f} noise RMS (both <= {settings.min_strength:g}): no gap clearly beyond the noise",
+        )
+    return Verdict(
+        "unexplained",
+        None,
+        None,
+        None,
+        None,
+        1.0 - _adequacy(best.calibration, settings),
+        f"no candidate brings the fit to the noise: the best, {best.effect} = {best.value:.4g} "
+        f"{best.unit}, leaves chi2/n = {b_total:.3g} (worst channel {b_worst:.3g})",
+    )
 
 
 def diagnose(
@@ -336,7 +399,10 @@ def diagnose(
 
 
 def _diagnose(
-    record: Record, library: EffectLibrary, settings: DiagnosisSettings, identify: IdentificationHook | None,
+    record: Record,
+    library: EffectLibrary,
+    settings: DiagnosisSettings,
+    identify: IdentificationHook | None,
     noise: Mapping[str, float] | None,
 ) -> DiagnosisResult:
     t0 = time.perf_counter()
@@ -360,13 +426,27 @@ def _diagnose(
         gap_after = gap_of(best_cal)
         cells_after = localise(record, after, nominal.sigma, DEFAULT_WINDOWS_MS)
     result = DiagnosisResult(
-        calibration=nominal, cells=cells, candidates=cands, verdict=verdict, gap_before=gap_before,
-        gap_after=gap_after, before=before, after=after, cells_after=cells_after,
-        n_simulations=n_sim, n_cells=settings.n_cells,
+        calibration=nominal,
+        cells=cells,
+        candidates=cands,
+        verdict=verdict,
+        gap_before=gap_before,
+        gap_after=gap_after,
+        before=before,
+        after=after,
+        cells_after=cells_after,
+        n_simulations=n_sim,
+        n_cells=settings.n_cells,
     )
     if identify is not None:
         result.identification = identify(record, result)
     result.seconds = time.perf_counter() - t0
-    logger.info("diagnosis: %s %s (confidence %.2f), %d simulations, %.1f s", verdict.status,
-                verdict.effect or "", verdict.confidence, n_sim, result.seconds)
+    logger.info(
+        "diagnosis: %s %s (confidence %.2f), %d simulations, %.1f s",
+        verdict.status,
+        verdict.effect or "",
+        verdict.confidence,
+        n_sim,
+        result.seconds,
+    )
     return result

@@ -14,8 +14,9 @@ with the same c simulate each nominal grid once.
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 from functools import lru_cache
-from typing import TYPE_CHECKING, Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -109,7 +110,7 @@ def identify_before_after(
 def identification_hook(kind: str = DEFAULT_KIND):
     """An identification hook for :func:`engine.diagnosis.diagnose` (see :func:`identify_before_after`)."""
 
-    def hook(record: Record, result: "DiagnosisResult") -> dict:
+    def hook(record: Record, result: DiagnosisResult) -> dict:
         v = result.verdict
         c = result.calibration.values.get("c", result.calibration.fixed.get("c", 1.0))
         return identify_before_after(record, v.effect, v.value, c, kind)
@@ -196,8 +197,7 @@ def score_identification(out_dir, kind: str = DEFAULT_KIND, at_groups: bool = Tr
                 ok_after = bool(np.isclose((entry["after"] or entry["before"])["width"], want))
                 hits["before"].setdefault(ch, []).append(ok_before)
                 hits["after"].setdefault(ch, []).append(ok_after)
-                hits["twin"].setdefault(ch, []).append(
-                    bool(np.isclose(twin["channels"][ch]["before"]["width"], want)))
+                hits["twin"].setdefault(ch, []).append(bool(np.isclose(twin["channels"][ch]["before"]["width"], want)))
         if progress:
             progress(n_done + 1, len(ids))
     accuracy = {}
@@ -211,8 +211,10 @@ def score_identification(out_dir, kind: str = DEFAULT_KIND, at_groups: bool = Tr
         # per case: mean over channels of (after - twin); its mean and standard error, in points
         chans = list(hits["after"])
         d = np.mean([np.array(hits["after"][ch], float) - np.array(hits["twin"][ch], float) for ch in chans], axis=0)
-        paired = {"after_minus_twin": float(100 * d.mean()),
-                  "stderr": float(100 * d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("nan")}
+        paired = {
+            "after_minus_twin": float(100 * d.mean()),
+            "stderr": float(100 * d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("nan"),
+        }
     return {"kind": kind, "at_groups": at_groups, "n": n, "accuracy": accuracy, "paired": paired}
 
 
@@ -221,15 +223,26 @@ def identification_markdown(score: dict) -> str:
     acc = score["accuracy"]
     channels = [ch for ch in acc["clean"] if ch != "mean"] + ["mean"]
     head = "| split | n | " + " | ".join(channels) + " |\n|---|---|" + "---|" * len(channels) + "\n"
-    label = {"clean": "clean cases, nominal patterns",
-             "twin": "effect cases' clean twins (same point and noise, effect removed), nominal patterns",
-             "before": "effect cases, nominal patterns",
-             "after": "effect cases, patterns retrained with the diagnosed effect"}
-    rows = "\n".join(
-        f"| {label[s]} | {score['n'][s]} | " + " | ".join(f"{100 * acc[s].get(ch, float('nan')):.1f} %" for ch in channels) + " |"
-        for s in ("clean", "twin", "before", "after") if s in acc) + "\n"
+    label = {
+        "clean": "clean cases, nominal patterns",
+        "twin": "effect cases' clean twins (same point and noise, effect removed), nominal patterns",
+        "before": "effect cases, nominal patterns",
+        "after": "effect cases, patterns retrained with the diagnosed effect",
+    }
+    rows = (
+        "\n".join(
+            f"| {label[s]} | {score['n'][s]} | "
+            + " | ".join(f"{100 * acc[s].get(ch, float('nan')):.1f} %" for ch in channels)
+            + " |"
+            for s in ("clean", "twin", "before", "after")
+            if s in acc
+        )
+        + "\n"
+    )
     p = score.get("paired") or {}
     if p:
-        rows += (f"\nAfter the fix minus clean twin, paired per case (mean over channels): "
-                 f"{p['after_minus_twin']:+.1f} points (standard error {p['stderr']:.1f}).\n")
+        rows += (
+            f"\nAfter the fix minus clean twin, paired per case (mean over channels): "
+            f"{p['after_minus_twin']:+.1f} points (standard error {p['stderr']:.1f}).\n"
+        )
     return head + rows

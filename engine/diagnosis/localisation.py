@@ -22,8 +22,8 @@ level 10: 4.9-9.8 Hz); the approximation of level 10 covers ``[0, 1 / (2**11 Ts)
 from __future__ import annotations
 
 import warnings
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
-from typing import Mapping, Sequence
 
 import numpy as np
 import pywt
@@ -31,7 +31,7 @@ import pywt
 from engine.constants import CHANNEL_WAVELETS, WAVELET_LEVEL
 from engine.records import Record
 
-__all__ = ["Cell", "DEFAULT_WINDOWS_MS", "level_band", "localise", "residual_components"]
+__all__ = ["DEFAULT_WINDOWS_MS", "Cell", "level_band", "localise", "residual_components"]
 
 #: Time windows relative to the event [ms]: (name, start, end); the first one is
 #: the pre-event part of the record (its start is clipped to the record).
@@ -145,7 +145,9 @@ def localise(
     for name, lo, hi in windows_ms:
         mask = (t_ms >= lo) & (t_ms < hi)
         if mask.any():
-            win_masks.append((name, mask, (float(max(lo, t_ms[0])), float(min(hi, t_ms[-1] + record.sample_interval * 1e3)))))
+            win_masks.append(
+                (name, mask, (float(max(lo, t_ms[0])), float(min(hi, t_ms[-1] + record.sample_interval * 1e3))))
+            )
     cells: list[Cell] = []
     for ch, x in record.channels.items():
         r = (np.asarray(x) - np.asarray(sim[ch])) / float(sigma[ch])

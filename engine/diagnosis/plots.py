@@ -54,7 +54,9 @@ def plot_residual_map(result: DiagnosisResult, path: str | Path, after: bool = F
         g = np.zeros((len(levels), len(windows)))
         for c in cells:
             if c.channel == ch and c.window in windows:
-                g[levels.index(c.level), windows.index(c.window)] = np.log10(max(c.energy, 1e-12) / max(c.noise_energy, 1e-12))
+                g[levels.index(c.level), windows.index(c.window)] = np.log10(
+                    max(c.energy, 1e-12) / max(c.noise_energy, 1e-12)
+                )
         grids[ch] = g
         vmax = max(vmax, float(np.max(g)))
     im = None
@@ -109,8 +111,9 @@ def plot_overlays(record: Record, result: DiagnosisResult, path: str | Path) -> 
         if i == 0:
             ax.legend(fontsize=7, loc="upper right")
     axes[-1].set_xlabel("time from the event [ms]")
-    fig.suptitle(f"Verdict: {result.verdict.status} {result.verdict.effect or ''} "
-                 f"(confidence {result.verdict.confidence:.2f})")
+    fig.suptitle(
+        f"Verdict: {result.verdict.status} {result.verdict.effect or ''} (confidence {result.verdict.confidence:.2f})"
+    )
     path = Path(path)
     fig.savefig(path, dpi=100)
     return path

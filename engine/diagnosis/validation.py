@@ -43,10 +43,10 @@ import logging
 import math
 import time
 from collections import Counter, defaultdict
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -92,7 +92,7 @@ class BlindCase:
         return {"case_id": self.case_id, "record": self.record.to_dict(), "library": list(self.library)}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "BlindCase":
+    def from_dict(cls, d: dict) -> BlindCase:
         return cls(d["case_id"], Record.from_dict(d["record"]), tuple(d["library"]))
 
 
@@ -202,7 +202,9 @@ def generate_cases(
         counted = bool(effect) and strength > STRENGTH_THRESHOLD
         rec = with_eff.record(i)
         record = Record(
-            {n: noisy[j] for j, n in enumerate(rec.channels)}, rec.sample_interval, rec.event_index,
+            {n: noisy[j] for j, n in enumerate(rec.channels)},
+            rec.sample_interval,
+            rec.event_index,
             conditions={"c1": PlantParameters().c1},
         )
         lib = tuple(n for n in names if not (kind == "left_out" and n == effect))
@@ -246,19 +248,20 @@ def _diagnose_file(path: str, results_dir: str, settings: DiagnosisSettings) -> 
         res = diagnose(case.record, library, settings)
         out = res.to_dict(include_records=False)
         out["ranking"] = [c.effect for c in res.candidates]
-    except Exception as exc:  # noqa: BLE001 - a failed diagnosis is a scored outcome, not a crash of the run
+    except Exception as exc:
         logger.exception("diagnosis of %s failed", case.case_id)
-        out = {"verdict": {"status": "error", "effect": None, "value": None, "confidence": 0.0, "reason": repr(exc)},
-               "candidates": [], "ranking": []}
+        out = {
+            "verdict": {"status": "error", "effect": None, "value": None, "confidence": 0.0, "reason": repr(exc)},
+            "candidates": [],
+            "ranking": [],
+        }
     out["case_id"] = case.case_id
     out["wall_seconds"] = time.perf_counter() - t0
     (Path(results_dir) / f"{case.case_id}.json").write_text(json.dumps(out))
     return case.case_id
 
 
-def diagnose_cases(
-    out_dir: str | Path, workers: int = 1, settings: DiagnosisSettings = DiagnosisSettings()
-) -> Path:
+def diagnose_cases(out_dir: str | Path, workers: int = 1, settings: DiagnosisSettings = DiagnosisSettings()) -> Path:
     """Diagnose every case in ``out_dir/cases`` (never reading the key); results to ``out_dir/results``.
 
     Parameters
@@ -353,8 +356,10 @@ class ValidationReport:
 
         n = self.n_by_expected
         rows = [
-            ("cases (explained / unexplained / no_gap expected)",
-             f"{self.n_cases} ({n.get('explained', 0)} / {n.get('unexplained', 0)} / {n.get('no_gap', 0)})"),
+            (
+                "cases (explained / unexplained / no_gap expected)",
+                f"{self.n_cases} ({n.get('explained', 0)} / {n.get('unexplained', 0)} / {n.get('no_gap', 0)})",
+            ),
             ("top-1 (verdict names the effect)", pct(self.top1)),
             ("top-2 (effect among two best-ranked)", pct(self.top2)),
             ("ranked first (any verdict)", pct(self.rank1)),
@@ -363,8 +368,10 @@ class ValidationReport:
             ("median value error / range width", pct(self.value_error.get("median_rel_range"))),
             ("abstention on left-out effects", pct(self.abstention)),
             ("false alarms on clean cases", pct(self.false_alarm)),
-            ("diagnosis time median / max", f"{self.seconds.get('median', float('nan')):.1f} s / "
-                                            f"{self.seconds.get('max', float('nan')):.1f} s"),
+            (
+                "diagnosis time median / max",
+                f"{self.seconds.get('median', float('nan')):.1f} s / {self.seconds.get('max', float('nan')):.1f} s",
+            ),
         ]
         lines = ["| metric | value |", "| --- | --- |"] + [f"| {a} | {b} |" for a, b in rows]
         return "\n".join(lines)
@@ -403,12 +410,27 @@ def score(out_dir: str | Path, library: EffectLibrary = CATALOGUE) -> Validation
         v = res["verdict"]
         pred = v["effect"] if v["status"] == "explained" else v["status"]
         ranking = res.get("ranking", [])
-        truth = (k.expected_effect if k.expected_status == "explained"
-                 else f"left-out {k.effect}" if k.expected_status == "unexplained" else "no_gap")
+        truth = (
+            k.expected_effect
+            if k.expected_status == "explained"
+            else f"left-out {k.effect}"
+            if k.expected_status == "unexplained"
+            else "no_gap"
+        )
         confusion[truth][pred] += 1
-        row = {"case_id": k.case_id, "kind": k.kind, "effect": k.effect, "value": k.value, "strength": k.strength,
-               "snr_db": k.snr_db, "expected": k.expected_status, "status": v["status"], "named": v["effect"],
-               "confidence": v.get("confidence"), "seconds": res.get("wall_seconds")}
+        row = {
+            "case_id": k.case_id,
+            "kind": k.kind,
+            "effect": k.effect,
+            "value": k.value,
+            "strength": k.strength,
+            "snr_db": k.snr_db,
+            "expected": k.expected_status,
+            "status": v["status"],
+            "named": v["effect"],
+            "confidence": v.get("confidence"),
+            "seconds": res.get("wall_seconds"),
+        }
         secs.append(res.get("wall_seconds", math.nan))
         if k.expected_status == "explained":
             r = ranking.index(k.effect) + 1 if k.effect in ranking else None
@@ -435,7 +457,11 @@ def score(out_dir: str | Path, library: EffectLibrary = CATALOGUE) -> Validation
     return ValidationReport(
         n_cases=len(key),
         n_by_expected=dict(Counter(k.expected_status for k in key)),
-        top1=_frac(top1), top2=_frac(top2), rank1=_frac(rank1), abstention=_frac(abst), false_alarm=_frac(fa),
+        top1=_frac(top1),
+        top2=_frac(top2),
+        rank1=_frac(rank1),
+        abstention=_frac(abst),
+        false_alarm=_frac(fa),
         value_error={
             "median_rel_range": float(np.median(rel_err)) if rel_err else None,
             "p90_rel_range": float(np.percentile(rel_err, 90)) if rel_err else None,

@@ -18,9 +18,10 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -51,7 +52,9 @@ class AccuracyRow:
         return self.correct / self.n if self.n else float("nan")
 
 
-def _fit_predict(kind: str, channel: str, params: Mapping[str, Any], X_tr, y_tr, g_tr, X_te) -> tuple[np.ndarray, np.ndarray]:
+def _fit_predict(
+    kind: str, channel: str, params: Mapping[str, Any], X_tr, y_tr, g_tr, X_te
+) -> tuple[np.ndarray, np.ndarray]:
     est = fit_identifier(make_identifier(kind, channel, **params), X_tr, y_tr, g_tr)
     res = est.identify_batch(X_te)
     return np.array([r.width for r in res]), np.array([r.epochs for r in res])
@@ -71,15 +74,19 @@ def _lojo_task(kind: str, channel: str, params: Mapping[str, Any], X, y, g) -> t
 SPLITS_RANDOM: tuple[str, ...] = ("random",) + tuple(f"random + {db:g} dB" for db in NOISE_LEVELS_DB)
 
 
-def noisy_versions(random: SimulationResult, channels: Sequence[str], noise_seed: int = 7) -> dict[str, list[np.ndarray]]:
+def noisy_versions(
+    random: SimulationResult, channels: Sequence[str], noise_seed: int = 7
+) -> dict[str, list[np.ndarray]]:
     """Per channel: the clean records, then one noisy copy per level of ``NOISE_LEVELS_DB`` (seeded).
 
     Every evaluation of the random cases draws its noise here, so all identifiers
     are scored on the very same noisy records.
     """
     rng = np.random.default_rng(noise_seed)
-    return {ch: [random.channel(ch)] + [add_white_noise(random.channel(ch), db, rng) for db in NOISE_LEVELS_DB]
-            for ch in channels}
+    return {
+        ch: [random.channel(ch)] + [add_white_noise(random.channel(ch), db, rng) for db in NOISE_LEVELS_DB]
+        for ch in channels
+    }
 
 
 def random_cases(n: int = 240, seed: int = 20261121) -> SimulationResult:
@@ -162,13 +169,25 @@ def evaluate(
             else:
                 for s, split in enumerate(splits):
                     widths, epochs = result[2 * s], result[2 * s + 1]
-                    rows.append(AccuracyRow(kind, ch, split, len(truth), int(np.isclose(widths, truth).sum()), float(epochs.mean())))
+                    rows.append(
+                        AccuracyRow(
+                            kind, ch, split, len(truth), int(np.isclose(widths, truth).sum()), float(epochs.mean())
+                        )
+                    )
             if progress:
                 progress(i + 1, len(tasks), f"{what} {kind} {ch}")
     for (kind, ch), parts in lojo.items():
         n = sum(p[1] for p in parts)
-        rows.append(AccuracyRow(kind, ch, "leave-one-J1-out", n, sum(p[0] for p in parts),
-                                float(np.average([p[2] for p in parts], weights=[p[1] for p in parts]))))
+        rows.append(
+            AccuracyRow(
+                kind,
+                ch,
+                "leave-one-J1-out",
+                n,
+                sum(p[0] for p in parts),
+                float(np.average([p[2] for p in parts], weights=[p[1] for p in parts])),
+            )
+        )
     order = {s: i for i, s in enumerate(["leave-one-J1-out"] + splits)}
     rows.sort(key=lambda r: (r.identifier, CHANNELS.index(r.channel), order[r.split]))
     return rows
@@ -181,7 +200,7 @@ def accuracy_markdown(rows: Sequence[AccuracyRow]) -> str:
     head = "| identifier | channel | " + " | ".join(f"{s} (n={n_by_split[s]})" for s in splits) + " |\n"
     head += "|---|---|" + "---|" * len(splits) + "\n"
     body = []
-    for (kind, ch) in dict.fromkeys((r.identifier, r.channel) for r in rows):
+    for kind, ch in dict.fromkeys((r.identifier, r.channel) for r in rows):
         cells = {r.split: r for r in rows if r.identifier == kind and r.channel == ch}
         body.append(f"| {kind} | {ch} | " + " | ".join(f"{100 * cells[s].accuracy:.1f} %" for s in splits) + " |")
     return head + "\n".join(body) + "\n"

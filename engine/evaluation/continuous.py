@@ -19,9 +19,9 @@ import logging
 import multiprocessing
 import os
 import time
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -64,8 +64,9 @@ def _task(channel: str, X: np.ndarray, c: np.ndarray) -> list[tuple[float, float
     return [calibrated_width(x, channel, float(cc)) for x, cc in zip(X, c)]
 
 
-def evaluate_continuous(n_cases: int = 20, channels: Sequence[str] = CHANNELS, n_jobs: int | None = None,
-                        n_random: int = 240) -> list[ContinuousRow]:
+def evaluate_continuous(
+    n_cases: int = 20, channels: Sequence[str] = CHANNELS, n_jobs: int | None = None, n_random: int = 240
+) -> list[ContinuousRow]:
     """Score the calibrated width on the first ``n_cases`` random held-out records, per channel and noise level."""
     random = random_cases(n_random)
     truth = np.array([c.plant.K for c in random.cases])[:n_cases]
@@ -73,21 +74,41 @@ def evaluate_continuous(n_cases: int = 20, channels: Sequence[str] = CHANNELS, n
     versions = noisy_versions(random, channels)
     rows = []
     with ProcessPoolExecutor(max_workers=n_jobs or os.cpu_count() or 1, mp_context=_SPAWN) as pool:
-        futures = {(ch, split): pool.submit(_task, ch, versions[ch][s][:n_cases], c)
-                   for ch in channels for s, split in enumerate(SPLITS_RANDOM)}
+        futures = {
+            (ch, split): pool.submit(_task, ch, versions[ch][s][:n_cases], c)
+            for ch in channels
+            for s, split in enumerate(SPLITS_RANDOM)
+        }
         for (ch, split), fut in futures.items():
             est = np.array(fut.result())
             K_hat, sd, sec = est[:, 0], est[:, 1], est[:, 2]
             correct = int(sum(np.isclose(nearest_grid_width(k), t) for k, t in zip(K_hat, truth)))
-            rows.append(ContinuousRow(ch, split, n_cases, correct, float(np.median(np.abs(K_hat - truth)) * 1e3),
-                                      float(np.mean(np.abs(K_hat - truth) <= 2 * sd)), float(np.median(sec))))
+            rows.append(
+                ContinuousRow(
+                    ch,
+                    split,
+                    n_cases,
+                    correct,
+                    float(np.median(np.abs(K_hat - truth)) * 1e3),
+                    float(np.mean(np.abs(K_hat - truth) <= 2 * sd)),
+                    float(np.median(sec)),
+                )
+            )
             logger.info("calibrated width %s %s: %d/%d", ch, split, correct, n_cases)
     return rows
 
 
 def continuous_markdown(rows: Sequence[ContinuousRow]) -> str:
-    head = ("| channel | split | n | accuracy (nearest width) | median abs K error [mm] | true K within 2 sd | "
-            "median time [s] |\n|---|---|---|---|---|---|---|\n")
-    return head + "\n".join(
-        f"| {r.channel} | {r.split} | {r.n} | {100 * r.accuracy:.1f} % | {r.median_abs_error_mm:.3f} | "
-        f"{100 * r.within_2sigma:.0f} % | {r.median_seconds:.1f} |" for r in rows) + "\n"
+    head = (
+        "| channel | split | n | accuracy (nearest width) | median abs K error [mm] | true K within 2 sd | "
+        "median time [s] |\n|---|---|---|---|---|---|---|\n"
+    )
+    return (
+        head
+        + "\n".join(
+            f"| {r.channel} | {r.split} | {r.n} | {100 * r.accuracy:.1f} % | {r.median_abs_error_mm:.3f} | "
+            f"{100 * r.within_2sigma:.0f} % | {r.median_seconds:.1f} |"
+            for r in rows
+        )
+        + "\n"
+    )

@@ -2,19 +2,19 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from engine.constants import CHANNEL_UNITS, CHANNELS, K_GRID, SAMPLE_INTERVAL, EVENT_INDEX, N_SAMPLES  # noqa: E402
-from engine.evaluation.accuracy import AccuracyRow  # noqa: E402
-from engine.evaluation.paper_tables import TableRow  # noqa: E402
-from engine.simulation import SimulationResult  # noqa: E402
+from engine.constants import CHANNEL_UNITS, CHANNELS, EVENT_INDEX, K_GRID, N_SAMPLES, SAMPLE_INTERVAL
+from engine.evaluation.accuracy import AccuracyRow
+from engine.evaluation.paper_tables import TableRow
+from engine.simulation import SimulationResult
 
 _T_MS = (np.arange(N_SAMPLES) - EVENT_INDEX) * SAMPLE_INTERVAL * 1e3
 
@@ -74,8 +74,13 @@ def plot_accuracy_vs_noise(rows: Sequence[AccuracyRow], path: Path) -> Path:
     fig, axes = plt.subplots(1, len(kinds), figsize=(6 * len(kinds), 4), sharey=True, squeeze=False)
     for ax, kind in zip(axes[0], kinds):
         for ch in CHANNELS:
-            acc = [next((100 * r.accuracy for r in rows if r.identifier == kind and r.channel == ch and r.split == s), np.nan)
-                   for s in splits]
+            acc = [
+                next(
+                    (100 * r.accuracy for r in rows if r.identifier == kind and r.channel == ch and r.split == s),
+                    np.nan,
+                )
+                for s in splits
+            ]
             ax.plot(range(len(splits)), acc, marker="o", label=ch)
         ax.set_xticks(range(len(splits)))
         ax.set_xticklabels(["clean" if s == "random" else s.replace("random + ", "") for s in splits])

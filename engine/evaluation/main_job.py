@@ -13,9 +13,10 @@ from __future__ import annotations
 import csv
 import logging
 import time
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from engine.constants import C_GROUPS, CHANNELS, J1_NOMINAL
 from engine.evaluation import figures
@@ -47,8 +48,10 @@ class MainJobResult:
     def report(self) -> str:
         """Human-readable summary (what ``backlash run`` prints)."""
         return (
-            "## Paper's Tables 1-4, re-run with the paper's identifier\n\n" + table_markdown(self.tables)
-            + "\n## Accuracy on held-out data (per identifier and channel)\n\n" + accuracy_markdown(self.accuracy)
+            "## Paper's Tables 1-4, re-run with the paper's identifier\n\n"
+            + table_markdown(self.tables)
+            + "\n## Accuracy on held-out data (per identifier and channel)\n\n"
+            + accuracy_markdown(self.accuracy)
             + f"\n{len(self.pattern_set_ids)} pattern sets stored; outputs in {self.out_dir}/ ; {self.seconds:.0f} s\n"
         )
 
@@ -81,8 +84,13 @@ def train_and_store(store: PatternStore, grids: Mapping, kinds: Mapping[str, Map
     return ids
 
 
-def run(out_dir: str | Path = "out", db_path: str | Path | None = None, n_random: int = 240,
-        kinds: Mapping[str, Mapping[str, Any]] | None = None, n_jobs: int | None = None) -> MainJobResult:
+def run(
+    out_dir: str | Path = "out",
+    db_path: str | Path | None = None,
+    n_random: int = 240,
+    kinds: Mapping[str, Mapping[str, Any]] | None = None,
+    n_jobs: int | None = None,
+) -> MainJobResult:
     """Run the main job; see the module docstring."""
     t0 = time.perf_counter()
     out = Path(out_dir)
@@ -96,17 +104,29 @@ def run(out_dir: str | Path = "out", db_path: str | Path | None = None, n_random
     grids = {c: simulate_batch(paper_grid(c)) for c in C_GROUPS}
     random = random_cases(n_random)
 
-    _step(2, n_steps, f"training {len(kinds) * len(C_GROUPS) * len(CHANNELS)} pattern sets into {db_path or default_store_path()}")
+    _step(
+        2,
+        n_steps,
+        f"training {len(kinds) * len(C_GROUPS) * len(CHANNELS)} pattern sets into {db_path or default_store_path()}",
+    )
     store = PatternStore(db_path)
     ids = train_and_store(store, grids, kinds)
 
     _step(3, n_steps, "re-running the paper's Tables 1-4")
-    tables = (rerun_tables(progress=lambda i, n: logger.info("  table case %d/%d", i, n), grids=grids)
-              if "paper" in kinds else [])
+    tables = (
+        rerun_tables(progress=lambda i, n: logger.info("  table case %d/%d", i, n), grids=grids)
+        if "paper" in kinds
+        else []
+    )
 
     _step(4, n_steps, "scoring identifiers on held-out data (leave-one-J1-out, random J1/c, 40 and 30 dB noise)")
-    acc = evaluate(grids, random, kinds, n_jobs=n_jobs,
-                   progress=lambda i, n, what: logger.info("  evaluation task %d/%d (%s)", i, n, what))
+    acc = evaluate(
+        grids,
+        random,
+        kinds,
+        n_jobs=n_jobs,
+        progress=lambda i, n, what: logger.info("  evaluation task %d/%d (%s)", i, n, what),
+    )
 
     _step(5, n_steps, f"writing tables and figures to {out}/")
     if tables:

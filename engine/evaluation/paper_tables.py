@@ -24,7 +24,7 @@ import numpy as np
 
 from engine.constants import C_GROUPS, K_GRID
 from engine.identification.paper import PaperIdentifier
-from engine.identification.training import train_pattern_set, identifier_from_pattern_set
+from engine.identification.training import identifier_from_pattern_set, train_pattern_set
 from engine.simulation import PlantParameters, simulate_batch
 
 logger = logging.getLogger(__name__)
@@ -81,7 +81,7 @@ class TableRow:
     @property
     def tie(self) -> bool:
         """Several widths share the smallest D (argmin then just picks the first)."""
-        return int(np.sum(self.D == self.D.min())) > 1
+        return int(np.sum(self.D.min() == self.D)) > 1
 
     @property
     def correct(self) -> bool:
@@ -106,8 +106,13 @@ def rerun_tables(max_epochs: int = 500, progress=None, grids=None) -> list[Table
         group = nearest_group(tc.c)
         key = (tc.channel, group, tc.l, tc.delta1)
         if key not in cache:
-            ps = train_pattern_set(tc.channel, group, kind="paper", grid=grids.get(group),
-                                   params={"learning_rate": tc.l, "delta1": tc.delta1, "max_epochs": max_epochs})
+            ps = train_pattern_set(
+                tc.channel,
+                group,
+                kind="paper",
+                grid=grids.get(group),
+                params={"learning_rate": tc.l, "delta1": tc.delta1, "max_epochs": max_epochs},
+            )
             cache[key] = identifier_from_pattern_set(ps)
         res = cache[key].identify(records.channel(tc.channel)[i])
         rows.append(TableRow(tc, group, res.D, res.index, res.width, res.epochs, res.converged))
@@ -118,8 +123,10 @@ def rerun_tables(max_epochs: int = 500, progress=None, grids=None) -> list[Table
 
 def table_markdown(rows: list[TableRow]) -> str:
     """The re-run beside the paper's values, one Markdown table."""
-    head = ("| table | channel | K [m] | J1 | c (group) | l | delta1 | paper D | paper nr5 | paper epochs "
-            "| our D | our nr5 (width) | our epochs |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
+    head = (
+        "| table | channel | K [m] | J1 | c (group) | l | delta1 | paper D | paper nr5 | paper epochs "
+        "| our D | our nr5 (width) | our epochs |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+    )
     lines = []
     for r in rows:
         tc = r.case
@@ -137,9 +144,24 @@ def table_csv_rows(rows: list[TableRow]) -> list[dict]:
     out = []
     for r in rows:
         tc = r.case
-        row = dict(table=tc.table, channel=tc.channel, K=tc.K, J1=tc.J1, c=tc.c, c_group=r.c_group, l=tc.l,
-                   delta1=tc.delta1, paper_epochs=tc.epochs, paper_index=r.paper_index, our_index=r.index,
-                   our_width=r.width, correct=bool(r.correct), tie=r.tie, our_epochs=r.epochs, converged=r.converged)
+        row = dict(
+            table=tc.table,
+            channel=tc.channel,
+            K=tc.K,
+            J1=tc.J1,
+            c=tc.c,
+            c_group=r.c_group,
+            l=tc.l,
+            delta1=tc.delta1,
+            paper_epochs=tc.epochs,
+            paper_index=r.paper_index,
+            our_index=r.index,
+            our_width=r.width,
+            correct=bool(r.correct),
+            tie=r.tie,
+            our_epochs=r.epochs,
+            converged=r.converged,
+        )
         for j in range(len(K_GRID)):
             row[f"paper_D{j + 1}"] = tc.D[j] * tc.scale
             row[f"our_D{j + 1}"] = float(r.D[j])

@@ -133,7 +133,9 @@ def _as_wavelet(wavelet: str | pywt.Wavelet) -> pywt.Wavelet:
     try:
         w = wavelet if isinstance(wavelet, pywt.Wavelet) else pywt.Wavelet(wavelet)
     except ValueError as exc:
-        raise ValueError(f"unknown wavelet {wavelet!r}; use a PyWavelets discrete wavelet name such as 'sym5' or 'db6'") from exc
+        raise ValueError(
+            f"unknown wavelet {wavelet!r}; use a PyWavelets discrete wavelet name such as 'sym5' or 'db6'"
+        ) from exc
     return w
 
 

@@ -60,7 +60,7 @@ class Weights:
     W2: np.ndarray
     W3: np.ndarray
 
-    def copy(self) -> "Weights":
+    def copy(self) -> Weights:
         """Deep copy (training modifies weights in place)."""
         return Weights(self.W1.copy(), self.W2.copy(), self.W3.copy())
 
@@ -260,18 +260,22 @@ def train(
     X = np.ascontiguousarray(X, dtype=float)
     if X.ndim != 2 or X.shape[0] == 0:
         raise ValueError(f"X must have shape (n_samples >= 1, n_in), got {X.shape}")
-    P = np.ascontiguousarray(X @ w0.W1.T)         # (n, H): initial first-layer inputs
-    G = np.ascontiguousarray(X @ X.T)             # (n, n): Gram matrix
-    A = np.zeros((w0.W1.shape[0], X.shape[0]))    # W1 = W1_0 + A @ X
+    P = np.ascontiguousarray(X @ w0.W1.T)  # (n, H): initial first-layer inputs
+    G = np.ascontiguousarray(X @ X.T)  # (n, n): Gram matrix
+    A = np.zeros((w0.W1.shape[0], X.shape[0]))  # W1 = W1_0 + A @ X
     W2, W3 = w0.W2.copy(), w0.W3.copy()
-    epochs, rms, converged = _train_gram(P, G, A, W2, W3, np.asarray(T, dtype=float),
-                                         float(learning_rate), float(delta1), int(max_epochs))
+    epochs, rms, converged = _train_gram(
+        P, G, A, W2, W3, np.asarray(T, dtype=float), float(learning_rate), float(delta1), int(max_epochs)
+    )
     w = Weights(w0.W1 + A @ X, W2, W3)
     if not converged:
         logger.warning(
             "network %s hit the epoch cap max_epochs=%d with RMS=%.4g (delta1=%.4g); "
             "its weights are those after the last epoch",
-            label or "(unnamed)", max_epochs, rms, delta1,
+            label or "(unnamed)",
+            max_epochs,
+            rms,
+            delta1,
         )
     return TrainResult(w, int(epochs), float(rms), bool(converged))
 

@@ -33,8 +33,9 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -46,11 +47,11 @@ logger = logging.getLogger(__name__)
 
 __all__ = [
     "ARRAYS_FORMAT_VERSION",
-    "TARGETS",
-    "TEST_ROWS",
     "N1_WINDOWS",
     "N2_WINDOWS",
+    "TARGETS",
     "TERM_NAMES",
+    "TEST_ROWS",
     "IdentificationResult",
     "NotFittedError",
     "PaperIdentifier",
@@ -68,8 +69,33 @@ M3_WIDTHS: tuple[int, ...] = (1, 2, 3)
 N4_EXTREME_WIDTHS: tuple[int, ...] = (3, 4, 5, 6)
 #: Names of the scalar normalisation terms, in the order stored by ``to_arrays``.
 TERM_NAMES: tuple[str, ...] = (
-    "h1", "k1", "h2", "k2", "h3", "h4", "h5", "h6", "h7", "h8", "h9", "h10", "h11", "h12",
-    "h13", "h14", "h15", "h16", "h17", "h18", "h19", "h20", "h21", "m1", "m2", "m3", "m5",
+    "h1",
+    "k1",
+    "h2",
+    "k2",
+    "h3",
+    "h4",
+    "h5",
+    "h6",
+    "h7",
+    "h8",
+    "h9",
+    "h10",
+    "h11",
+    "h12",
+    "h13",
+    "h14",
+    "h15",
+    "h16",
+    "h17",
+    "h18",
+    "h19",
+    "h20",
+    "h21",
+    "m1",
+    "m2",
+    "m3",
+    "m5",
 )
 #: Version of the layout produced by :meth:`PaperIdentifier.to_arrays`
 #: (2: adds ``pattern_rows``; the target and test-row readings are parameters).
@@ -177,13 +203,13 @@ def normalisation_terms(N: np.ndarray, width_index: np.ndarray) -> dict[str, flo
     t["k1"] = float(N.max())
     h16 = t["h16"] = float(N.max())
     # per-record statistics
-    m4 = N.mean(axis=1)                                   # m4(p)(i): row means
+    m4 = N.mean(axis=1)  # m4(p)(i): row means
     sd1 = np.sqrt(np.mean((N - m4[:, None]) ** 2, axis=1))  # d1(p)(i): row standard deviations
-    N1 = _running_means(N, N1_WINDOWS)                    # N1(p)(k)
-    N2 = _running_means(N, N2_WINDOWS)                    # N2(p)(i,k)
-    N3 = _count_sum(h16, N > sd1[:, None])                # N3(p)(i)
-    N4 = _count_sum(h16, N > m4[:, None])                 # N4(p)(i)
-    N5 = _chained_differences(N2)                         # N5(p)(i)
+    N1 = _running_means(N, N1_WINDOWS)  # N1(p)(k)
+    N2 = _running_means(N, N2_WINDOWS)  # N2(p)(i,k)
+    N3 = _count_sum(h16, sd1[:, None] < N)  # N3(p)(i)
+    N4 = _count_sum(h16, m4[:, None] < N)  # N4(p)(i)
+    N5 = _chained_differences(N2)  # N5(p)(i)
     # eqs. (3), (4) and h21 on the means of N1, N2 over the records
     n1, n2 = N1.mean(axis=0), N2.mean(axis=0)
     t["h5"] = float(_chained_differences(n1))
@@ -199,8 +225,8 @@ def normalisation_terms(N: np.ndarray, width_index: np.ndarray) -> dict[str, flo
     t["h17"] = float(N4[sel].max())
     t["h18"] = float(N4[sel].min())
     t["h15"] = abs(t["h17"] - t["h18"])
-    m2_p = N.mean(axis=1)                                 # m2(p): mean of the tested matrix, per record
-    t["h14"] = float(np.mean(_count_sum(h16, N > m2_p[:, None])))
+    m2_p = N.mean(axis=1)  # m2(p): mean of the tested matrix, per record
+    t["h14"] = float(np.mean(_count_sum(h16, m2_p[:, None] < N)))
     t["h9"] = abs(t["h14"] - t["h18"])
     t["h10"] = max(t["h15"], h16)
     # h11 from N5
@@ -210,9 +236,9 @@ def normalisation_terms(N: np.ndarray, width_index: np.ndarray) -> dict[str, flo
     t["h11"] = (t["h19"] - t["h21"]) - (t["h20"] - t["h21"]) - (t["m5"] - t["h21"])
     # h12 from d2(p)
     sd2 = np.sqrt(np.mean((N - m2_p[:, None]) ** 2, axis=1))
-    t["h12"] = float(np.mean(_count_sum(h16, N > sd2[:, None])))
+    t["h12"] = float(np.mean(_count_sum(h16, sd2[:, None] < N)))
     # means
-    t["m1"] = float(m4[wi == 1].mean())                  # m1: rows of the smallest width
+    t["m1"] = float(m4[wi == 1].mean())  # m1: rows of the smallest width
     t["m2"] = float(N.mean())
     # eq. (5)
     if t["h7"] <= t["h8"]:
@@ -341,14 +367,24 @@ class PaperIdentifier:
 
     # -- parameters --------------------------------------------------------
 
-    _PARAM_NAMES = ("channel", "wavelet", "level", "mode", "n_hidden", "learning_rate", "delta1", "max_epochs",
-                    "target", "test_rows")
+    _PARAM_NAMES = (
+        "channel",
+        "wavelet",
+        "level",
+        "mode",
+        "n_hidden",
+        "learning_rate",
+        "delta1",
+        "max_epochs",
+        "target",
+        "test_rows",
+    )
 
     def get_params(self, deep: bool = True) -> dict[str, Any]:
         """Constructor parameters (JSON-ready)."""
         return {name: getattr(self, name) for name in self._PARAM_NAMES}
 
-    def set_params(self, **params: Any) -> "PaperIdentifier":
+    def set_params(self, **params: Any) -> PaperIdentifier:
         """Set constructor parameters; returns self."""
         unknown = set(params) - set(self._PARAM_NAMES)
         if unknown:
@@ -383,7 +419,9 @@ class PaperIdentifier:
         """Validated raw records -> wavelet coefficient rows N, shape (R, 2048)."""
         arr = np.asarray(X, dtype=float)
         if arr.ndim != 2 or arr.shape[1] != N_SAMPLES:
-            raise ValueError(f"{what} must have shape (n_records, {N_SAMPLES}) of raw {self.channel} samples, got {arr.shape}")
+            raise ValueError(
+                f"{what} must have shape (n_records, {N_SAMPLES}) of raw {self.channel} samples, got {arr.shape}"
+            )
         if arr.shape[0] == 0:
             raise ValueError(f"{what} holds no records")
         if not np.all(np.isfinite(arr)):
@@ -406,12 +444,16 @@ class PaperIdentifier:
         idx = match.argmax(axis=1) + 1
         missing = sorted(set(range(1, _N_OUT + 1)) - set(idx.tolist()))
         if missing:
-            raise ValueError(f"training data lacks width(s) {[K_GRID[i - 1] for i in missing]} m; all six widths of K_GRID are needed")
+            raise ValueError(
+                f"training data lacks width(s) {[K_GRID[i - 1] for i in missing]} m; all six widths of K_GRID are needed"
+            )
         return idx
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "patterns_"):
-            raise NotFittedError(f"this {type(self).__name__} is not fitted yet; call fit(X, y) or from_arrays(...) first")
+            raise NotFittedError(
+                f"this {type(self).__name__} is not fitted yet; call fit(X, y) or from_arrays(...) first"
+            )
 
     # -- training ------------------------------------------------------------
 
@@ -422,7 +464,7 @@ class PaperIdentifier:
         T = np.full(_N_OUT, self.target_)
         return train(self._initial(), X1, T, self.learning_rate, self.delta1, int(self.max_epochs), label)
 
-    def fit(self, X: Any, y: Any) -> "PaperIdentifier":
+    def fit(self, X: Any, y: Any) -> PaperIdentifier:
         """Learn the normalisation and the six width patterns.
 
         Parameters
@@ -450,7 +492,9 @@ class PaperIdentifier:
         self.h1_, self.k1_, self.h2_, self.k2_ = terms["h1"], terms["k1"], terms["h2"], terms["k2"]
         self.target_ = self._target(self.h2_, warn=True)
         if self.h2_ == self.k2_:
-            logger.warning("normalisation range [h2, k2] collapsed to the point %.6g: every input is the same", self.h2_)
+            logger.warning(
+                "normalisation range [h2, k2] collapsed to the point %.6g: every input is the same", self.h2_
+            )
         m1_rows = N[wi == 1].mean(axis=1)
         self.init_weights_ = _init_row_values(m1_rows, max(self.n_hidden, _N_OUT))
         X1 = normalise(N, self.h1_, self.k1_, self.h2_, self.k2_)
@@ -468,7 +512,12 @@ class PaperIdentifier:
         self.pattern_rows_ = np.asarray(rows, dtype=int)
         logger.info(
             "%s: case %d, h2=%.4g, k2=%.4g, T=%.4g, pattern epochs %s",
-            self.channel, self.case_, self.h2_, self.k2_, self.target_, self.epochs_.tolist(),
+            self.channel,
+            self.case_,
+            self.h2_,
+            self.k2_,
+            self.target_,
+            self.epochs_.tolist(),
         )
         return self
 
@@ -487,11 +536,13 @@ class PaperIdentifier:
         if -h2 > 700.0:
             raise ValueError(f"target T = exp(-h2) overflows for h2 = {h2:.6g}")
         T = math.exp(-h2)
-        if warn and T - 1.0 >= self.delta1:
+        if warn and self.delta1 <= T - 1.0:
             logger.warning(
                 "target T = exp(-h2) = %.4g exceeds the sigmoid's range (0, 1) by at least delta1 = %.4g: "
                 "no network can converge and every training will run to max_epochs = %d",
-                T, self.delta1, self.max_epochs,
+                T,
+                self.delta1,
+                self.max_epochs,
             )
         return T
 
@@ -516,14 +567,18 @@ class PaperIdentifier:
             D[sel] = np.abs(res.weights.W3[0][None, :] - self.patterns_[sel]).sum(axis=1)
         i = int(np.argmin(D))
         res = nets[int(counts[i])]
-        tied = np.flatnonzero(D == D[i])
+        tied = np.flatnonzero(D[i] == D)
         if tied.size > 1:
             logger.warning(
                 "%s: D has a tie at its minimum %.3g between widths %s; reporting the first (nr5 = %d), as argmin does",
-                label, D[i], [K_GRID[j] for j in tied], i + 1,
+                label,
+                D[i],
+                [K_GRID[j] for j in tied],
+                i + 1,
             )
-        return IdentificationResult(D=D, index=i + 1, width=float(self.widths_[i]), epochs=res.epochs,
-                                    rms=res.rms, converged=res.converged)
+        return IdentificationResult(
+            D=D, index=i + 1, width=float(self.widths_[i]), epochs=res.epochs, rms=res.rms, converged=res.converged
+        )
 
     def identify_batch(self, X: Any) -> list[IdentificationResult]:
         """Identify every record of a batch.
@@ -555,7 +610,9 @@ class PaperIdentifier:
         """
         arr = np.asarray(x, dtype=float)
         if arr.ndim != 1:
-            raise ValueError(f"identify takes one record of shape ({N_SAMPLES},), got {arr.shape}; use identify_batch for many")
+            raise ValueError(
+                f"identify takes one record of shape ({N_SAMPLES},), got {arr.shape}; use identify_batch for many"
+            )
         return self.identify_batch(arr[None, :])[0]
 
     def d_vectors(self, X: Any) -> np.ndarray:
@@ -594,7 +651,7 @@ class PaperIdentifier:
         }
 
     @classmethod
-    def from_arrays(cls, params: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> "PaperIdentifier":
+    def from_arrays(cls, params: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> PaperIdentifier:
         """Restore a fitted identifier from :meth:`get_params` and :meth:`to_arrays`.
 
         Parameters
@@ -614,12 +671,24 @@ class PaperIdentifier:
             raise ValueError(f"unknown parameter(s) {sorted(unknown)}; valid: {', '.join(cls._PARAM_NAMES)}")
         obj = cls(**dict(params))
         obj._validate_params()
-        need = {"format_version", "patterns", "widths", "epochs", "pattern_rms", "pattern_rows", "init_weights", "terms",
-                "case", "n_features_in"}
+        need = {
+            "format_version",
+            "patterns",
+            "widths",
+            "epochs",
+            "pattern_rms",
+            "pattern_rows",
+            "init_weights",
+            "terms",
+            "case",
+            "n_features_in",
+        }
         if "format_version" in arrays:  # checked first: an older layout also lacks newer arrays
             version = int(np.asarray(arrays["format_version"]))
             if version != ARRAYS_FORMAT_VERSION:
-                raise ValueError(f"arrays have format_version {version}; this code reads version {ARRAYS_FORMAT_VERSION}")
+                raise ValueError(
+                    f"arrays have format_version {version}; this code reads version {ARRAYS_FORMAT_VERSION}"
+                )
         missing = need - set(arrays)
         if missing:
             raise ValueError(f"arrays lack {sorted(missing)}")
@@ -634,7 +703,9 @@ class PaperIdentifier:
         }
         for key, shape in shapes.items():
             if np.shape(arrays[key]) != shape:
-                raise ValueError(f"array {key!r} has shape {np.shape(arrays[key])}, expected {shape} for n_hidden={obj.n_hidden}")
+                raise ValueError(
+                    f"array {key!r} has shape {np.shape(arrays[key])}, expected {shape} for n_hidden={obj.n_hidden}"
+                )
         if not np.allclose(arrays["widths"], K_GRID, rtol=0, atol=1e-12):
             raise ValueError(f"stored widths {np.asarray(arrays['widths']).tolist()} differ from K_GRID {list(K_GRID)}")
         obj.wavelet_ = obj.wavelet if obj.wavelet is not None else CHANNEL_WAVELETS[obj.channel]

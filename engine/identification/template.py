@@ -23,7 +23,8 @@ the paper's D vector and ``index = argmin D``. The window W is chosen in
 from __future__ import annotations
 
 import logging
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -141,7 +142,7 @@ class TemplateIdentifier:
 
     # -- estimator API -----------------------------------------------------------
 
-    def fit(self, X: Any, y: Any, groups: Any = None) -> "TemplateIdentifier":
+    def fit(self, X: Any, y: Any, groups: Any = None) -> TemplateIdentifier:
         """Store templates and choose the window.
 
         Parameters
@@ -208,7 +209,11 @@ class TemplateIdentifier:
         out = []
         for d in D:
             i = int(np.argmin(d))
-            out.append(IdentificationResult(D=d, index=i + 1, width=float(self.widths_[i]), epochs=0, rms=float(d[i]), converged=True))
+            out.append(
+                IdentificationResult(
+                    D=d, index=i + 1, width=float(self.widths_[i]), epochs=0, rms=float(d[i]), converged=True
+                )
+            )
         return out
 
     def identify(self, x: Any) -> IdentificationResult:
@@ -234,7 +239,7 @@ class TemplateIdentifier:
         }
 
     @classmethod
-    def from_arrays(cls, params: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> "TemplateIdentifier":
+    def from_arrays(cls, params: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> TemplateIdentifier:
         """Rebuild a fitted identifier from :meth:`get_params` and :meth:`to_arrays`."""
         known = {k: v for k, v in params.items() if k in cls._PARAM_NAMES}
         est = cls(**known)

@@ -249,8 +249,16 @@ def simulate_one(P, out):
     h = P[P_STEP]
     b = P[P_B]
     y = np.zeros(N_STATES)
-    work = (np.zeros(N_STATES), np.zeros(N_STATES), np.zeros(N_STATES), np.zeros(N_STATES),
-            np.zeros(N_STATES), np.zeros(N_STATES), np.zeros(N_STATES), np.zeros(N_STATES))
+    work = (
+        np.zeros(N_STATES),
+        np.zeros(N_STATES),
+        np.zeros(N_STATES),
+        np.zeros(N_STATES),
+        np.zeros(N_STATES),
+        np.zeros(N_STATES),
+        np.zeros(N_STATES),
+        np.zeros(N_STATES),
+    )
     ring_t = np.zeros(_N_RING)
     ring_y = np.zeros((_N_RING, N_STATES))
     # checkpoint every 0.25 ms; the ring then covers 16 ms of history

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -56,7 +56,9 @@ class BenchmarkResult:
         ]
 
 
-def run_benchmark(cases: list[Case] | None = None, progress: Callable[[int, int], None] | None = None) -> BenchmarkResult:
+def run_benchmark(
+    cases: list[Case] | None = None, progress: Callable[[int, int], None] | None = None
+) -> BenchmarkResult:
     """Time the kernel and the solve_ivp baseline on ``cases`` (default: the full grid)."""
     cases = full_grid() if cases is None else cases
     simulate_batch(cases[:2])  # compile / load the cache outside the timing

@@ -13,8 +13,9 @@ default and its term in the kernel's right-hand side).
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
-from typing import Iterator, Literal, Mapping
+from typing import Literal
 
 from engine.simulation.parameters import Case, ParameterError
 
@@ -60,7 +61,9 @@ class Effect:
         value = float(value)
         lo, hi = self.bounds
         if not (lo <= value <= hi):
-            raise ParameterError(f"effect {self.name!r} = {value} {self.unit} is outside its range [{lo}, {hi}] {self.unit}")
+            raise ParameterError(
+                f"effect {self.name!r} = {value} {self.unit} is outside its range [{lo}, {hi}] {self.unit}"
+            )
         return value
 
     def apply(self, case: Case, value: float) -> Case:
@@ -90,13 +93,13 @@ class EffectLibrary(Mapping[str, Effect]):
     def __len__(self) -> int:
         return len(self._effects)
 
-    def without(self, *names: str) -> "EffectLibrary":
+    def without(self, *names: str) -> EffectLibrary:
         """The library less some members (leave-one-effect-out)."""
         for n in names:
             self[n]  # raise on unknown names
         return EffectLibrary([e for n, e in self._effects.items() if n not in names])
 
-    def __add__(self, other: "EffectLibrary") -> "EffectLibrary":
+    def __add__(self, other: EffectLibrary) -> EffectLibrary:
         return EffectLibrary(list(self.values()) + [e for n, e in other.items() if n not in self])
 
     def apply(self, case: Case, effects: Mapping[str, float] | None) -> Case:
@@ -108,32 +111,122 @@ class EffectLibrary(Mapping[str, Effect]):
 
 CATALOGUE = EffectLibrary(
     [
-        Effect("motor_coulomb_friction", "Coulomb friction on the motor shaft: value * tanh(w_1 / 1e-3)",
-               "plant", "tau_C1", "set", (0.0, 0.1), 0.0, "pu"),
-        Effect("motor_viscous_friction", "viscous friction on the motor shaft: value * w_1",
-               "plant", "b_1", "set", (0.0, 0.1), 0.0, "pu"),
-        Effect("rotor_resistance_drift", "rotor resistance r_r multiplied by value",
-               "plant", "r_r", "multiply", (0.6, 1.6), 1.0, "x"),
-        Effect("stator_resistance_drift", "stator resistance r_s multiplied by value",
-               "plant", "r_s", "multiply", (0.6, 1.6), 1.0, "x"),
-        Effect("contact_stiffness", "clutch contact stiffness k_12 multiplied by value",
-               "plant", "k12", "multiply", (0.1, 10.0), 1.0, "x"),
-        Effect("contact_damping", "clutch contact damping d_12 multiplied by value",
-               "plant", "d12", "multiply", (0.1, 20.0), 1.0, "x"),
-        Effect("resilient_stiffness", "resilient-element stiffness k_2 multiplied by value",
-               "plant", "k2", "multiply", (0.5, 2.0), 1.0, "x"),
-        Effect("load_inertia", "drive-wheel inertia J2 multiplied by value",
-               "plant", "J2", "multiply", (0.5, 2.0), 1.0, "x"),
-        Effect("absorber_discontinuity", "absorber discontinuity c_1 multiplied by value",
-               "plant", "c1", "multiply", (0.0, 3.0), 1.0, "x"),
-        Effect("supply_voltage", "supply voltage u multiplied by value",
-               "plant", "u", "multiply", (0.8, 1.1), 1.0, "x"),
-        Effect("speed_quantization", "omega1 rounded to multiples of value",
-               "sensors", "speed_quantum", "set", (0.0, 0.5), 0.0, "rad/s"),
-        Effect("measurement_delay", "every channel delayed by value",
-               "sensors", "delay", "set", (0.0, 0.001), 0.0, "s"),
-        Effect("sensor_lowpass", "first-order low-pass of cut-off value on every channel",
-               "sensors", "lowpass_hz", "set", (200.0, 5000.0), 0.0, "Hz"),
+        Effect(
+            "motor_coulomb_friction",
+            "Coulomb friction on the motor shaft: value * tanh(w_1 / 1e-3)",
+            "plant",
+            "tau_C1",
+            "set",
+            (0.0, 0.1),
+            0.0,
+            "pu",
+        ),
+        Effect(
+            "motor_viscous_friction",
+            "viscous friction on the motor shaft: value * w_1",
+            "plant",
+            "b_1",
+            "set",
+            (0.0, 0.1),
+            0.0,
+            "pu",
+        ),
+        Effect(
+            "rotor_resistance_drift",
+            "rotor resistance r_r multiplied by value",
+            "plant",
+            "r_r",
+            "multiply",
+            (0.6, 1.6),
+            1.0,
+            "x",
+        ),
+        Effect(
+            "stator_resistance_drift",
+            "stator resistance r_s multiplied by value",
+            "plant",
+            "r_s",
+            "multiply",
+            (0.6, 1.6),
+            1.0,
+            "x",
+        ),
+        Effect(
+            "contact_stiffness",
+            "clutch contact stiffness k_12 multiplied by value",
+            "plant",
+            "k12",
+            "multiply",
+            (0.1, 10.0),
+            1.0,
+            "x",
+        ),
+        Effect(
+            "contact_damping",
+            "clutch contact damping d_12 multiplied by value",
+            "plant",
+            "d12",
+            "multiply",
+            (0.1, 20.0),
+            1.0,
+            "x",
+        ),
+        Effect(
+            "resilient_stiffness",
+            "resilient-element stiffness k_2 multiplied by value",
+            "plant",
+            "k2",
+            "multiply",
+            (0.5, 2.0),
+            1.0,
+            "x",
+        ),
+        Effect(
+            "load_inertia",
+            "drive-wheel inertia J2 multiplied by value",
+            "plant",
+            "J2",
+            "multiply",
+            (0.5, 2.0),
+            1.0,
+            "x",
+        ),
+        Effect(
+            "absorber_discontinuity",
+            "absorber discontinuity c_1 multiplied by value",
+            "plant",
+            "c1",
+            "multiply",
+            (0.0, 3.0),
+            1.0,
+            "x",
+        ),
+        Effect(
+            "supply_voltage", "supply voltage u multiplied by value", "plant", "u", "multiply", (0.8, 1.1), 1.0, "x"
+        ),
+        Effect(
+            "speed_quantization",
+            "omega1 rounded to multiples of value",
+            "sensors",
+            "speed_quantum",
+            "set",
+            (0.0, 0.5),
+            0.0,
+            "rad/s",
+        ),
+        Effect(
+            "measurement_delay", "every channel delayed by value", "sensors", "delay", "set", (0.0, 0.001), 0.0, "s"
+        ),
+        Effect(
+            "sensor_lowpass",
+            "first-order low-pass of cut-off value on every channel",
+            "sensors",
+            "lowpass_hz",
+            "set",
+            (200.0, 5000.0),
+            0.0,
+            "Hz",
+        ),
     ]
 )
 

@@ -11,8 +11,9 @@ quantisation) is also an extension with neutral defaults. See
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields, replace
-from typing import Any, Mapping
+from typing import Any
 
 from engine.constants import C_GROUPS, J1_NOMINAL, T_EVENT_MAX, TM_PER_J
 
@@ -92,7 +93,7 @@ class PlantParameters:
         """Half-width of the backlash dead zone, K / r [rad]."""
         return self.K / self.r
 
-    def validate(self) -> "PlantParameters":
+    def validate(self) -> PlantParameters:
         """Raise :class:`ParameterError` on a non-finite or physically absurd value."""
         for f in fields(self):
             v = getattr(self, f.name)
@@ -117,7 +118,7 @@ class PlantParameters:
         _check_range("f", self.f, 0.05, 2.0, "pu")
         return self
 
-    def replace(self, **changes: Any) -> "PlantParameters":
+    def replace(self, **changes: Any) -> PlantParameters:
         """Copy with some fields changed (unknown names raise :class:`ParameterError`)."""
         _check_names(self, changes)
         return replace(self, **changes)
@@ -145,7 +146,7 @@ class SensorParameters:
     lowpass_hz: float = 0.0
     speed_quantum: float = 0.0
 
-    def validate(self) -> "SensorParameters":
+    def validate(self) -> SensorParameters:
         for f in fields(self):
             v = getattr(self, f.name)
             if not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -156,7 +157,7 @@ class SensorParameters:
         _check_range("speed_quantum", self.speed_quantum, 0.0, 10.0, "rad/s")
         return self
 
-    def replace(self, **changes: Any) -> "SensorParameters":
+    def replace(self, **changes: Any) -> SensorParameters:
         _check_names(self, changes)
         return replace(self, **changes)
 
@@ -178,7 +179,7 @@ class SolverSettings:
     max_step: float = 1e-4 / 3
     t_event_max: float = T_EVENT_MAX
 
-    def validate(self) -> "SolverSettings":
+    def validate(self) -> SolverSettings:
         _check_range("max_step", self.max_step, 1e-7, 5e-5, "s")
         _check_range("t_event_max", self.t_event_max, 1e-3, 10.0, "s")
         return self
@@ -191,13 +192,13 @@ class Case:
     plant: PlantParameters = PlantParameters()
     sensors: SensorParameters = SensorParameters()
 
-    def validate(self) -> "Case":
+    def validate(self) -> Case:
         self.plant.validate()
         self.sensors.validate()
         return self
 
     @classmethod
-    def from_overrides(cls, overrides: Mapping[str, float] | None = None) -> "Case":
+    def from_overrides(cls, overrides: Mapping[str, float] | None = None) -> Case:
         """Build a case from flat overrides of plant or sensor fields (e.g. ``{"K": 0.005, "delay": 1e-4}``)."""
         overrides = dict(overrides or {})
         plant_names = {f.name for f in fields(PlantParameters)}
@@ -213,7 +214,9 @@ class Case:
         return cls(plant, sensors)
 
 
-def paper_grid(c: float, J1_values: tuple[float, ...] | None = None, K_values: tuple[float, ...] | None = None) -> list[Case]:
+def paper_grid(
+    c: float, J1_values: tuple[float, ...] | None = None, K_values: tuple[float, ...] | None = None
+) -> list[Case]:
     """The paper's cases of one c group: every J1 for every width, width-major order.
 
     Returns ``len(K_values) * len(J1_values)`` cases; case ``i * n_J1 + p`` has

@@ -76,7 +76,6 @@ class ReferenceModel:
         return np.array([r * OMEGA_B * q[0], q[1], OMEGA_B * q[2], r * OMEGA_B * q[3], r * OMEGA_B * q[4]])
 
 
-
 def reference_simulate(
     case: Case | PlantParameters, method: str = "DOP853", rtol: float = 1e-9, atol: float = 1e-12
 ) -> ReferenceResult:

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -199,9 +199,7 @@ def simulate_batch(
     for c in norm:
         c.validate()
     out, t_e, status = run_cases(norm, solver)
-    failures = {
-        i: _STATUS_TEXT[int(s)].format(t_max=solver.t_event_max) for i, s in enumerate(status) if s != kern.OK
-    }
+    failures = {i: _STATUS_TEXT[int(s)].format(t_max=solver.t_event_max) for i, s in enumerate(status) if s != kern.OK}
     if failures:
         raise SimulationError(failures)
     logger.debug("simulated %d cases", len(norm))

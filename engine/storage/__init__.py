@@ -17,17 +17,17 @@ from engine.storage.patterns import (
 )
 
 __all__ = [
-    "CorruptPatternSet",
     "DEFAULT_STORE_PATH",
-    "InvalidPatternSet",
     "MIGRATIONS",
+    "SCHEMA_VERSION",
+    "STORE_PATH_ENV",
+    "CorruptPatternSet",
+    "InvalidPatternSet",
     "PatternSet",
     "PatternSetExists",
     "PatternSetNotFound",
     "PatternSetSummary",
     "PatternStore",
     "PatternStoreError",
-    "SCHEMA_VERSION",
-    "STORE_PATH_ENV",
     "default_store_path",
 ]

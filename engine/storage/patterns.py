@@ -43,10 +43,11 @@ import sqlite3
 import time
 import uuid
 import zipfile
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, Callable, Iterator, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -55,18 +56,18 @@ from engine.constants import CHANNELS, MODEL_VERSION
 logger = logging.getLogger(__name__)
 
 __all__ = [
-    "CorruptPatternSet",
     "DEFAULT_STORE_PATH",
-    "InvalidPatternSet",
     "MIGRATIONS",
+    "SCHEMA_VERSION",
+    "STORE_PATH_ENV",
+    "CorruptPatternSet",
+    "InvalidPatternSet",
     "PatternSet",
     "PatternSetExists",
     "PatternSetNotFound",
     "PatternSetSummary",
     "PatternStore",
     "PatternStoreError",
-    "SCHEMA_VERSION",
-    "STORE_PATH_ENV",
     "default_store_path",
 ]
 
@@ -263,8 +264,7 @@ MIGRATIONS: list[Callable[[sqlite3.Connection], None]] = [_migrate_0_to_1]
 SCHEMA_VERSION = len(MIGRATIONS)
 
 _SUMMARY_COLUMNS = (
-    "id, kind, channel, c, j1_values, wavelet, params, model_version, created_at, "
-    "arrays_meta, length(arrays_blob)"
+    "id, kind, channel, c, j1_values, wavelet, params, model_version, created_at, arrays_meta, length(arrays_blob)"
 )
 
 
@@ -281,7 +281,7 @@ def default_store_path() -> Path:
 
 
 def _utc_now() -> str:
-    return datetime.now(timezone.utc).isoformat(timespec="microseconds")
+    return datetime.now(UTC).isoformat(timespec="microseconds")
 
 
 def _is_locked(exc: sqlite3.Error) -> bool:
@@ -558,16 +558,19 @@ class PatternStore:
         app_id = conn.execute("PRAGMA application_id").fetchone()[0]
         version = conn.execute("PRAGMA user_version").fetchone()[0]
         if app_id not in (0, APPLICATION_ID):
-            raise PatternStoreError(f"{self.path} is a SQLite database of another application (application_id {app_id})")
+            raise PatternStoreError(
+                f"{self.path} is a SQLite database of another application (application_id {app_id})"
+            )
         if app_id == 0:
             tables = conn.execute("SELECT count(*) FROM sqlite_master").fetchone()[0]
             if version != 0 or tables:
-                raise PatternStoreError(f"{self.path} is a SQLite database but not a pattern store; choose another path")
+                raise PatternStoreError(
+                    f"{self.path} is a SQLite database but not a pattern store; choose another path"
+                )
         target = len(MIGRATIONS)
         if version > target:
             raise PatternStoreError(
-                f"{self.path} has schema version {version}, newer than this code supports ({target}); "
-                "upgrade backlash"
+                f"{self.path} has schema version {version}, newer than this code supports ({target}); upgrade backlash"
             )
         for v in range(version, target):
             logger.info("migrating pattern store %s from schema %d to %d", self.path, v, v + 1)
@@ -682,8 +685,16 @@ class PatternStore:
         except ValueError as exc:
             raise CorruptPatternSet(f"pattern set {set_id!r} in {self.path}: unreadable metadata: {exc}") from exc
         return dict(
-            id=set_id, kind=kind, channel=channel, c=float(c), j1_values=[float(v) for v in j1], wavelet=wavelet,
-            params=params, model_version=model_version, created_at=created_at, _extra=extra,
+            id=set_id,
+            kind=kind,
+            channel=channel,
+            c=float(c),
+            j1_values=[float(v) for v in j1],
+            wavelet=wavelet,
+            params=params,
+            model_version=model_version,
+            created_at=created_at,
+            _extra=extra,
         )
 
     def _row_to_set(self, row: tuple[Any, ...]) -> PatternSet:
@@ -716,9 +727,7 @@ class PatternStore:
             If the stored arrays fail their SHA-256 check or cannot be decoded.
         """
         with self._connect() as conn:
-            row = conn.execute(
-                f"SELECT {self._FULL_COLUMNS} FROM pattern_sets WHERE id = ?", (str(set_id),)
-            ).fetchone()
+            row = conn.execute(f"SELECT {self._FULL_COLUMNS} FROM pattern_sets WHERE id = ?", (str(set_id),)).fetchone()
         if row is None:
             raise PatternSetNotFound(self._not_found(set_id))
         return self._row_to_set(row)

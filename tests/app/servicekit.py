@@ -21,8 +21,12 @@ import httpx
 #: Small, fast training request of the paper's identifier (2 J1 values instead of 7); identifies K = 0.005 on v2.
 SMALL_TRAINING = {"channel": "v2", "c": 1.0, "J1_values": [0.87, 0.8482], "kind": "paper", "max_epochs": 200}
 #: A request whose simulation has no backlash event: the training job fails.
-FAILING_TRAINING = {"channel": "v2", "c": 1.0, "J1_values": [0.87],
-                    "effects": {"contact_stiffness": 0.1, "contact_damping": 20.0}}
+FAILING_TRAINING = {
+    "channel": "v2",
+    "c": 1.0,
+    "J1_values": [0.87],
+    "effects": {"contact_stiffness": 0.1, "contact_damping": 20.0},
+}
 
 
 def free_port() -> int:
@@ -109,12 +113,16 @@ ServerFactory = Callable[..., Server]
 def make_factory(tmp_dir: Path, servers: list[Server]) -> ServerFactory:
     """A function that starts servers with their database under ``tmp_dir`` and appends them to ``servers``."""
 
-    def start(db_path: Path | None = None, command: list[str] | None = None, port: int | None = None,
-              **env: str) -> Server:
+    def start(
+        db_path: Path | None = None, command: list[str] | None = None, port: int | None = None, **env: str
+    ) -> Server:
         port = port or free_port()
         db_path = db_path or tmp_dir / f"db-{port}" / "patterns.sqlite3"
-        environment = clean_env(BACKLASH_DB_PATH=str(db_path), BACKLASH_LOG_LEVEL="INFO",
-                                **{f"BACKLASH_{k.upper()}": v for k, v in env.items()})
+        environment = clean_env(
+            BACKLASH_DB_PATH=str(db_path),
+            BACKLASH_LOG_LEVEL="INFO",
+            **{f"BACKLASH_{k.upper()}": v for k, v in env.items()},
+        )
         server = Server(command or serve_command(port), environment, port, tmp_dir / f"server-{port}.log", tmp_dir)
         servers.append(server)
         return server.start()

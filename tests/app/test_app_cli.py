@@ -37,8 +37,20 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
 
 def _train(capsys: pytest.CaptureFixture[str]) -> dict[str, Any]:
     j1 = [str(v) for v in SMALL_TRAINING["J1_values"]]
-    code, out, err = run(capsys, "train", "--channel", "v2", "--c", "1.0", "--J1", *j1, "--kind", "paper",
-                         "--max-epochs", str(SMALL_TRAINING["max_epochs"]))
+    code, out, err = run(
+        capsys,
+        "train",
+        "--channel",
+        "v2",
+        "--c",
+        "1.0",
+        "--J1",
+        *j1,
+        "--kind",
+        "paper",
+        "--max-epochs",
+        str(SMALL_TRAINING["max_epochs"]),
+    )
     assert code == 0, err
     assert "[100%] done" in err
     return json.loads(out)
@@ -71,8 +83,9 @@ def test_simulate_train_identify_round_trip(env: Path, tmp_path: Path, capsys: p
     assert abs(cont["K"] - 0.005) < 1e-5 and cont["nearest_width"] == 0.005 and cont["sigma_K"] > 0
 
 
-def test_simulate_to_stdout_with_effects_and_batch(env: Path, tmp_path: Path,
-                                                   capsys: pytest.CaptureFixture[str]) -> None:
+def test_simulate_to_stdout_with_effects_and_batch(
+    env: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     code, out, _ = run(capsys, "simulate", "--K", "0.0075", "--J1", "0.8", "--effect", "motor_coulomb_friction=0.02")
     assert code == 0
     assert json.loads(out)["conditions"] == {"J1": 0.8, "c": 1.0, "c1": 0.2, "K": 0.0075}
@@ -96,23 +109,34 @@ def test_pattern_sets_list_show_delete(env: Path, capsys: pytest.CaptureFixture[
     assert code == 2 and "no pattern set with id" in err
 
 
-@pytest.mark.parametrize(("argv", "message"), [
-    (["simulate", "--K", "0.5"], "K = 0.5 m is outside the accepted range"),
-    (["simulate", "--K", "0.005", "--effect", "magic=1"], "unknown effect 'magic'"),
-    (["simulate"], "give the backlash width with --K"),
-    (["train", "--channel", "v2", "--c", "1.0", "--J1", "0.87", "0.87"], "repeat a value"),
-    (["train", "--channel", "v2", "--c", "1.0", "--kind", "magic"], "unknown identifier kind 'magic'"),
-    (["train", "--channel", "v2", "--c", "1.0", "--kind", "template", "--max-epochs", "3"],
-     "has no parameter(s) ['max_epochs']"),
-    (["identify", "missing.csv", "--channel", "v2"], "cannot read record file"),
-    (["identify", "record.txt", "--channel", "v2"], "must end in .json or .csv"),
-    (["identify", "short.csv", "--channel", "v2"], "the CSV has 3 data rows"),
-    (["identify", "full.csv", "--channel", "v2"], "no pattern set for channel 'v2'"),
-    (["identify", "nan.json", "--channel", "v2"], "the JSON holds NaN, which is not a number"),
-    (["diagnose", "full.csv", "--effects", "magic"], "unknown effect 'magic'"),
-])
-def test_user_errors_exit_2_with_a_message(env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                           capsys: pytest.CaptureFixture[str], argv: list[str], message: str) -> None:
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["simulate", "--K", "0.5"], "K = 0.5 m is outside the accepted range"),
+        (["simulate", "--K", "0.005", "--effect", "magic=1"], "unknown effect 'magic'"),
+        (["simulate"], "give the backlash width with --K"),
+        (["train", "--channel", "v2", "--c", "1.0", "--J1", "0.87", "0.87"], "repeat a value"),
+        (["train", "--channel", "v2", "--c", "1.0", "--kind", "magic"], "unknown identifier kind 'magic'"),
+        (
+            ["train", "--channel", "v2", "--c", "1.0", "--kind", "template", "--max-epochs", "3"],
+            "has no parameter(s) ['max_epochs']",
+        ),
+        (["identify", "missing.csv", "--channel", "v2"], "cannot read record file"),
+        (["identify", "record.txt", "--channel", "v2"], "must end in .json or .csv"),
+        (["identify", "short.csv", "--channel", "v2"], "the CSV has 3 data rows"),
+        (["identify", "full.csv", "--channel", "v2"], "no pattern set for channel 'v2'"),
+        (["identify", "nan.json", "--channel", "v2"], "the JSON holds NaN, which is not a number"),
+        (["diagnose", "full.csv", "--effects", "magic"], "unknown effect 'magic'"),
+    ],
+)
+def test_user_errors_exit_2_with_a_message(
+    env: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    argv: list[str],
+    message: str,
+) -> None:
     monkeypatch.chdir(tmp_path)
     Path("record.txt").write_text("x")
     Path("short.csv").write_text("v2\n1\n2\n3\n")
@@ -143,8 +167,9 @@ def test_run_calls_the_main_job(env: Path, monkeypatch: pytest.MonkeyPatch, caps
     assert calls == [Path("somewhere")]
 
 
-def test_validate_calls_the_blind_validation(env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                             capsys: pytest.CaptureFixture[str]) -> None:
+def test_validate_calls_the_blind_validation(
+    env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     calls: list[dict[str, Any]] = []
 
     class Report:
@@ -171,8 +196,9 @@ def test_validate_calls_the_blind_validation(env: Path, tmp_path: Path, monkeypa
     assert scored == [Path("v")] and Path("v/identification.md").read_text() == "| after | 0.9 |"
 
 
-def test_validate_refuses_a_directory_that_holds_a_run(env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                       capsys: pytest.CaptureFixture[str]) -> None:
+def test_validate_refuses_a_directory_that_holds_a_run(
+    env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     monkeypatch.chdir(tmp_path)
     (tmp_path / "v" / "cases").mkdir(parents=True)
     old = tmp_path / "v" / "cases" / "case0000.json"
@@ -182,19 +208,29 @@ def test_validate_refuses_a_directory_that_holds_a_run(env: Path, tmp_path: Path
     assert old.read_text() == "{}" and not (tmp_path / "v" / "key").exists()  # nothing touched
 
 
-@pytest.mark.parametrize(("argv", "module", "message"), [
-    (["run"], "engine.evaluation.main_job", "the main job is not available yet"),
-    (["validate"], "engine.diagnosis.validation", "the blind validation of the diagnosis is not available yet"),
-])
-def test_missing_engine_parts_exit_2(env: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
-                                    argv: list[str], module: str, message: str) -> None:
+@pytest.mark.parametrize(
+    ("argv", "module", "message"),
+    [
+        (["run"], "engine.evaluation.main_job", "the main job is not available yet"),
+        (["validate"], "engine.diagnosis.validation", "the blind validation of the diagnosis is not available yet"),
+    ],
+)
+def test_missing_engine_parts_exit_2(
+    env: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    argv: list[str],
+    module: str,
+    message: str,
+) -> None:
     monkeypatch.setitem(sys.modules, module, None)  # makes the import fail as if the module did not exist
     code, _, err = run(capsys, *argv)
     assert code == 2 and message in err
 
 
-def test_bench_runs_the_benchmark_script(env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                         capsys: pytest.CaptureFixture[str]) -> None:
+def test_bench_runs_the_benchmark_script(
+    env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     monkeypatch.chdir(tmp_path)  # bench/ in the working directory comes first
     (tmp_path / "bench").mkdir()
     (tmp_path / "bench" / "bench_simulator.py").write_text(
@@ -208,15 +244,17 @@ def test_bench_runs_the_benchmark_script(env: Path, tmp_path: Path, monkeypatch:
 def test_console_script_is_installed(tmp_path: Path) -> None:
     exe = Path(sys.executable).with_name("backlash")
     assert exe.exists(), "the backlash console script is missing: pip install -e ."
-    proc = subprocess.run([str(exe), "--help"], env=clean_env(), cwd=tmp_path, capture_output=True, text=True,
-                          timeout=60)
+    proc = subprocess.run(
+        [str(exe), "--help"], env=clean_env(), cwd=tmp_path, capture_output=True, text=True, timeout=60
+    )
     assert proc.returncode == 0
     for command in ("simulate", "train", "identify", "diagnose", "serve", "run", "bench", "validate"):
         assert command in proc.stdout
 
 
-def test_simulate_can_make_a_measured_like_record(env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                  capsys: pytest.CaptureFixture[str]) -> None:
+def test_simulate_can_make_a_measured_like_record(
+    env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     monkeypatch.chdir(tmp_path)
     assert run(capsys, "simulate", "--K", "0.006", "--out", "clean.json")[0] == 0
     assert run(capsys, "simulate", "--K", "0.006", "--snr-db", "30", "--known", "c1", "--out", "noisy.json")[0] == 0

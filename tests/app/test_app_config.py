@@ -44,15 +44,18 @@ def test_empty_variables_mean_the_default(monkeypatch: pytest.MonkeyPatch) -> No
     assert Settings().api_key is None
 
 
-@pytest.mark.parametrize(("name", "value", "message"), [
-    ("BACKLASH_WORKERS", "0", "greater than or equal to 1"),
-    ("BACKLASH_WORKERS", "many", "valid integer"),
-    ("BACKLASH_MAX_BODY_BYTES", "10", "greater than or equal to 1024"),
-    ("BACKLASH_MAX_BATCH_CASES", "-1", "greater than or equal to 1"),
-    ("BACKLASH_LOG_LEVEL", "loud", "'DEBUG', 'INFO'"),
-    ("BACKLASH_API_KEY", "short", "at least 8 characters"),
-    ("BACKLASH_DB_PATH", ":memory:", "database file path"),
-])
+@pytest.mark.parametrize(
+    ("name", "value", "message"),
+    [
+        ("BACKLASH_WORKERS", "0", "greater than or equal to 1"),
+        ("BACKLASH_WORKERS", "many", "valid integer"),
+        ("BACKLASH_MAX_BODY_BYTES", "10", "greater than or equal to 1024"),
+        ("BACKLASH_MAX_BATCH_CASES", "-1", "greater than or equal to 1"),
+        ("BACKLASH_LOG_LEVEL", "loud", "'DEBUG', 'INFO'"),
+        ("BACKLASH_API_KEY", "short", "at least 8 characters"),
+        ("BACKLASH_DB_PATH", ":memory:", "database file path"),
+    ],
+)
 def test_invalid_values_are_refused(monkeypatch: pytest.MonkeyPatch, name: str, value: str, message: str) -> None:
     monkeypatch.setenv(name, value)
     with pytest.raises(ValidationError, match=message):

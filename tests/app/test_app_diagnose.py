@@ -16,8 +16,9 @@ def test_diagnose_names_a_hidden_effect(client: httpx.Client) -> None:
     truth = simulate(PlantParameters(K=0.006, J1=0.82, c=1.2), effects={"load_inertia": 1.4})
     record = Record({k: add_white_noise(v, 40.0, rng) for k, v in truth.channels.items()}, conditions={"c1": 0.2})
     # a small candidate list keeps the test short; the full catalogue is the default
-    r = client.post("/v1/diagnose", json={"record": record.to_dict(), "effects": ["load_inertia", "supply_voltage"]},
-                    timeout=300)
+    r = client.post(
+        "/v1/diagnose", json={"record": record.to_dict(), "effects": ["load_inertia", "supply_voltage"]}, timeout=300
+    )
     assert r.status_code == 200, r.text
     body = r.json()
     assert body["verdict"]["status"] == "explained" and body["verdict"]["effect"] == "load_inertia"

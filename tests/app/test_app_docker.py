@@ -81,7 +81,13 @@ def test_volume_port_healthcheck_and_command(dockerfile: list[tuple[str, str]]) 
     health = next(a for k, a in dockerfile if k == "HEALTHCHECK")
     assert "CMD" in health and "/healthz" in health and "curl" not in health
     assert _exec_form(next(a for k, a in dockerfile if k == "CMD")) == [
-        "backlash", "serve", "--host", "0.0.0.0", "--port", "8000"]
+        "backlash",
+        "serve",
+        "--host",
+        "0.0.0.0",
+        "--port",
+        "8000",
+    ]
 
 
 def test_dockerignore_keeps_local_state_out() -> None:
@@ -89,18 +95,28 @@ def test_dockerignore_keeps_local_state_out() -> None:
     assert {".git", ".venv", "data", "out", "*.sqlite3"} <= ignored
 
 
-def test_the_images_command_serves_and_passes_its_health_check(dockerfile: list[tuple[str, str]],
-                                                               tmp_path: Path) -> None:
+def test_the_images_command_serves_and_passes_its_health_check(
+    dockerfile: list[tuple[str, str]], tmp_path: Path
+) -> None:
     """Run the CMD (with a free port for 8000) and the HEALTHCHECK command as they are written."""
     port = free_port()
-    cmd = [str(Path(sys.executable).with_name(a)) if i == 0 else a
-           for i, a in enumerate(_exec_form(next(a for k, a in dockerfile if k == "CMD")))]
+    cmd = [
+        str(Path(sys.executable).with_name(a)) if i == 0 else a
+        for i, a in enumerate(_exec_form(next(a for k, a in dockerfile if k == "CMD")))
+    ]
     cmd[cmd.index("--port") + 1] = str(port)
     health = next(a for k, a in dockerfile if k == "HEALTHCHECK")
-    check = [sys.executable if a == "python" else a.replace(":8000/", f":{port}/")
-             for a in _exec_form(health[health.index("CMD") + 3:].strip())]
-    server = Server(cmd, clean_env(BACKLASH_DB_PATH=str(tmp_path / "data" / "patterns.sqlite3")), port,
-                    tmp_path / "server.log", tmp_path)
+    check = [
+        sys.executable if a == "python" else a.replace(":8000/", f":{port}/")
+        for a in _exec_form(health[health.index("CMD") + 3 :].strip())
+    ]
+    server = Server(
+        cmd,
+        clean_env(BACKLASH_DB_PATH=str(tmp_path / "data" / "patterns.sqlite3")),
+        port,
+        tmp_path / "server.log",
+        tmp_path,
+    )
     server.start()
     try:
         assert subprocess.run(check, capture_output=True, timeout=30).returncode == 0

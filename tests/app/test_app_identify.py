@@ -29,8 +29,9 @@ def test_identify_named_set(client: httpx.Client, trained_set: dict[str, Any], s
     assert (res["selection"], res["c_used"], res["c_source"]) == ("requested", None, None)
 
 
-def test_identify_chooses_by_the_records_c(client: httpx.Client, trained_set: dict[str, Any],
-                                           sim_record: dict[str, Any]) -> None:
+def test_identify_chooses_by_the_records_c(
+    client: httpx.Client, trained_set: dict[str, Any], sim_record: dict[str, Any]
+) -> None:
     set_id = trained_set["pattern_set_id"]
     res = client.post("/v1/identify", json={"record": sim_record, "channel": "v2"}).json()
     _check_result(res, set_id)
@@ -45,8 +46,9 @@ def test_identify_chooses_by_the_records_c(client: httpx.Client, trained_set: di
     assert (res["selection"], res["c_used"], res["c_source"]) == ("exact", 1.0, "nominal")
 
 
-def test_identify_prefers_the_set_with_the_nearest_c(client: httpx.Client, trained_set: dict[str, Any],
-                                                     sim_record: dict[str, Any]) -> None:
+def test_identify_prefers_the_set_with_the_nearest_c(
+    client: httpx.Client, trained_set: dict[str, Any], sim_record: dict[str, Any]
+) -> None:
     other = train(client, {**SMALL_TRAINING, "c": 1.4})
     try:
         rec = {**sim_record, "conditions": {"c": 1.3}}
@@ -58,8 +60,12 @@ def test_identify_prefers_the_set_with_the_nearest_c(client: httpx.Client, train
 
 def test_identify_csv_form(client: httpx.Client, trained_set: dict[str, Any], sim_record: dict[str, Any]) -> None:
     csv_text = client.post("/v1/simulate", json={"K": 0.005}, headers={"Accept": "text/csv"}).text
-    r = client.post("/v1/identify", content=csv_text, headers={"Content-Type": "text/csv"},
-                    params={"channel": "v2", "c": 1.0, "sample_interval": 1e-4, "event_index": 48})
+    r = client.post(
+        "/v1/identify",
+        content=csv_text,
+        headers={"Content-Type": "text/csv"},
+        params={"channel": "v2", "c": 1.0, "sample_interval": 1e-4, "event_index": 48},
+    )
     assert r.status_code == 200, r.text
     res = r.json()
     json_res = client.post("/v1/identify", json={"record": sim_record, "channel": "v2"}).json()
@@ -67,17 +73,23 @@ def test_identify_csv_form(client: httpx.Client, trained_set: dict[str, Any], si
     assert (res["selection"], res["c_source"]) == ("exact", "record")
 
 
-def test_identify_a_record_with_one_channel(client: httpx.Client, trained_set: dict[str, Any],
-                                            sim_record: dict[str, Any]) -> None:
+def test_identify_a_record_with_one_channel(
+    client: httpx.Client, trained_set: dict[str, Any], sim_record: dict[str, Any]
+) -> None:
     lines = ["v2", *map(repr, sim_record["channels"]["v2"])]
-    r = client.post("/v1/identify", content="\n".join(lines) + "\n", headers={"Content-Type": "text/csv"},
-                    params={"channel": "v2", "pattern_set": trained_set["pattern_set_id"]})
+    r = client.post(
+        "/v1/identify",
+        content="\n".join(lines) + "\n",
+        headers={"Content-Type": "text/csv"},
+        params={"channel": "v2", "pattern_set": trained_set["pattern_set_id"]},
+    )
     assert r.status_code == 200, r.text
     assert r.json()["selection"] == "requested"
 
 
-def test_identify_prefers_the_default_kind_among_equally_near_sets(client: httpx.Client, sim_record: dict[str, Any],
-                                                                    trained_set: dict[str, Any]) -> None:
+def test_identify_prefers_the_default_kind_among_equally_near_sets(
+    client: httpx.Client, sim_record: dict[str, Any], trained_set: dict[str, Any]
+) -> None:
     from engine.identification.training import DEFAULT_KIND
 
     other_kind = next(k for k in ("paper", "template") if k != DEFAULT_KIND)
@@ -94,8 +106,9 @@ def test_identify_prefers_the_default_kind_among_equally_near_sets(client: httpx
             client.delete(out["pattern_set_url"])
 
 
-def test_identify_offers_the_calibrated_K_as_a_continuous_width(client: httpx.Client, trained_set: dict[str, Any],
-                                                                sim_record: dict[str, Any]) -> None:
+def test_identify_offers_the_calibrated_K_as_a_continuous_width(
+    client: httpx.Client, trained_set: dict[str, Any], sim_record: dict[str, Any]
+) -> None:
     plain = client.post("/v1/identify", json={"record": sim_record, "channel": "v2"}).json()
     assert plain["continuous"] is None  # only on request: it fits the simulator (seconds)
     r = client.post("/v1/identify", json={"record": sim_record, "channel": "v2", "continuous": True})
@@ -108,9 +121,12 @@ def test_identify_offers_the_calibrated_K_as_a_continuous_width(client: httpx.Cl
     assert set(cont["fitted"]) | set(cont["fixed"]) == {"K", "J1", "c", "c1"} and "K" in cont["fitted"]
     # CSV form: the query flag; a non-boolean is a 422 that names the parameter
     csv_text = "v2\n" + "\n".join(map(repr, sim_record["channels"]["v2"])) + "\n"
-    r = client.post("/v1/identify", content=csv_text, headers={"Content-Type": "text/csv"},
-                    params={"channel": "v2", "continuous": "true",
-                            **{k: sim_record["conditions"][k] for k in ("J1", "c", "c1")}})
+    r = client.post(
+        "/v1/identify",
+        content=csv_text,
+        headers={"Content-Type": "text/csv"},
+        params={"channel": "v2", "continuous": "true", **{k: sim_record["conditions"][k] for k in ("J1", "c", "c1")}},
+    )
     assert r.status_code == 200, r.text
     assert abs(r.json()["continuous"]["K"] - cont["K"]) < 1e-6 * cont["K"]
     r = client.post("/v1/identify", json={"record": sim_record, "channel": "v2", "continuous": "perhaps"})

@@ -11,8 +11,9 @@ import pytest
 from servicekit import SMALL_TRAINING, Server, ServerFactory, clean_env, free_port, serve_command, train
 
 
-def test_pattern_sets_survive_a_restart(start_server: ServerFactory, tmp_path: Path,
-                                        sim_record: dict[str, Any]) -> None:
+def test_pattern_sets_survive_a_restart(
+    start_server: ServerFactory, tmp_path: Path, sim_record: dict[str, Any]
+) -> None:
     db = tmp_path / "persist" / "patterns.sqlite3"
     first = start_server(db_path=db)
     with first.client() as c:
@@ -37,15 +38,27 @@ def test_server_refuses_to_start_on_a_file_that_is_not_a_pattern_store(tmp_path:
     db = tmp_path / "not-a-db.sqlite3"
     db.write_text("hello, I am not SQLite\n" * 100)
     port = free_port()
-    proc = subprocess.run(serve_command(port), env=clean_env(BACKLASH_DB_PATH=str(db)), cwd=tmp_path,
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        serve_command(port),
+        env=clean_env(BACKLASH_DB_PATH=str(db)),
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 2
     assert f"pattern store {db} is unreadable: file is not a database" in proc.stderr
 
 
 def test_invalid_settings_stop_the_command_with_a_message(tmp_path: Path) -> None:
-    proc = subprocess.run(serve_command(free_port()), env=clean_env(BACKLASH_WORKERS="0"), cwd=tmp_path,
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        serve_command(free_port()),
+        env=clean_env(BACKLASH_WORKERS="0"),
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 2
     assert "invalid settings" in proc.stderr and "workers" in proc.stderr
 

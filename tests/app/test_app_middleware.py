@@ -19,10 +19,17 @@ def keyed_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
         s.stop()
 
 
-@pytest.mark.parametrize(("method", "path"), [
-    ("GET", "/v1/pattern-sets"), ("POST", "/v1/simulate"), ("GET", "/v1/jobs/x"), ("POST", "/v1/identify"),
-    ("GET", "/docs"), ("GET", "/openapi.json"),
-])
+@pytest.mark.parametrize(
+    ("method", "path"),
+    [
+        ("GET", "/v1/pattern-sets"),
+        ("POST", "/v1/simulate"),
+        ("GET", "/v1/jobs/x"),
+        ("POST", "/v1/identify"),
+        ("GET", "/docs"),
+        ("GET", "/openapi.json"),
+    ],
+)
 def test_api_key_is_required_everywhere_but_healthz(keyed_server: Server, method: str, path: str) -> None:
     with keyed_server.client() as c:
         r = c.request(method, path, json={"K": 0.005})
@@ -40,7 +47,10 @@ def test_healthz_needs_no_key_and_the_key_opens_everything(keyed_server: Server)
         assert c.get("/docs").status_code == 200
         doc = c.get("/openapi.json").json()
         assert doc["components"]["securitySchemes"]["APIKeyHeader"] == {
-            "type": "apiKey", "in": "header", "name": "X-API-Key"}
+            "type": "apiKey",
+            "in": "header",
+            "name": "X-API-Key",
+        }
         r = c.post("/v1/simulate", json={"K": 0.005})
         assert r.status_code == 200 and r.json()["event_time"] > 0
 

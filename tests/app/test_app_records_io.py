@@ -21,8 +21,11 @@ from engine.records import Record, RecordError
 
 def _record() -> Record:
     rng = np.random.default_rng(1)
-    return Record(channels={"v2": rng.normal(size=N_SAMPLES), "a1": rng.normal(size=N_SAMPLES) * 1e-7},
-                  conditions={"c": 1.25}, event_time=0.03)
+    return Record(
+        channels={"v2": rng.normal(size=N_SAMPLES), "a1": rng.normal(size=N_SAMPLES) * 1e-7},
+        conditions={"c": 1.25},
+        event_time=0.03,
+    )
 
 
 def test_csv_round_trip_is_exact() -> None:
@@ -41,26 +44,32 @@ def test_csv_tolerates_spaces_crlf_and_trailing_blank_lines() -> None:
     assert rec["v2"][5] == 5.0 and rec["a1"][5] == -5.0
 
 
-@pytest.mark.parametrize(("text", "error", "message"), [
-    ("", RecordFormatError, "the CSV is empty"),
-    ("v2,\n" + "1,2\n" * N_SAMPLES, RecordFormatError, "empty column name"),
-    ("v2\n" + "1\n" * 5, RecordError, "the CSV has 5 data rows"),
-    ("torque\n" + "1\n" * N_SAMPLES, RecordError, "unknown channel 'torque'"),
-    ("1.0\n" * N_SAMPLES, RecordFormatError, "is not a header"),
-    ("v2\n" + "1\n" * (N_SAMPLES - 1) + "1,2\n", RecordFormatError, f"line {N_SAMPLES + 1} has 2 fields"),
-    ("v2\n" + "inf\n" * N_SAMPLES, RecordError, "non-finite value"),
-])
+@pytest.mark.parametrize(
+    ("text", "error", "message"),
+    [
+        ("", RecordFormatError, "the CSV is empty"),
+        ("v2,\n" + "1,2\n" * N_SAMPLES, RecordFormatError, "empty column name"),
+        ("v2\n" + "1\n" * 5, RecordError, "the CSV has 5 data rows"),
+        ("torque\n" + "1\n" * N_SAMPLES, RecordError, "unknown channel 'torque'"),
+        ("1.0\n" * N_SAMPLES, RecordFormatError, "is not a header"),
+        ("v2\n" + "1\n" * (N_SAMPLES - 1) + "1,2\n", RecordFormatError, f"line {N_SAMPLES + 1} has 2 fields"),
+        ("v2\n" + "inf\n" * N_SAMPLES, RecordError, "non-finite value"),
+    ],
+)
 def test_csv_errors_say_what_to_fix(text: str, error: type[Exception], message: str) -> None:
     with pytest.raises(error, match=message):
         record_from_csv(text)
 
 
-@pytest.mark.parametrize(("text", "message"), [
-    ("{", "malformed JSON"),
-    ("[1, 2]", "must be an object with 'channels'"),
-    ('{"channels": {"v2": [Infinity]}}', "the JSON holds Infinity"),
-    ('{"channels": {"v2": ["a"]}}', "not a valid record"),
-])
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("{", "malformed JSON"),
+        ("[1, 2]", "must be an object with 'channels'"),
+        ('{"channels": {"v2": [Infinity]}}', "the JSON holds Infinity"),
+        ('{"channels": {"v2": ["a"]}}', "not a valid record"),
+    ],
+)
 def test_json_errors_say_what_to_fix(text: str, message: str) -> None:
     with pytest.raises(RecordFormatError, match=message):
         record_from_json(text)

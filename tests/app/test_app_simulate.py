@@ -20,8 +20,9 @@ def test_simulate_returns_a_record_and_event_time(sim_record: dict[str, Any]) ->
 
 
 def test_simulate_takes_conditions_and_effects(client: httpx.Client, sim_record: dict[str, Any]) -> None:
-    r = client.post("/v1/simulate", json={"K": 0.005, "J1": 0.8, "c": 1.25, "c1": 0.1,
-                                          "effects": {"motor_coulomb_friction": 0.05}})
+    r = client.post(
+        "/v1/simulate", json={"K": 0.005, "J1": 0.8, "c": 1.25, "c1": 0.1, "effects": {"motor_coulomb_friction": 0.05}}
+    )
     assert r.status_code == 200, r.text
     rec = r.json()
     assert rec["conditions"] == {"J1": 0.8, "c": 1.25, "c1": 0.1, "K": 0.005}

@@ -78,8 +78,12 @@ def create_pattern_set(body: PatternSetCreate, store: StoreDep, jobs: JobsDep, r
     job = jobs.submit(run, kind=TRAIN_JOB, meta={"pattern_set_id": set_id})
     job_url = f"{API_V1_STR}/jobs/{job.id}"
     response.headers["Location"] = job_url
-    return {"job_id": job.id, "pattern_set_id": set_id, "job_url": job_url,
-            "pattern_set_url": f"{API_V1_STR}/pattern-sets/{set_id}"}
+    return {
+        "job_id": job.id,
+        "pattern_set_id": set_id,
+        "job_url": job_url,
+        "pattern_set_url": f"{API_V1_STR}/pattern-sets/{set_id}",
+    }
 
 
 @router.get("", response_model=PatternSetsPublic, summary="List stored pattern sets")
@@ -102,8 +106,9 @@ def read_pattern_set(set_id: str, store: StoreDep, jobs: JobsDep) -> Any:
         raise _missing(jobs, set_id) from None
 
 
-@router.delete("/{set_id}", status_code=status.HTTP_204_NO_CONTENT, summary="Delete one pattern set",
-               responses=_NOT_FOUND)
+@router.delete(
+    "/{set_id}", status_code=status.HTTP_204_NO_CONTENT, summary="Delete one pattern set", responses=_NOT_FOUND
+)
 def delete_pattern_set(set_id: str, store: StoreDep, jobs: JobsDep) -> Response:
     try:
         store.delete(set_id)

@@ -35,9 +35,14 @@ def _wants_csv(request: Request) -> bool:
     "",
     response_model=SimulationPublic,
     summary="Simulate one case",
-    responses={**_ERRORS, 200: {"content": {"text/csv": {}},
-                                "description": "The record (CSV form with Accept: text/csv; "
-                                               "headers X-Sample-Interval, X-Event-Index, X-Event-Time)"}},
+    responses={
+        **_ERRORS,
+        200: {
+            "content": {"text/csv": {}},
+            "description": "The record (CSV form with Accept: text/csv; "
+            "headers X-Sample-Interval, X-Event-Index, X-Event-Time)",
+        },
+    },
 )
 def simulate(body: SimulateCreate, request: Request) -> Any:
     """Run the backlash test of MODEL.md for one case and return its record plus ``event_time``.
@@ -50,8 +55,11 @@ def simulate(body: SimulateCreate, request: Request) -> Any:
         return Response(
             record_to_csv(record),
             media_type="text/csv",
-            headers={"X-Sample-Interval": repr(record.sample_interval), "X-Event-Index": str(record.event_index),
-                     "X-Event-Time": repr(record.event_time)},
+            headers={
+                "X-Sample-Interval": repr(record.sample_interval),
+                "X-Event-Index": str(record.event_index),
+                "X-Event-Time": repr(record.event_time),
+            },
         )
     return record.to_dict()
 
