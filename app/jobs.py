@@ -9,6 +9,7 @@ stored pattern set, is not).
 
 from __future__ import annotations
 
+import builtins
 import logging
 import threading
 import uuid
@@ -65,18 +66,21 @@ class JobManager:
     Parameters
     ----------
     workers : int
-        Threads that run jobs; further jobs wait in state ``queued``.
+        Threads that run jobs; further jobs wait in state ``queued`` (the service's
+        ``Settings.workers``).
     max_pending : int
-        Most queued plus running jobs; :meth:`submit` raises :class:`QueueFullError` beyond.
+        Most queued plus running jobs; :meth:`submit` raises :class:`QueueFullError` beyond
+        (the service's ``Settings.max_pending_jobs``).
     keep_finished : int
         Finished jobs remembered (oldest forgotten first).
     """
 
-    def __init__(self, workers: int = 1, max_pending: int = 16, keep_finished: int = 1000) -> None:
+    def __init__(self, workers: int, max_pending: int, keep_finished: int = 1000) -> None:
         if workers < 1 or max_pending < 1 or keep_finished < 0:
             raise ValueError("workers and max_pending must be >= 1, keep_finished >= 0")
         self._executor = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="backlash-job")
         self._lock = threading.Lock()
+        self._changed = threading.Condition(self._lock)  # notified whenever a job changes
         self._jobs: OrderedDict[str, Job] = OrderedDict()
         self._max_pending = max_pending
         self._keep_finished = keep_finished
@@ -109,6 +113,7 @@ class JobManager:
                 )
             self._jobs[job.id] = job
             self._forget_old()
+            self._changed.notify_all()
         self._executor.submit(self._run, job.id, fn)
         logger.info("job %s (%s) queued", job.id, kind)
         return job
@@ -123,12 +128,25 @@ class JobManager:
             )
         return job
 
+    def wait(self, job_id: str, timeout: float | None = None) -> Job:
+        """Block until the job has finished or ``timeout`` [s] has passed; return its snapshot then.
+
+        Raises
+        ------
+        NotFoundError
+            No job ``job_id`` is remembered.
+        """
+        self.get(job_id)
+        with self._changed:
+            self._changed.wait_for(lambda: job_id not in self._jobs or self._jobs[job_id].finished, timeout)
+        return self.get(job_id)
+
     def list(self) -> list[Job]:
         """All remembered jobs, newest first."""
         with self._lock:
             return list(reversed(self._jobs.values()))
 
-    def find(self, **meta: Any) -> list[Job]:
+    def find(self, **meta: Any) -> builtins.list[Job]:
         """Remembered jobs whose ``meta`` holds all the given items, newest first."""
         return [j for j in self.list() if all(j.meta.get(k) == v for k, v in meta.items())]
 
@@ -144,6 +162,7 @@ class JobManager:
                         error="the server shut down before the job started",
                         finished_at=_now(),
                     )
+            self._changed.notify_all()
         self._executor.shutdown(wait=wait, cancel_futures=True)
 
     # -- internals --------------------------------------------------------------
@@ -152,6 +171,7 @@ class JobManager:
         with self._lock:
             job = replace(self._jobs[job_id], **changes)
             self._jobs[job_id] = job
+            self._changed.notify_all()
             return job
 
     def _forget_old(self) -> None:
@@ -172,6 +192,7 @@ class JobManager:
                 cur = self._jobs[job_id]
                 value = min(1.0, max(cur.progress, float(fraction)))  # clamp, never decrease
                 self._jobs[job_id] = replace(cur, progress=value, stage=stage if stage is not None else cur.stage)
+                self._changed.notify_all()
 
         try:
             result = fn(progress)

@@ -18,6 +18,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from engine.constants import CHANNELS, EVENT_INDEX, N_SAMPLES, SAMPLE_INTERVAL
 from engine.records import Record, RecordError
 
@@ -86,7 +88,7 @@ def record_from_csv(
                     f"malformed CSV: line {r}, column {header[j]!r}: {cell!r} is not a number"
                 ) from None
     return Record(
-        channels=dict(zip(header, columns, strict=True)),
+        channels={name: np.asarray(column, dtype=float) for name, column in zip(header, columns, strict=True)},
         sample_interval=sample_interval,
         event_index=event_index,
         conditions=dict(conditions or {}),
@@ -154,7 +156,7 @@ def read_record(
     """Read a record file: ``.json`` (record format) or ``.csv`` (CSV form).
 
     ``sample_interval``, ``event_index`` and ``conditions`` complete a CSV file
-    (defaults: MODEL.md's 0.1 ms and 48); for a JSON file they override its values
+    (defaults: MODEL.md's ``SAMPLE_INTERVAL`` and ``EVENT_INDEX``); for a JSON file they override its values
     when given.
     """
     path = Path(path)

@@ -20,7 +20,6 @@ from app.records_io import RecordFormatError
 from app.services.errors import (
     IncompatibleError,
     InvalidInputError,
-    NotAvailableError,
     NotFoundError,
     QueueFullError,
 )
@@ -51,7 +50,6 @@ USER_ERRORS: dict[type[Exception], int] = {
     NotFoundError: 404,
     PatternSetExists: 409,
     QueueFullError: 429,
-    NotAvailableError: 501,
 }
 
 #: Server-side errors: exception type -> (status, public message); details go to the log.
@@ -104,7 +102,8 @@ def validation_answer(errors: list[dict[str, Any]]) -> JSONResponse:
     )
 
 
-async def _request_validation(request: Request, exc: RequestValidationError) -> JSONResponse:
+async def _request_validation(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RequestValidationError)  # registered for this class only
     errors = list(exc.errors())
     media = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if (
@@ -123,7 +122,8 @@ async def _request_validation(request: Request, exc: RequestValidationError) -> 
     return validation_answer(errors)
 
 
-async def _http_exception(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+async def _http_exception(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, StarletteHTTPException)  # registered for this class only
     name = {
         401: "Unauthorized",
         404: "NotFound",

@@ -9,12 +9,12 @@ from fastapi.openapi.utils import get_openapi
 from pydantic import BaseModel
 
 from app.api.middleware import API_KEY_HEADER
-from engine.constants import CHANNELS
+from engine.constants import CHANNELS, N_SAMPLES
 
 #: Body models documented by :func:`body_schema`; added to the components by :func:`install_openapi`.
 _BODY_MODELS: dict[str, type[BaseModel]] = {}
 
-_CSV_EXAMPLE = ",".join(CHANNELS) + "\n" + ",".join("0.0" for _ in CHANNELS) + "\n...(2048 rows in all)\n"
+_CSV_EXAMPLE = ",".join(CHANNELS) + "\n" + ",".join("0.0" for _ in CHANNELS) + f"\n...({N_SAMPLES} rows in all)\n"
 
 
 def body_schema(model: type[BaseModel], csv: bool = False) -> dict[str, Any]:
@@ -26,7 +26,7 @@ def body_schema(model: type[BaseModel], csv: bool = False) -> dict[str, Any]:
             "schema": {
                 "type": "string",
                 "description": "Header row of channel names, then one row per sample "
-                "(2048); the other values as query parameters.",
+                f"({N_SAMPLES}); the other values as query parameters.",
             },
             "example": _CSV_EXAMPLE,
         }

@@ -23,6 +23,8 @@ from typing import Annotated, Literal
 from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from engine.storage import DEFAULT_STORE_PATH
+
 #: Prefix of every environment variable the service reads.
 ENV_PREFIX = "BACKLASH_"
 #: Path prefix of the versioned API.
@@ -42,7 +44,7 @@ class Settings(BaseSettings):
     )
 
     db_path: Path = Field(
-        default=Path("data") / "patterns.sqlite3",
+        default=DEFAULT_STORE_PATH,
         description="Pattern-store SQLite file; created with its directory if missing. Must be on a local file system.",
     )
     api_key: SecretStr | None = Field(

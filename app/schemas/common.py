@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, FiniteFloat
 
 from engine.constants import CHANNEL_UNITS, CHANNELS, EVENT_INDEX, N_SAMPLES, SAMPLE_INTERVAL
 from engine.records import Record
 
-#: One of the recorded channels of MODEL.md section 3.
-ChannelName = Literal[CHANNELS]  # type: ignore[valid-type]
+if TYPE_CHECKING:
+    ChannelName = str
+else:
+    #: One of the recorded channels of MODEL.md section 3 (validated as a literal, an enum in the OpenAPI schema).
+    ChannelName = Literal[CHANNELS]
 
 _CHANNELS_DOC = ", ".join(f"{c} [{CHANNEL_UNITS[c]}]" for c in CHANNELS)
 
@@ -61,7 +65,7 @@ class RecordIn(BaseModel):
     def to_record(self) -> Record:
         """The engine's record; raises ``RecordError`` (wrong length, NaN/inf, unknown channel, ...)."""
         return Record(
-            channels=self.channels,
+            channels={name: np.asarray(values, dtype=float) for name, values in self.channels.items()},
             sample_interval=self.sample_interval,
             event_index=self.event_index,
             conditions=self.conditions.as_dict() if self.conditions else {},

@@ -7,6 +7,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from app.schemas.common import ChannelName, RecordIn
+from engine.constants import C_NOMINAL, K_GRID
 
 
 class IdentifyCreate(BaseModel):
@@ -19,7 +20,7 @@ class IdentifyCreate(BaseModel):
     pattern_set: str | None = Field(
         default=None,
         description="Id of the pattern set; default: the stored set of this channel whose c is nearest the "
-        "record's conditions.c (nominal c = 1.0 when the record does not give c).",
+        f"record's conditions.c (nominal c = {C_NOMINAL:g} when the record does not give c).",
     )
     kind: str | None = Field(default=None, description="Only choose pattern sets of this identifier kind.")
     continuous: bool = Field(
@@ -44,7 +45,7 @@ class ContinuousWidthPublic(BaseModel):
 
 class IdentificationPublic(BaseModel):
     D: list[float] = Field(description="D(i) = sum_j |Wt(j) - Ww(i,j)| for the six widths [-].")
-    index: int = Field(ge=1, le=6, description="1-based index of the smallest D (the paper's nr5).")
+    index: int = Field(ge=1, le=len(K_GRID), description="1-based index of the smallest D (the paper's nr5).")
     width: float = Field(description="Identified backlash zone width K [m].")
     widths: list[float] = Field(description="The six widths K [m] that D refers to, in order.")
     epochs: int = Field(description="Epochs the record's own network needed.")
@@ -60,7 +61,7 @@ class IdentificationPublic(BaseModel):
     )
     c_used: float | None = Field(description="c [pu] used to choose the set (null when the set was requested).")
     c_source: Literal["record", "nominal"] | None = Field(
-        description="Where c_used came from: the record's conditions, or the nominal c = 1.0."
+        description=f"Where c_used came from: the record's conditions, or the nominal c = {C_NOMINAL:g}."
     )
     continuous: ContinuousWidthPublic | None = Field(
         default=None, description="The calibrated K as a continuous width (only when requested)."

@@ -2,16 +2,25 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+import inspect
+from typing import TYPE_CHECKING, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, FiniteFloat
+from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, model_validator
 
 from app.schemas.common import ChannelName
-from app.services.errors import InvalidInputError
-from app.services.patterns import DEFAULT_KIND, IDENTIFIER_KINDS
-from engine.constants import J1_GRID
+from engine.constants import C_GROUPS, C_NOMINAL, J1_GRID
+from engine.identification.training import DEFAULT_KIND, IDENTIFIERS
 
-IdentifierKind = Literal[tuple(IDENTIFIER_KINDS)]  # type: ignore[valid-type]
+if TYPE_CHECKING:
+    IdentifierKind = str
+else:
+    #: One of the engine's identifier kinds (validated as a literal, listed as an enum in the OpenAPI schema).
+    IdentifierKind = Literal[tuple(IDENTIFIERS)]
+
+#: The paper kind's hyper-parameter defaults, read from the identifier itself (documented below, never repeated).
+_PAPER_DEFAULTS: dict[str, Any] = {
+    name: p.default for name, p in inspect.signature(IDENTIFIERS["paper"]).parameters.items()
+}
 
 
 class PatternSetCreate(BaseModel):
@@ -21,15 +30,22 @@ class PatternSetCreate(BaseModel):
         extra="forbid",
         json_schema_extra={
             "examples": [
-                {"channel": "v2", "c": 1.0},
-                {"channel": "v2", "c": 1.0, "kind": "paper", "l": 0.9, "delta1": 0.08},
+                {"channel": "v2", "c": C_NOMINAL},
+                {
+                    "channel": "v2",
+                    "c": C_NOMINAL,
+                    "kind": "paper",
+                    "l": _PAPER_DEFAULTS["learning_rate"],
+                    "delta1": _PAPER_DEFAULTS["delta1"],
+                },
             ]
         },
     )
 
     channel: ChannelName = Field(description="Channel the identifier works on.")
     c: FiniteFloat = Field(
-        description="Apparent-viscosity group of the training cases [pu] (paper: 0.8, 1.0, 1.25, 1.4)."
+        description="Apparent-viscosity group of the training cases [pu] "
+        f"(paper: {', '.join(f'{c:g}' for c in C_GROUPS)})."
     )
     J1_values: list[FiniteFloat] | None = Field(
         default=None,
@@ -38,16 +54,23 @@ class PatternSetCreate(BaseModel):
         description=f"Motor-side inertias of the training cases [kg m^2]; default the paper's grid {list(J1_GRID)}.",
     )
     kind: IdentifierKind = Field(
-        default=DEFAULT_KIND, description=f"Identifier kind: {', '.join(IDENTIFIER_KINDS)} (default {DEFAULT_KIND})."
+        default=DEFAULT_KIND, description=f"Identifier kind: {', '.join(IDENTIFIERS)} (default {DEFAULT_KIND})."
     )
     l: FiniteFloat | None = Field(
-        default=None, gt=0, description="paper kind: learning coefficient l [-] (default 0.9)."
+        default=None,
+        gt=0,
+        description=f"paper kind: learning coefficient l [-] (default {_PAPER_DEFAULTS['learning_rate']:g}).",
     )
     delta1: FiniteFloat | None = Field(
-        default=None, gt=0, description="paper kind: training stops at RMS < delta1 [-] (default 0.08)."
+        default=None,
+        gt=0,
+        description=f"paper kind: training stops at RMS < delta1 [-] (default {_PAPER_DEFAULTS['delta1']:g}).",
     )
     max_epochs: int | None = Field(
-        default=None, ge=1, le=100_000, description="paper kind: epoch cap per network (default 2000)."
+        default=None,
+        ge=1,
+        le=100_000,
+        description=f"paper kind: epoch cap per network (default {_PAPER_DEFAULTS['max_epochs']}).",
     )
     params: dict[str, Any] = Field(
         default_factory=dict,
@@ -56,6 +79,21 @@ class PatternSetCreate(BaseModel):
     effects: dict[str, FiniteFloat] = Field(
         default_factory=dict, description="Unmodelled effects (catalogue name -> value) applied to every training case."
     )
+
+    def _named_params(self) -> dict[str, Any]:
+        named = {"learning_rate": self.l, "delta1": self.delta1, "max_epochs": self.max_epochs}
+        return {k: v for k, v in named.items() if v is not None}
+
+    @model_validator(mode="after")
+    def _each_parameter_once(self) -> PatternSetCreate:
+        both = sorted(set(self._named_params()) & set(self.params))
+        if both:
+            raise ValueError(f"give {both} either as fields or in params, not both")
+        return self
+
+    def identifier_params(self) -> dict[str, Any]:
+        """The identifier's hyper-parameters: ``params`` plus ``l`` (as learning_rate), ``delta1`` and ``max_epochs``."""
+        return {**self.params, **self._named_params()}
 
 
 class TrainingAccepted(BaseModel):
@@ -85,13 +123,3 @@ class PatternSetPublic(BaseModel):
 class PatternSetsPublic(BaseModel):
     data: list[PatternSetPublic]
     count: int
-
-
-def identifier_params(body: PatternSetCreate) -> dict[str, Any]:
-    """The identifier's hyper-parameters: ``params`` plus ``l`` (as learning_rate), ``delta1`` and ``max_epochs``."""
-    named = {"learning_rate": body.l, "delta1": body.delta1, "max_epochs": body.max_epochs}
-    named = {k: v for k, v in named.items() if v is not None}
-    both = sorted(set(named) & set(body.params))
-    if both:
-        raise InvalidInputError(f"give {both} either as fields or in params, not both")
-    return {**body.params, **named}

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict, Field, FiniteFloat
 
 from app.schemas.common import RecordPublic
+from engine.constants import C1_NOMINAL, C_NOMINAL, J1_NOMINAL, K_GRID, K_NOMINAL
 
 _EFFECTS_DOC = (
     'Unmodelled effects by catalogue name and value, e.g. {"motor_coulomb_friction": 0.02}; see the '
@@ -17,13 +18,19 @@ class SimulateCreate(BaseModel):
 
     model_config = ConfigDict(
         extra="forbid",
-        json_schema_extra={"examples": [{"K": 0.005, "J1": 0.87, "c": 1.0, "c1": 0.2, "effects": {}}]},
+        json_schema_extra={
+            "examples": [{"K": K_NOMINAL, "J1": J1_NOMINAL, "c": C_NOMINAL, "c1": C1_NOMINAL, "effects": {}}]
+        },
     )
 
-    K: FiniteFloat = Field(description="Backlash zone width [m] (paper grid 0.0025 .. 0.01).")
-    J1: FiniteFloat | None = Field(default=None, description="Motor-side inertia [kg m^2]; default 0.87.")
-    c: FiniteFloat | None = Field(default=None, description="Apparent viscosity of the absorber [pu]; default 1.0.")
-    c1: FiniteFloat | None = Field(default=None, description="Absorber discontinuity at zero speed [pu]; default 0.2.")
+    K: FiniteFloat = Field(description=f"Backlash zone width [m] (paper grid {K_GRID[0]:g} .. {K_GRID[-1]:g}).")
+    J1: FiniteFloat | None = Field(default=None, description=f"Motor-side inertia [kg m^2]; default {J1_NOMINAL:g}.")
+    c: FiniteFloat | None = Field(
+        default=None, description=f"Apparent viscosity of the absorber [pu]; default {C_NOMINAL:g}."
+    )
+    c1: FiniteFloat | None = Field(
+        default=None, description=f"Absorber discontinuity at zero speed [pu]; default {C1_NOMINAL:g}."
+    )
     effects: dict[str, FiniteFloat] = Field(default_factory=dict, description=_EFFECTS_DOC)
 
 

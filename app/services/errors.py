@@ -15,10 +15,6 @@ class IncompatibleError(ServiceError, ValueError):
     """The request combines things that do not fit together (e.g. a record and a pattern set of another channel)."""
 
 
-class NotAvailableError(ServiceError):
-    """The feature is not available in this version."""
-
-
 class QueueFullError(ServiceError):
     """Too many training jobs are queued or running."""
 

@@ -7,17 +7,14 @@ from dataclasses import dataclass
 from typing import Literal
 
 from app.services.errors import IncompatibleError, NotFoundError
-from app.services.patterns import DEFAULT_KIND, identifier_from_pattern_set
-from engine.constants import EVENT_INDEX, K_GRID, MODEL_VERSION, SAMPLE_INTERVAL
+from app.services.patterns import identifier_from_pattern_set
+from engine.constants import C_NOMINAL, EVENT_INDEX, K_GRID, MODEL_VERSION, SAMPLE_INTERVAL
 from engine.diagnosis.calibration import estimate_width
 from engine.diagnosis.identification import nearest_grid_width
 from engine.identification import IdentificationResult
+from engine.identification.training import DEFAULT_KIND
 from engine.records import Record
-from engine.simulation import PlantParameters
 from engine.storage import PatternSet, PatternSetNotFound, PatternStore
-
-#: c used to choose a pattern set when the record's conditions do not give one (MODEL.md default).
-NOMINAL_C: float = PlantParameters().c
 
 
 @dataclass(frozen=True)
@@ -33,7 +30,8 @@ class Selection:
     c_used : float or None
         c [pu] used to choose the set (``None`` when the set was requested).
     c_source : {"record", "nominal"} or None
-        Where ``c_used`` came from: the record's conditions or the nominal c = 1.0.
+        Where ``c_used`` came from: the record's conditions or the nominal c
+        (:data:`engine.constants.C_NOMINAL`).
     """
 
     pattern_set: PatternSet
@@ -66,28 +64,29 @@ def select_pattern_set(
 ) -> Selection:
     """The set named by ``set_id``, else the stored set of ``channel`` whose c is nearest the record's c.
 
-    The record's c comes from ``record.conditions["c"]``; without it the nominal
-    c = 1.0 is used. Only sets of the current model version (and of ``kind``, if
-    given) are chosen; among equally near sets the default kind wins, then the newest.
+    The record's c comes from ``record.conditions["c"]``; without it the nominal c
+    (:data:`engine.constants.C_NOMINAL`) is used. Only sets of the current model version
+    (and of ``kind``, if given) are chosen; among equally near sets the default kind wins,
+    then the newest.
     """
     if set_id is not None:
-        ps = get_pattern_set(store, set_id)
-        if ps.channel != channel:
+        requested = get_pattern_set(store, set_id)
+        if requested.channel != channel:
             raise IncompatibleError(
-                f"pattern set {set_id!r} was trained on channel {ps.channel!r}, not {channel!r}; "
-                f"identify with channel {ps.channel!r} or choose a set of channel {channel!r}"
+                f"pattern set {set_id!r} was trained on channel {requested.channel!r}, not {channel!r}; "
+                f"identify with channel {requested.channel!r} or choose a set of channel {channel!r}"
             )
-        if kind is not None and ps.kind != kind:
-            raise IncompatibleError(f"pattern set {set_id!r} is of kind {ps.kind!r}, not {kind!r}")
-        if ps.model_version != MODEL_VERSION:
+        if kind is not None and requested.kind != kind:
+            raise IncompatibleError(f"pattern set {set_id!r} is of kind {requested.kind!r}, not {kind!r}")
+        if requested.model_version != MODEL_VERSION:
             raise IncompatibleError(
-                f"pattern set {set_id!r} was trained on model version {ps.model_version}, this engine implements "
+                f"pattern set {set_id!r} was trained on model version {requested.model_version}, this engine implements "
                 f"{MODEL_VERSION}; train a new set"
             )
-        return Selection(ps, "requested", None, None)
+        return Selection(requested, "requested", None, None)
     c = record.conditions.get("c")
     source: Literal["record", "nominal"] = "record" if c is not None else "nominal"
-    c_used = float(c) if c is not None else NOMINAL_C
+    c_used = float(c) if c is not None else C_NOMINAL
     ps = store.find_nearest(channel, c_used, kind=kind, model_version=MODEL_VERSION)
     if ps is not None and kind is None and ps.kind != DEFAULT_KIND:
         # equally near sets of several kinds: prefer the default kind over the most recent one

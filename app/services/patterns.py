@@ -1,4 +1,4 @@
-"""Identifier kinds and stored pattern sets, as the service presents them.
+"""Identifiers and stored pattern sets, as the service presents them.
 
 Training and rebuilding identifiers is the engine's
 (:mod:`engine.identification.training`); this module turns its errors into the
@@ -12,11 +12,6 @@ from typing import Any
 from app.services.errors import IncompatibleError, InvalidInputError
 from engine.identification import training as engine_training
 from engine.storage import PatternSet, PatternSetSummary
-
-#: Identifier kinds the engine can train and load.
-IDENTIFIER_KINDS: tuple[str, ...] = tuple(engine_training.IDENTIFIERS)
-#: Kind used when a request names none (the engine's default).
-DEFAULT_KIND: str = engine_training.DEFAULT_KIND
 
 
 def check_identifier(kind: str, channel: str, params: dict[str, Any]) -> None:

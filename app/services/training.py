@@ -15,9 +15,10 @@ from typing import Any
 
 from app.services import simulation
 from app.services.errors import InvalidInputError
-from app.services.patterns import DEFAULT_KIND, check_identifier
-from engine.constants import J1_GRID
+from app.services.patterns import check_identifier
+from engine.constants import J1_GRID, K_GRID
 from engine.identification import training as engine_training
+from engine.identification.training import DEFAULT_KIND
 from engine.simulation import Case, paper_grid
 from engine.storage import PatternSet, PatternStore
 
@@ -73,7 +74,10 @@ def train_pattern_set(
 ) -> PatternSet:
     """Simulate the training cases, let the engine fit and package the identifier, save the set; return it as stored."""
     cases = spec.cases()
-    progress(0.02, f"simulating {len(cases)} cases (6 widths x {len(spec.J1_values)} J1 values) at c = {spec.c:g}")
+    progress(
+        0.02,
+        f"simulating {len(cases)} cases ({len(K_GRID)} widths x {len(spec.J1_values)} J1 values) at c = {spec.c:g}",
+    )
     grid = simulation.run(cases)
     pattern_set = engine_training.train_pattern_set(
         spec.channel,

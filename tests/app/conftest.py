@@ -8,7 +8,11 @@ from typing import Any
 
 import httpx
 import pytest
-from servicekit import Server, ServerFactory, make_factory, train
+from servicekit import GatedTraining, InProcessServer, Server, ServerFactory, make_factory, train
+
+from app.core.config import Settings
+from app.main import create_app
+from app.services import training
 
 
 @pytest.fixture
@@ -49,3 +53,25 @@ def sim_record(client: httpx.Client) -> dict[str, Any]:
     r = client.post("/v1/simulate", json={"K": 0.005})
     assert r.status_code == 200, r.text
     return r.json()
+
+
+@pytest.fixture
+def gated(monkeypatch: pytest.MonkeyPatch) -> Iterator[GatedTraining]:
+    """Training jobs of the in-process server wait at a gate the test opens (two calls)."""
+    fake = GatedTraining(training.train_pattern_set, gates=2)
+    monkeypatch.setattr(training, "train_pattern_set", fake)
+    yield fake
+    fake.release_all()  # never leave a job waiting
+
+
+@pytest.fixture
+def inprocess(tmp_path: Path, gated: GatedTraining) -> Iterator[InProcessServer]:
+    """The application served in a thread of this process (one training worker), its training gated."""
+    server = InProcessServer(create_app(Settings(db_path=tmp_path / "inprocess" / "patterns.sqlite3", workers=1)))
+    server.start()
+    try:
+        yield server
+    finally:
+        gated.release_all()
+        server.request_stop()
+        server.join()

@@ -1,7 +1,10 @@
-"""Helpers of the service tests: real uvicorn servers in subprocesses, talked to with httpx.
+"""Helpers of the service tests: real uvicorn servers, talked to with httpx.
 
-Every server runs ``python -m app.cli serve`` (the ``backlash serve`` command) on a
-free local port with ``BACKLASH_DB_PATH`` in a temporary directory.
+Most servers run ``python -m app.cli serve`` (the ``backlash serve`` command) in a
+subprocess on a free local port with ``BACKLASH_DB_PATH`` in a temporary
+directory. Tests that hold a training job while they look at it serve the
+application in a thread of the test process instead (:class:`InProcessServer`),
+with the training replaced by :class:`GatedTraining`.
 """
 
 from __future__ import annotations
@@ -11,15 +14,20 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import httpx
+import uvicorn
+from fastapi import FastAPI
 
 #: Small, fast training request of the paper's identifier (2 J1 values instead of 7); identifies K = 0.005 on v2.
 SMALL_TRAINING = {"channel": "v2", "c": 1.0, "J1_values": [0.87, 0.8482], "kind": "paper", "max_epochs": 200}
+#: Longest a test waits for something that must happen (a bound against hanging, not a timing assumption).
+TIMEOUT = 30.0
 #: A request whose simulation has no backlash event: the training job fails.
 FAILING_TRAINING = {
     "channel": "v2",
@@ -51,9 +59,8 @@ class Server:
         self.proc: subprocess.Popen[bytes] | None = None
 
     def start(self, timeout: float = 120.0) -> Server:
-        log = open(self.log_path, "ab")
-        self.proc = subprocess.Popen(self.command, env=self.env, cwd=self.cwd, stdout=log, stderr=subprocess.STDOUT)
-        log.close()
+        with open(self.log_path, "ab") as log:
+            self.proc = subprocess.Popen(self.command, env=self.env, cwd=self.cwd, stdout=log, stderr=subprocess.STDOUT)
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             if self.proc.poll() is not None:
@@ -128,3 +135,66 @@ def make_factory(tmp_dir: Path, servers: list[Server]) -> ServerFactory:
         return server.start()
 
     return start
+
+
+# -- in process: training held by the test -------------------------------------------
+
+
+class Gate:
+    """One training call: ``started`` once it has reported progress 0.5; it then waits for ``release``."""
+
+    def __init__(self) -> None:
+        self.started, self.release = threading.Event(), threading.Event()
+
+
+class GatedTraining:
+    """Stands in for :func:`app.services.training.train_pattern_set`: call ``i`` reports progress 0.5 with the
+    stage "held by the test", sets ``gates[i].started``, waits for ``gates[i].release``, then trains and stores
+    for real."""
+
+    def __init__(self, real: Callable[..., Any], gates: int) -> None:
+        self.real, self.gates, self.calls = real, [Gate() for _ in range(gates)], 0
+
+    def __call__(self, spec: Any, store: Any, *, set_id: str | None = None, progress: Any = None) -> Any:
+        gate = self.gates[self.calls]
+        self.calls += 1
+        progress(0.5, "held by the test")
+        gate.started.set()
+        if not gate.release.wait(TIMEOUT):
+            raise TimeoutError("the test never released the training")
+        return self.real(spec, store, set_id=set_id, progress=progress)
+
+    def release_all(self) -> None:
+        for gate in self.gates:
+            gate.release.set()
+
+
+class InProcessServer:
+    """``app`` served by uvicorn in a thread of the test process; ``start`` waits until it listens."""
+
+    def __init__(self, app: FastAPI) -> None:
+        self.app, self.port = app, free_port()
+        self.base_url = f"http://127.0.0.1:{self.port}"
+        self.server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=self.port, log_level="warning"))
+        self.thread = threading.Thread(target=self.server.run, name="test-uvicorn")
+
+    def start(self) -> InProcessServer:
+        self.thread.start()
+        deadline = time.monotonic() + TIMEOUT
+        while not self.server.started:  # readiness: a bounded poll
+            if not self.thread.is_alive() or time.monotonic() > deadline:
+                raise RuntimeError("the in-process server did not start")
+            time.sleep(0.01)
+        return self
+
+    def request_stop(self) -> None:
+        """Ask the server to shut down (what SIGINT does to ``backlash serve``); :meth:`join` waits for it."""
+        self.server.should_exit = True
+
+    def join(self, timeout: float = TIMEOUT) -> None:
+        self.thread.join(timeout)
+        if self.thread.is_alive():
+            raise RuntimeError(f"the in-process server did not stop within {timeout} s")
+
+    def client(self) -> httpx.Client:
+        return httpx.Client(base_url=self.base_url, timeout=TIMEOUT)

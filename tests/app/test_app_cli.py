@@ -1,4 +1,4 @@
-"""The ``backlash`` command (app/cli.py): subcommands mirror the endpoints; records as JSON or CSV files."""
+"""The ``backlash`` command (app/cli/): subcommands mirror the endpoints; records as JSON or CSV files."""
 
 from __future__ import annotations
 
@@ -158,42 +158,65 @@ def test_bad_usage_is_argparse_exit_2(env: Path, capsys: pytest.CaptureFixture[s
     assert "not a finite number" in capsys.readouterr().err
 
 
-def test_run_calls_the_main_job(env: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
-    calls: list[Any] = []
-    fake = types.ModuleType("engine.evaluation.main_job")
-    fake.run = lambda out_dir: calls.append(out_dir)  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "engine.evaluation.main_job", fake)
-    assert run(capsys, "run", "--out", "somewhere")[0] == 0
-    assert calls == [Path("somewhere")]
+class FakeLongJobs:
+    """The engine entry points of ``run`` and ``validate``, replaced by recorders (see :func:`long_jobs`)."""
+
+    def __init__(self) -> None:
+        self.main_job: list[Path] = []
+        self.validation: list[dict[str, Any]] = []
+        self.scored: list[Path] = []
+
+    def run(self, out_dir: Path) -> Any:
+        self.main_job.append(out_dir)
+        return types.SimpleNamespace(report=lambda: "## Paper's Tables 1-4\n| K | nr5 |")
+
+    def run_validation(self, **kwargs: Any) -> Any:
+        self.validation.append(kwargs)
+        return types.SimpleNamespace(table=lambda: "| top-1 | 0.95 |")
+
+    def score_identification(self, out_dir: Path) -> dict[str, Any]:
+        self.scored.append(out_dir)
+        return {"before": 0.5, "after": 0.9}
+
+
+@pytest.fixture
+def long_jobs(monkeypatch: pytest.MonkeyPatch) -> FakeLongJobs:
+    """``backlash run`` and ``validate`` call these instead of the engine's main job, validation and scoring."""
+    from engine.diagnosis import validation
+    from engine.evaluation import identification as scoring
+    from engine.evaluation import main_job
+
+    fake = FakeLongJobs()
+    monkeypatch.setattr(main_job, "run", fake.run)
+    monkeypatch.setattr(validation, "run_validation", fake.run_validation)
+    monkeypatch.setattr(scoring, "score_identification", fake.score_identification)
+    monkeypatch.setattr(scoring, "identification_markdown", lambda scored: f"| after | {scored['after']} |")
+    return fake
+
+
+def test_run_calls_the_main_job_and_prints_its_report(
+    env: Path, long_jobs: FakeLongJobs, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, _ = run(capsys, "run", "--out", "somewhere")
+    assert code == 0
+    assert long_jobs.main_job == [Path("somewhere")]
+    assert out == "## Paper's Tables 1-4\n| K | nr5 |\n"
 
 
 def test_validate_calls_the_blind_validation(
-    env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    env: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    long_jobs: FakeLongJobs,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
-    calls: list[dict[str, Any]] = []
-
-    class Report:
-        def table(self) -> str:
-            return "| top-1 | 0.95 |"
-
-    def run_validation(**kwargs: Any) -> Report:
-        calls.append(kwargs)
-        return Report()
-
-    fake = types.ModuleType("engine.diagnosis.validation")
-    fake.run_validation = run_validation  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "engine.diagnosis.validation", fake)
-    scored: list[Path] = []
-    ident = types.ModuleType("engine.diagnosis.identification")
-    ident.score_identification = lambda out: scored.append(out) or {}  # type: ignore[attr-defined]
-    ident.identification_markdown = lambda score: "| after | 0.9 |"  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "engine.diagnosis.identification", ident)
     monkeypatch.chdir(tmp_path)
     Path("v").mkdir()
     code, out, _ = run(capsys, "validate", "--cases", "12", "--seed", "3", "--out", "v")
     assert code == 0 and out.startswith("| top-1 | 0.95 |") and "| after | 0.9 |" in out
-    assert calls == [{"n_cases": 12, "seed": 3, "out_dir": Path("v"), "workers": 2}]
-    assert scored == [Path("v")] and Path("v/identification.md").read_text() == "| after | 0.9 |"
+    assert long_jobs.validation == [{"n_cases": 12, "seed": 3, "out_dir": Path("v"), "workers": 2}]
+    assert long_jobs.scored == [Path("v")] and Path("v/identification.md").read_text() == "| after | 0.9 |"
+    assert json.loads(Path("v/identification.json").read_text()) == {"before": 0.5, "after": 0.9}
 
 
 def test_validate_refuses_a_directory_that_holds_a_run(
@@ -209,23 +232,43 @@ def test_validate_refuses_a_directory_that_holds_a_run(
 
 
 @pytest.mark.parametrize(
-    ("argv", "module", "message"),
+    ("argv", "expected"),
     [
-        (["run"], "engine.evaluation.main_job", "the main job is not available yet"),
-        (["validate"], "engine.diagnosis.validation", "the blind validation of the diagnosis is not available yet"),
+        (["run"], {"main_job": [Path("out")], "validation": []}),
+        (
+            ["validate"],
+            {
+                "main_job": [],
+                "validation": [{"n_cases": 200, "seed": 53, "out_dir": Path("out/validation"), "workers": 2}],
+            },
+        ),
     ],
 )
-def test_missing_engine_parts_exit_2(
+def test_long_jobs_take_their_documented_defaults(
     env: Path,
+    tmp_path: Path,
     monkeypatch: pytest.MonkeyPatch,
+    long_jobs: FakeLongJobs,
     capsys: pytest.CaptureFixture[str],
     argv: list[str],
-    module: str,
-    message: str,
+    expected: dict[str, list[Any]],
 ) -> None:
-    monkeypatch.setitem(sys.modules, module, None)  # makes the import fail as if the module did not exist
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "out" / "validation").mkdir(parents=True)
     code, _, err = run(capsys, *argv)
-    assert code == 2 and message in err
+    assert code == 0, err
+    assert {"main_job": long_jobs.main_job, "validation": long_jobs.validation} == expected
+
+
+@pytest.mark.parametrize("command", ["run", "validate"])
+def test_long_jobs_refuse_unknown_arguments_before_starting(
+    env: Path, long_jobs: FakeLongJobs, capsys: pytest.CaptureFixture[str], command: str
+) -> None:
+    with pytest.raises(SystemExit) as exc:
+        cli.main([command, "--bogus", "1"])
+    assert exc.value.code == 2
+    assert "unrecognized arguments: --bogus 1" in capsys.readouterr().err
+    assert long_jobs.main_job == long_jobs.validation == []  # nothing started
 
 
 def test_bench_runs_the_benchmark_script(

@@ -1,14 +1,31 @@
-"""The application as a process (app/main.py): restart persistence, startup failure, clean shutdown."""
+"""The application as a process (app/main.py): restart persistence, startup failure, clean shutdown.
+
+The shutdown test serves the application in a thread of the test process, so that
+it can hold the training job with an event while the server stops.
+"""
 
 from __future__ import annotations
 
 import subprocess
-import time
+import threading
 from pathlib import Path
 from typing import Any
 
 import pytest
-from servicekit import SMALL_TRAINING, Server, ServerFactory, clean_env, free_port, serve_command, train
+from servicekit import (
+    SMALL_TRAINING,
+    TIMEOUT,
+    GatedTraining,
+    InProcessServer,
+    ServerFactory,
+    clean_env,
+    free_port,
+    serve_command,
+    train,
+)
+
+from app.jobs import JobManager, JobState
+from engine.storage import PatternStore
 
 
 def test_pattern_sets_survive_a_restart(
@@ -63,22 +80,32 @@ def test_invalid_settings_stop_the_command_with_a_message(tmp_path: Path) -> Non
     assert "invalid settings" in proc.stderr and "workers" in proc.stderr
 
 
-def test_shutdown_waits_for_a_running_training_job(start_server: ServerFactory, tmp_path: Path) -> None:
-    db = tmp_path / "shutdown" / "patterns.sqlite3"
-    server: Server = start_server(db_path=db)
-    with server.client() as c:
-        r = c.post("/v1/pattern-sets", json={**SMALL_TRAINING, "delta1": 1e-9, "max_epochs": 600})
-        set_id = r.json()["pattern_set_id"]
-        deadline = time.monotonic() + 60
-        # the job can finish between two polls (it takes ~0.1-0.3 s): stop once it has left
-        # the queue; when it is still running the stop must wait for it
-        while c.get(f"/v1/jobs/{r.json()['job_id']}").json()["state"] == "queued":
-            assert time.monotonic() < deadline
-            time.sleep(0.01)
-    assert server.stop() == 0
-    again = start_server(db_path=db)
-    with again.client() as c:
-        assert c.get(f"/v1/pattern-sets/{set_id}").status_code == 200  # the running job finished and was stored
+def test_shutdown_waits_for_a_running_training_job(
+    inprocess: InProcessServer, gated: GatedTraining, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    manager: JobManager = inprocess.app.state.jobs
+    shutting_down = threading.Event()
+    state_when_shut_down: list[JobState] = []
+    real_shutdown = JobManager.shutdown
+
+    def recording_shutdown(self: JobManager, wait: bool = True) -> None:
+        shutting_down.set()
+        real_shutdown(self, wait=wait)
+        state_when_shut_down.append(self.get(job_id).state)
+
+    monkeypatch.setattr(JobManager, "shutdown", recording_shutdown)
+    with inprocess.client() as c:
+        r = c.post("/v1/pattern-sets", json=SMALL_TRAINING)
+        assert r.status_code == 202
+        job_id, set_id = r.json()["job_id"], r.json()["pattern_set_id"]
+    assert gated.gates[0].started.wait(TIMEOUT)  # the job is running, held at its gate
+    inprocess.request_stop()
+    assert shutting_down.wait(TIMEOUT)  # the application is shutting down while the job runs
+    assert manager.get(job_id).state is JobState.running
+    gated.gates[0].release.set()
+    inprocess.join()
+    assert state_when_shut_down == [JobState.done]  # the shutdown returned only after the job had finished
+    assert PatternStore(inprocess.app.state.settings.db_path).get(set_id).id == set_id  # and the set was stored
 
 
 @pytest.mark.parametrize("bad", ["", "1x"])

@@ -39,7 +39,7 @@ async def identify(
     continuous: Annotated[bool, Query(description="CSV form: also the calibrated K as a continuous width.")] = False,
 ) -> Any:
     """Identify with the pattern set ``pattern_set``, or else the stored set of ``channel`` whose c
-    is nearest the record's ``conditions.c`` (nominal c = 1.0 if the record has none); the answer
+    is nearest the record's ``conditions.c`` (the nominal c if the record has none); the answer
     says which set was used and why.
 
     With ``continuous`` the answer also carries the calibrated K as a continuous width with

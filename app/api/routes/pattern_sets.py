@@ -11,13 +11,7 @@ from app.api.deps import JobsDep, StoreDep
 from app.core.config import API_V1_STR
 from app.jobs import JobManager, JobState
 from app.schemas.common import ChannelName, ErrorPublic
-from app.schemas.pattern_sets import (
-    PatternSetCreate,
-    PatternSetPublic,
-    PatternSetsPublic,
-    TrainingAccepted,
-    identifier_params,
-)
+from app.schemas.pattern_sets import PatternSetCreate, PatternSetPublic, PatternSetsPublic, TrainingAccepted
 from app.services import training
 from app.services.errors import NotFoundError
 from app.services.identification import not_found_message
@@ -28,7 +22,9 @@ from engine.storage import PatternSetNotFound
 router = APIRouter(prefix="/pattern-sets", tags=["pattern-sets"])
 
 TRAIN_JOB = "train_pattern_set"
-_NOT_FOUND = {404: {"model": ErrorPublic, "description": "No pattern set with this id"}}
+_NOT_FOUND: dict[int | str, dict[str, Any]] = {
+    404: {"model": ErrorPublic, "description": "No pattern set with this id"}
+}
 
 
 def _missing(jobs: JobManager, set_id: str) -> NotFoundError:
@@ -66,14 +62,15 @@ def create_pattern_set(body: PatternSetCreate, store: StoreDep, jobs: JobsDep, r
         c=body.c,
         J1_values=tuple(body.J1_values) if body.J1_values is not None else J1_GRID,
         kind=body.kind,
-        params=identifier_params(body),
+        params=body.identifier_params(),
         effects=dict(body.effects),
     )
     training.check(spec)
     set_id = uuid.uuid4().hex
 
     def run(progress: training.ProgressFn) -> str:
-        return training.train_pattern_set(spec, store, set_id=set_id, progress=progress).id
+        training.train_pattern_set(spec, store, set_id=set_id, progress=progress)
+        return set_id
 
     job = jobs.submit(run, kind=TRAIN_JOB, meta={"pattern_set_id": set_id})
     job_url = f"{API_V1_STR}/jobs/{job.id}"

@@ -16,7 +16,9 @@ from engine.records import Record
 
 router = APIRouter(prefix="/simulate", tags=["simulate"])
 
-_ERRORS = {422: {"model": ErrorPublic, "description": "Out-of-range parameter, unknown effect, or no backlash event"}}
+_ERRORS: dict[int | str, dict[str, Any]] = {
+    422: {"model": ErrorPublic, "description": "Out-of-range parameter, unknown effect, or no backlash event"}
+}
 
 
 def _simulate(cases: list[SimulateCreate]) -> list[Record]:
