@@ -22,11 +22,12 @@ RUN apt-get update \
 
 WORKDIR /app
 
-# 1. the dependencies alone: this layer is rebuilt only when pyproject.toml changes
-COPY pyproject.toml ./
+# 1. the dependencies alone, at the versions CI tested (constraints.txt):
+#    this layer is rebuilt only when pyproject.toml or constraints.txt changes
+COPY pyproject.toml constraints.txt ./
 RUN python -c "import tomllib; print('\n'.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['dependencies']))" \
         > /tmp/requirements.txt \
-    && pip install -r /tmp/requirements.txt \
+    && pip install -c constraints.txt -r /tmp/requirements.txt \
     && rm /tmp/requirements.txt
 
 # 2. the code

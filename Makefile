@@ -1,21 +1,28 @@
-# Two commands on a fresh machine: `make run` (set-up + main job) and `make test` (set-up + tests).
+# Two commands on a fresh machine: `make run` (set-up + main job) and `make test` (set-up + linters + tests).
+# Set-up installs the exact versions pinned in constraints.txt (see README, "Dependencies").
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+LOCK := constraints.txt
 
-.PHONY: run test test-slow bench serve clean
+.PHONY: run test lint test-slow bench serve lock clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(LOCK)
 	$(PY) -m venv $(VENV)
-	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e ".[test]"
+	$(BIN)/pip install --quiet -c $(LOCK) --upgrade pip
+	$(BIN)/pip install --quiet -c $(LOCK) -e ".[test]"
 	touch $(STAMP)
 
 run: $(STAMP)
 	$(BIN)/backlash run
 
-test: $(STAMP)
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+	$(BIN)/mypy
+
+test: lint
 	$(BIN)/python -m pytest -q
 
 test-slow: $(STAMP)
@@ -26,6 +33,17 @@ bench: $(STAMP)
 
 serve: $(STAMP)
 	$(BIN)/backlash serve
+
+# Re-resolve every dependency to its newest allowed release and pin the result in constraints.txt.
+# Run it on purpose (then `make test`), never from CI.
+lock:
+	rm -rf .lock-venv
+	$(PY) -m venv .lock-venv
+	.lock-venv/bin/pip install --quiet --upgrade pip
+	.lock-venv/bin/pip install --quiet ".[test]"
+	{ echo "# Resolved dependency versions for CI and set-up; regenerate with 'make lock' (README, Dependencies)."; \
+	  .lock-venv/bin/pip freeze --all --exclude-editable | grep -v -i -E '^(backlash|setuptools|wheel)( @|==)' | LC_ALL=C sort -f; } > $(LOCK)
+	rm -rf .lock-venv build *.egg-info
 
 clean:
 	rm -rf $(VENV) out

@@ -53,8 +53,9 @@ def _exec_form(args: str) -> list[str]:
 def test_base_image_and_layer_order(dockerfile: list[tuple[str, str]]) -> None:
     assert dockerfile[0] == ("FROM", "python:3.11-slim")
     copy_pyproject = _index(dockerfile, "COPY", "pyproject.toml")
-    assert dockerfile[copy_pyproject][1].split()[:-1] == ["pyproject.toml"]  # nothing else yet
-    install_deps = _index(dockerfile, "RUN", "pip install -r")
+    # the dependency list and the pinned versions, nothing else yet
+    assert dockerfile[copy_pyproject][1].split()[:-1] == ["pyproject.toml", "constraints.txt"]
+    install_deps = _index(dockerfile, "RUN", "pip install -c constraints.txt -r")
     copy_code = min(_index(dockerfile, "COPY", "engine"), _index(dockerfile, "COPY", "app"))
     install_package = _index(dockerfile, "RUN", "pip install --no-deps .")
     assert copy_pyproject < install_deps < copy_code < install_package
@@ -93,6 +94,7 @@ def test_volume_port_healthcheck_and_command(dockerfile: list[tuple[str, str]]) 
 def test_dockerignore_keeps_local_state_out() -> None:
     ignored = set((REPO / ".dockerignore").read_text().split())
     assert {".git", ".venv", "data", "out", "*.sqlite3"} <= ignored
+    assert not {"constraints.txt", "pyproject.toml"} & ignored  # the dependency layer needs both
 
 
 def test_the_images_command_serves_and_passes_its_health_check(
