@@ -4,6 +4,11 @@ Every value here comes from ``MODEL.md`` (the project's reference plant, copied
 into ``docs/MODEL.md``) or from the paper; the module is the single source the
 rest of the package reads. Changing a value here is a *model change*: bump
 :data:`MODEL_VERSION` and record it in ``docs/model-changes.md``.
+
+The numba kernel (:mod:`engine.simulation._kernel`) freezes the constants it
+reads at compile time, and numba's on-disk cache is keyed on the kernel's own
+source file only: after changing a value here, delete
+``engine/simulation/__pycache__/_kernel.*.nb[ic]`` (or touch ``_kernel.py``).
 """
 
 from __future__ import annotations
@@ -23,8 +28,6 @@ W_B: Final[float] = 2.0 * math.pi * 50.0
 POLE_PAIRS: Final[int] = 2
 #: Mechanical base speed Omega_b = w_b / p [rad/s]; 1 pu speed.
 OMEGA_B: Final[float] = W_B / POLE_PAIRS
-#: Mechanical time constant per unit inertia: T_i = J_i * TM_PER_J [s / (kg m^2)].
-TM_PER_J: Final[float] = 0.86 / 0.87
 
 # --- reference plant (MODEL.md section 1) ----------------------------------
 # Induction motor (section 1.1), per unit.
@@ -57,13 +60,22 @@ D12: Final[float] = 0.5
 K2: Final[float] = 9.0
 #: Damping of the resilient element d_2 [pu torque / pu speed] (chosen).
 D2: Final[float] = 0.02
-#: Nominal backlash zone width K [m]: the middle of the paper's grid, used where a record gives none.
+#: Nominal motor-side inertia J1 [kg m^2] (paper; the first value of its grid K_I).
+J1_NOMINAL: Final[float] = 0.87
+#: Paper's mechanical time constant Tm [s] at the nominal J1.
+TM_NOMINAL: Final[float] = 0.86
+#: Mechanical time constant per unit inertia, T_i = J_i * TM_PER_J (MODEL.md section 1.2) [s / (kg m^2)].
+TM_PER_J: Final[float] = TM_NOMINAL / J1_NOMINAL
+#: Nominal backlash zone width K [m]: the third of the paper's six widths (chosen), the default of a
+#: simulated case.
 K_NOMINAL: Final[float] = 0.005
-#: Nominal apparent viscosity of the absorber c [pu]: used where a record gives none.
+#: Nominal apparent viscosity of the absorber c [pu torque / pu speed]: one of the paper's c groups
+#: (chosen), used where a record gives none.
 C_NOMINAL: Final[float] = 1.0
 #: Discontinuity at zero speed of the absorber characteristic c_1 [pu torque] (paper).
 C1_NOMINAL: Final[float] = 0.2
-#: Speed scale of the smoothed sign functions tanh(w / W_SMOOTH) [pu] (MODEL.md section 1.2).
+#: Speed scale of the smoothed sign functions tanh(w / W_SMOOTH) [pu speed] (MODEL.md section 1.2:
+#: the absorber's c_1 term; also the motor Coulomb-friction extension).
 W_SMOOTH: Final[float] = 1e-3
 
 # --- test protocol (MODEL.md section 2) ------------------------------------
@@ -78,9 +90,7 @@ T_EVENT_MAX: Final[float] = 1.0
 
 # --- paper grids (MODEL.md section 1.2) --------------------------------------
 #: J1 grid K_I [kg m^2], in the paper's order (nominal first).
-J1_GRID: Final[tuple[float, ...]] = (0.87, 0.8482, 0.8265, 0.8047, 0.7612, 0.8917, 0.9135)
-#: Nominal J1 [kg m^2].
-J1_NOMINAL: Final[float] = 0.87
+J1_GRID: Final[tuple[float, ...]] = (J1_NOMINAL, 0.8482, 0.8265, 0.8047, 0.7612, 0.8917, 0.9135)
 #: Backlash zone widths K [m], in the paper's order (index nr5 = 1..6).
 K_GRID: Final[tuple[float, ...]] = (0.0025, 0.00375, 0.005, 0.0075, 0.009, 0.01)
 #: Apparent-viscosity groups c [pu].

@@ -59,6 +59,36 @@ def test_batch_equals_single_runs():
         np.testing.assert_array_equal(batch.channels[i], np.stack([single[c] for c in CHANNELS]))
 
 
+def test_defaults_are_model_md_constants():
+    """PlantParameters' defaults are MODEL.md's values from engine.constants; the step derives from Ts."""
+    from engine import constants as const
+
+    expected = {
+        "K": const.K_NOMINAL,
+        "J1": const.J1_NOMINAL,
+        "J2": const.J2,
+        "T3": const.T3,
+        "c": const.C_NOMINAL,
+        "c1": const.C1_NOMINAL,
+        "r": const.WHEEL_RADIUS,
+        "k12": const.K12,
+        "d12": const.D12,
+        "k2": const.K2,
+        "d2": const.D2,
+        "r_s": const.R_S,
+        "r_r": const.R_R,
+        "x_s": const.X_S,
+        "x_r": const.X_R,
+        "x_m": const.X_M,
+        "u": const.U_SUPPLY,
+        "f": const.F_SUPPLY,
+        "tau_C1": 0.0,
+        "b_1": 0.0,
+    }
+    assert PlantParameters().as_dict() == expected
+    assert SolverSettings().max_step == SAMPLE_INTERVAL / 3
+
+
 def test_full_grid_is_168_distinct_cases():
     grid = full_grid()
     assert len(grid) == 168
@@ -112,7 +142,7 @@ def test_every_effect_is_neutral_at_its_neutral_value_and_acts_otherwise(nominal
     cases.append(apply_effects(Case(NOMINAL), {"sensor_lowpass": 200.0}))
     labels.append(("sensor_lowpass", "strong"))
     res = simulate_batch(cases)
-    for (name, kind), rec in zip(labels, res.channels):
+    for (name, kind), rec in zip(labels, res.channels, strict=True):
         diff = np.max(np.abs(rec - base))
         if kind == "neutral":
             assert diff == 0.0, f"{name} at its neutral value changed the record"

@@ -23,7 +23,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from engine.constants import EVENT_INDEX, N_SAMPLES, OMEGA_B, SAMPLE_INTERVAL, W_B
+from engine.constants import CHANNELS, EVENT_INDEX, N_SAMPLES, OMEGA_B, SAMPLE_INTERVAL, W_B, W_SMOOTH
 
 # parameter vector layout
 P_R_S, P_R_R, P_X_S, P_X_R, P_X_M, P_U, P_F = 0, 1, 2, 3, 4, 5, 6
@@ -33,10 +33,8 @@ P_TAU_C1, P_B_1, P_RADIUS = 17, 18, 19
 P_DELAY, P_LOWPASS, P_STEP, P_T_MAX = 20, 21, 22, 23
 N_PARAMS = 24
 
-N_STATES = 15
-N_CHANNELS = 5
-#: Speed scale of the smoothed sign functions tanh(w / W_SMOOTH) [pu], MODEL.md.
-W_SMOOTH = 1e-3
+N_CHANNELS = len(CHANNELS)
+N_STATES = 10 + N_CHANNELS
 
 # status codes returned per case
 OK = 0
@@ -216,7 +214,7 @@ def advance(t, y, t_end, P, motor_on, work):
     n_bad = 0
     while t_end - t > 1e-15:
         span = t_end - t
-        n = int(math.ceil(span / P[P_STEP] - 1e-9))
+        n = math.ceil(span / P[P_STEP] - 1e-9)
         h = span / max(n, 1)
         taken, crossed = hybrid_step(t, y, h, P, motor_on, work)
         for i in range(y.shape[0]):
@@ -247,7 +245,6 @@ def simulate_one(P, out):
         Event time [s] (NaN unless OK).
     """
     h = P[P_STEP]
-    b = P[P_B]
     y = np.zeros(N_STATES)
     work = (
         np.zeros(N_STATES),

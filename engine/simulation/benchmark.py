@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.simulation.parameters import Case, full_grid
-from engine.simulation.reference import reference_simulate
+from engine.simulation.reference import reference_inputs, reference_simulate
 from engine.simulation.simulator import simulate_batch
 
 logger = logging.getLogger(__name__)
@@ -70,7 +70,7 @@ def run_benchmark(
     t0 = time.perf_counter()
     errs, dts = [], []
     for i, case in enumerate(cases):
-        ref = reference_simulate(case, method="LSODA", rtol=1e-8, atol=1e-10)
+        ref = reference_simulate(*reference_inputs(case), method="LSODA", rtol=1e-8, atol=1e-10)
         pp = np.ptp(ref.channels, axis=1)
         errs.append(np.max(np.abs(fast.channels[i] - ref.channels), axis=1) / np.where(pp > 0, pp, 1.0))
         dts.append(abs(fast.event_times[i] - ref.event_time))

@@ -17,6 +17,7 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Literal
 
+from engine.constants import W_SMOOTH
 from engine.simulation.parameters import Case, ParameterError
 
 
@@ -69,10 +70,14 @@ class Effect:
     def apply(self, case: Case, value: float) -> Case:
         """Return ``case`` with this effect at ``value`` (raises if out of range)."""
         value = self.check(value)
-        part = case.plant if self.target == "plant" else case.sensors
-        new = value * getattr(part, self.field) if self.mode == "multiply" else value
-        part = part.replace(**{self.field: new})
-        return Case(part, case.sensors) if self.target == "plant" else Case(case.plant, part)
+        if self.target == "plant":
+            new = self._new_value(getattr(case.plant, self.field), value)
+            return Case(case.plant.replace(**{self.field: new}), case.sensors)
+        new = self._new_value(getattr(case.sensors, self.field), value)
+        return Case(case.plant, case.sensors.replace(**{self.field: new}))
+
+    def _new_value(self, old: float, value: float) -> float:
+        return value * old if self.mode == "multiply" else value
 
 
 class EffectLibrary(Mapping[str, Effect]):
@@ -113,7 +118,7 @@ CATALOGUE = EffectLibrary(
     [
         Effect(
             "motor_coulomb_friction",
-            "Coulomb friction on the motor shaft: value * tanh(w_1 / 1e-3)",
+            f"Coulomb friction on the motor shaft: value * tanh(w_1 / {W_SMOOTH:g})",
             "plant",
             "tau_C1",
             "set",

@@ -15,7 +15,8 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
-from engine.constants import C_GROUPS, J1_NOMINAL, T_EVENT_MAX, TM_PER_J
+from engine import constants as const
+from engine.constants import C_GROUPS, J1_GRID, K_GRID, SAMPLE_INTERVAL, T_EVENT_MAX, TM_PER_J
 
 
 class ParameterError(ValueError):
@@ -26,14 +27,18 @@ class ParameterError(ValueError):
 class PlantParameters:
     """Reference plant of MODEL.md section 1 (per unit unless stated).
 
+    Every default is MODEL.md's value, read from :mod:`engine.constants` (the
+    single home of the numbers); the nominal K, c and J1 are used where a record
+    gives none.
+
     Parameters
     ----------
     K : float
         Backlash zone width [m]; the clutch dead zone has half-width b = K / r [rad].
     J1 : float
-        Motor-side inertia [kg m^2]; T_1 = J1 * 0.86 / 0.87 [s].
+        Motor-side inertia [kg m^2]; T_1 = J1 * TM_PER_J [s] (TM_PER_J = 0.86 / 0.87 s / (kg m^2)).
     J2 : float
-        Drive-wheel inertia [kg m^2]; T_2 = J2 * 0.86 / 0.87 [s].
+        Drive-wheel inertia [kg m^2]; T_2 = J2 * TM_PER_J [s].
     T3 : float
         Mechanical time constant of the mass m2 referred to the motor shaft [s].
     c : float
@@ -52,29 +57,29 @@ class PlantParameters:
     u, f : float
         Supply voltage amplitude [pu] and frequency [pu of 50 Hz].
     tau_C1 : float
-        Extension: Coulomb friction torque on the motor shaft, tau_C1 * tanh(w_1 / 1e-3) [pu].
+        Extension: Coulomb friction torque on the motor shaft, tau_C1 * tanh(w_1 / W_SMOOTH) [pu].
     b_1 : float
         Extension: viscous friction on the motor shaft, b_1 * w_1 [pu torque / pu speed].
     """
 
-    K: float = 0.005
-    J1: float = J1_NOMINAL
-    J2: float = 0.348
-    T3: float = 0.30
-    c: float = 1.0
-    c1: float = 0.2
-    r: float = 0.1
-    k12: float = 222.0
-    d12: float = 0.5
-    k2: float = 9.0
-    d2: float = 0.02
-    r_s: float = 0.059
-    r_r: float = 0.048
-    x_s: float = 1.92
-    x_r: float = 1.92
-    x_m: float = 1.82
-    u: float = 1.0
-    f: float = 1.0
+    K: float = const.K_NOMINAL
+    J1: float = const.J1_NOMINAL
+    J2: float = const.J2
+    T3: float = const.T3
+    c: float = const.C_NOMINAL
+    c1: float = const.C1_NOMINAL
+    r: float = const.WHEEL_RADIUS
+    k12: float = const.K12
+    d12: float = const.D12
+    k2: float = const.K2
+    d2: float = const.D2
+    r_s: float = const.R_S
+    r_r: float = const.R_R
+    x_s: float = const.X_S
+    x_r: float = const.X_R
+    x_m: float = const.X_M
+    u: float = const.U_SUPPLY
+    f: float = const.F_SUPPLY
     tau_C1: float = 0.0
     b_1: float = 0.0
 
@@ -170,13 +175,13 @@ class SolverSettings:
     ----------
     max_step : float
         Largest RK4 step [s]; every interval between sample instants is split
-        into equal steps no longer than this. 33 us (Ts / 3) meets MODEL.md
+        into equal steps no longer than this. The default Ts / 3 (33 us) meets MODEL.md
         section 4 with a wide margin (tests/test_simulation_accuracy.py).
     t_event_max : float
         Simulated time within which the backlash event must occur [s].
     """
 
-    max_step: float = 1e-4 / 3
+    max_step: float = SAMPLE_INTERVAL / 3
     t_event_max: float = T_EVENT_MAX
 
     def validate(self) -> SolverSettings:
@@ -222,8 +227,6 @@ def paper_grid(
     Returns ``len(K_values) * len(J1_values)`` cases; case ``i * n_J1 + p`` has
     width ``K_values[i]`` and inertia ``J1_values[p]``.
     """
-    from engine.constants import J1_GRID, K_GRID
-
     J1_values = tuple(J1_GRID if J1_values is None else J1_values)
     K_values = tuple(K_GRID if K_values is None else K_values)
     return [Case(PlantParameters(K=K, J1=J1, c=c)) for K in K_values for J1 in J1_values]

@@ -1,133 +1,319 @@
 """Reference solution of the backlash test with scipy's ``solve_ivp``.
 
-An independent transcription of MODEL.md section 1 in complex notation with a
-plain numpy right-hand side; the event is located by ``solve_ivp``'s event
-function. It is slow and exists for two purposes: the accuracy tests of the
-numba kernel (MODEL.md section 4, relative tolerance 1e-9) and the baseline
-of ``bench/bench_simulator.py``. Sensors: the measurement delay is supported
-(sample instants shift); low-pass and quantisation are not.
+A second, independent transcription of MODEL.md and of the effect catalogue,
+used as the yardstick of the numba kernel (MODEL.md section 4, relative
+tolerance 1e-9; ``tests/test_simulation_accuracy.py``) and as the baseline of
+``bench/bench_simulator.py``. It is slow on purpose: plain numpy, complex
+notation, the events located by ``solve_ivp``'s event functions.
+
+Independence
+------------
+The reference shares no code with the kernel's physics path: it does not use
+:class:`~engine.simulation.parameters.PlantParameters`,
+:func:`~engine.simulation.effects.apply_effects` or the kernel. Its input is a
+flat mapping of MODEL.md's names to values (:data:`MODEL_DEFAULTS`), plus
+effects by catalogue name, and it writes every effect's physics out again
+from the effect's documented meaning (:data:`EFFECT_NEUTRAL`). The only thing
+shared are the *numbers* of the spec, read from :mod:`engine.constants`.
+
+Sensor chain
+------------
+Applied in the order of the measurement:
+
+1. **Delay**: sample k is taken at ``t_e + (k - 48) Ts - delay``; an instant
+   before switch-on reads the plant at rest (zeros).
+2. **First-order low-pass** on every channel, ``tau dy/dt = x - y`` with
+   ``tau = 1 / (2 pi f_c)``, integrated as five extra ODE states from
+   ``t = 0`` together with the plant (so to the solver's tolerance); the
+   filter states are continuous across the event.
+3. **Quantisation** of omega1 to the nearest multiple of the quantum
+   (``q * floor(x / q + 1/2)``), after sampling.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from engine.constants import EVENT_INDEX, N_SAMPLES, OMEGA_B, SAMPLE_INTERVAL, T_EVENT_MAX, W_B
-from engine.simulation.parameters import Case, PlantParameters
+from engine import constants as const
+from engine.constants import (
+    CHANNELS,
+    EVENT_INDEX,
+    N_SAMPLES,
+    OMEGA_B,
+    SAMPLE_INTERVAL,
+    T_EVENT_MAX,
+    TM_PER_J,
+    W_B,
+    W_SMOOTH,
+)
 
-W_SMOOTH = 1e-3  # pu, MODEL.md's smoothing of the sign functions
+if TYPE_CHECKING:
+    from engine.simulation.parameters import Case
+
+#: MODEL.md's parameters by their MODEL.md names, at the spec's values.
+MODEL_DEFAULTS: Mapping[str, float] = {
+    "r_s": const.R_S,
+    "r_r": const.R_R,
+    "x_s": const.X_S,
+    "x_r": const.X_R,
+    "x_m": const.X_M,
+    "u": const.U_SUPPLY,
+    "f": const.F_SUPPLY,
+    "J1": const.J1_NOMINAL,
+    "J2": const.J2,
+    "T3": const.T3,
+    "r": const.WHEEL_RADIUS,
+    "K": const.K_NOMINAL,
+    "c": const.C_NOMINAL,
+    "c1": const.C1_NOMINAL,
+    "k12": const.K12,
+    "d12": const.D12,
+    "k2": const.K2,
+    "d2": const.D2,
+}
+
+#: The catalogued effects this reference implements, at their "no effect" value.
+#: Their meaning, as written in the catalogue and ``docs/model-changes.md``:
+#: the two motor frictions add a torque on the motor shaft, the ``*_drift`` /
+#: stiffness / damping / inertia / discontinuity / voltage effects multiply one
+#: MODEL.md parameter, and the three sensor effects build the measurement chain
+#: of the module docstring.
+EFFECT_NEUTRAL: Mapping[str, float] = {
+    "motor_coulomb_friction": 0.0,  # pu torque: + value * tanh(w_1 / W_SMOOTH) on the motor shaft
+    "motor_viscous_friction": 0.0,  # pu torque / pu speed: + value * w_1 on the motor shaft
+    "rotor_resistance_drift": 1.0,  # r_r -> value * r_r
+    "stator_resistance_drift": 1.0,  # r_s -> value * r_s
+    "contact_stiffness": 1.0,  # k_12 -> value * k_12
+    "contact_damping": 1.0,  # d_12 -> value * d_12
+    "resilient_stiffness": 1.0,  # k_2 -> value * k_2
+    "load_inertia": 1.0,  # J2 -> value * J2
+    "absorber_discontinuity": 1.0,  # c_1 -> value * c_1
+    "supply_voltage": 1.0,  # u -> value * u
+    "speed_quantization": 0.0,  # rad/s: omega1 rounded to multiples of value (0: none)
+    "measurement_delay": 0.0,  # s: every channel recorded value late
+    "sensor_lowpass": 0.0,  # Hz: first-order low-pass of cut-off value on every channel (0: none)
+}
+
+_N_PLANT = 10  # psi_s (2), psi_r (2), w_1..3, theta_1..3
+_N_CHANNELS = len(CHANNELS)
+_OMEGA1 = CHANNELS.index("omega1")
 
 
 @dataclass(frozen=True)
 class ReferenceResult:
-    """Channels (5, 2048) in CHANNELS order and the event time t_e [s]."""
+    """Record of the reference solution.
+
+    Attributes
+    ----------
+    channels : ndarray, shape (5, 2048)
+        a1 [m/s^2], m_el [pu], omega1 [rad/s], a2 [m/s^2], v2 [m/s] after the
+        whole sensor chain.
+    unquantised : ndarray, shape (5, 2048)
+        The same before the quantisation of omega1 (delay and low-pass applied).
+    event_time : float
+        t_e [s] since switch-on.
+    n_rhs : int
+        Right-hand-side evaluations.
+    """
 
     channels: np.ndarray
+    unquantised: np.ndarray
     event_time: float
     n_rhs: int
 
 
-class ReferenceModel:
-    """Right-hand side of MODEL.md in complex notation; state [psi_s, psi_r, w, theta] (10 reals)."""
+def _resolve(parameters: Mapping[str, float] | None, effects: Mapping[str, float] | None) -> dict[str, float]:
+    values = dict(MODEL_DEFAULTS)
+    for name, value in (parameters or {}).items():
+        if name not in MODEL_DEFAULTS:
+            raise ValueError(f"unknown MODEL.md parameter {name!r}; known: {', '.join(MODEL_DEFAULTS)}")
+        values[name] = float(value)
+    for name in effects or {}:
+        if name not in EFFECT_NEUTRAL:
+            raise ValueError(f"the reference does not implement effect {name!r}; known: {', '.join(EFFECT_NEUTRAL)}")
+    values.update({name: float((effects or {}).get(name, neutral)) for name, neutral in EFFECT_NEUTRAL.items()})
+    return values
 
-    def __init__(self, p: PlantParameters):
-        self.p = p
-        det = p.x_s * p.x_r - p.x_m**2
+
+class ReferenceModel:
+    """Right-hand side of MODEL.md plus the catalogued effects, in complex notation.
+
+    State: [Re psi_s, Re psi_r, Im psi_s, Im psi_r, w_1, w_2, w_3, theta_1,
+    theta_2, theta_3] and, with a low-pass sensor, the five filtered channels.
+
+    Parameters
+    ----------
+    values : mapping
+        Every MODEL.md name and every effect name of :data:`EFFECT_NEUTRAL`
+        (see :func:`reference_simulate`).
+    """
+
+    def __init__(self, values: Mapping[str, float]):
+        v = values
+        self.u = v["u"] * v["supply_voltage"]
+        self.f = v["f"]
+        self.r_s = v["r_s"] * v["stator_resistance_drift"]
+        self.r_r = v["r_r"] * v["rotor_resistance_drift"]
+        det = v["x_s"] * v["x_r"] - v["x_m"] ** 2
         # [i_s, i_r] = L^-1 [psi_s, psi_r]
-        self.Linv = np.array([[p.x_r, -p.x_m], [-p.x_m, p.x_s]]) / det
-        self.T = np.array([p.T1, p.T2, p.T3])
+        self.Linv = np.array([[v["x_r"], -v["x_m"]], [-v["x_m"], v["x_s"]]]) / det
+        # MODEL.md: T_i = J_i * 0.86 / 0.87 s; T_3 is given directly
+        self.T = np.array([v["J1"] * TM_PER_J, v["J2"] * v["load_inertia"] * TM_PER_J, v["T3"]])
+        self.half_gap = v["K"] / v["r"]
+        self.k12 = v["k12"] * v["contact_stiffness"]
+        self.d12 = v["d12"] * v["contact_damping"]
+        self.k2, self.d2 = v["k2"] * v["resilient_stiffness"], v["d2"]
+        self.c, self.c1 = v["c"], v["c1"] * v["absorber_discontinuity"]
+        self.coulomb, self.viscous = v["motor_coulomb_friction"], v["motor_viscous_friction"]
+        self.r = v["r"]
+        fc = v["sensor_lowpass"]
+        self.filter_rate = 2.0 * math.pi * fc if fc > 0 else 0.0  # 1 / tau [1/s]
+        self.n_states = _N_PLANT + (_N_CHANNELS if self.filter_rate else 0)
         self.n_rhs = 0
 
     def derivatives(self, t: float, y: np.ndarray, motor_on: bool) -> tuple[np.ndarray, np.ndarray]:
-        """(dy/dt, [dw_1/dt, m_el, w_1, dw_3/dt, w_3])."""
+        """dy/dt and the unfiltered channels [a1, m_el, omega1, a2, v2] (MODEL.md section 3 units)."""
         self.n_rhs += 1
-        p = self.p
         psi = y[0:2] + 1j * y[2:4]  # [psi_s, psi_r]
         w, th = y[4:7], y[7:10]
         dpsi = np.zeros(2, dtype=complex)
         m_el = 0.0
         if motor_on:
             i_s, i_r = self.Linv @ psi
-            u_s = p.u * np.exp(1j * p.f * W_B * t)
-            dpsi[0] = W_B * (u_s - p.r_s * i_s)
-            dpsi[1] = W_B * (-p.r_r * i_r + 1j * w[0] * psi[1])
+            u_s = self.u * np.exp(1j * self.f * W_B * t)
+            dpsi[0] = W_B * (u_s - self.r_s * i_s)
+            dpsi[1] = W_B * (-self.r_r * i_r + 1j * w[0] * psi[1])
             m_el = float(np.imag(np.conj(psi[0]) * i_s))
-        d, dw, b = th[0] - th[1], w[0] - w[1], p.b
+        d, dw, b = th[0] - th[1], w[0] - w[1], self.half_gap
         if d > b:
-            m_c = max(0.0, p.k12 * (d - b) + p.d12 * dw)
+            m_c = max(0.0, self.k12 * (d - b) + self.d12 * dw)
         elif d < -b:
-            m_c = min(0.0, p.k12 * (d + b) + p.d12 * dw)
+            m_c = min(0.0, self.k12 * (d + b) + self.d12 * dw)
         else:
             m_c = 0.0
-        m_s = p.k2 * (th[1] - th[2]) + p.d2 * (w[1] - w[2])
-        m_a = p.c * w[2] + p.c1 * np.tanh(w[2] / W_SMOOTH)
-        m_f = p.tau_C1 * np.tanh(w[0] / W_SMOOTH) + p.b_1 * w[0]
+        m_s = self.k2 * (th[1] - th[2]) + self.d2 * (w[1] - w[2])
+        m_a = self.c * w[2] + self.c1 * np.tanh(w[2] / W_SMOOTH)
+        m_f = self.coulomb * np.tanh(w[0] / W_SMOOTH) + self.viscous * w[0]
         dw_dt = np.array([m_el - m_c - m_f, m_c - m_s, m_s - m_a]) / self.T
-        dy = np.concatenate([dpsi.real, dpsi.imag, dw_dt, OMEGA_B * w])
-        return dy, np.array([dw_dt[0], m_el, w[0], dw_dt[2], w[2]])
+        raw = np.array(
+            [self.r * OMEGA_B * dw_dt[0], m_el, OMEGA_B * w[0], self.r * OMEGA_B * dw_dt[2], self.r * OMEGA_B * w[2]]
+        )
+        parts = [dpsi.real, dpsi.imag, dw_dt, OMEGA_B * w]
+        if self.filter_rate:
+            parts.append(self.filter_rate * (raw - y[_N_PLANT:]))
+        return np.concatenate(parts), raw
 
     def channels(self, t: float, y: np.ndarray, motor_on: bool) -> np.ndarray:
-        """Channel values a1, m_el, omega1, a2, v2 in MODEL.md section 3 units."""
-        _, q = self.derivatives(t, y, motor_on)
-        r = self.p.r
-        return np.array([r * OMEGA_B * q[0], q[1], OMEGA_B * q[2], r * OMEGA_B * q[3], r * OMEGA_B * q[4]])
+        """Channels a1, m_el, omega1, a2, v2 as the sensors read them at (t, y), before quantisation."""
+        if self.filter_rate:
+            return np.array(y[_N_PLANT:], dtype=float)
+        return self.derivatives(t, y, motor_on)[1]
 
 
 def reference_simulate(
-    case: Case | PlantParameters, method: str = "DOP853", rtol: float = 1e-9, atol: float = 1e-12
+    parameters: Mapping[str, float] | None = None,
+    effects: Mapping[str, float] | None = None,
+    method: str = "DOP853",
+    rtol: float = 1e-9,
+    atol: float = 1e-12,
 ) -> ReferenceResult:
     """Solve the backlash test with ``solve_ivp`` (see the module docstring).
 
+    Parameters
+    ----------
+    parameters : mapping, optional
+        MODEL.md parameters that differ from :data:`MODEL_DEFAULTS`, by their
+        MODEL.md names (e.g. ``{"K": 0.005, "J1": 0.87, "c": 1.0}``).
+    effects : mapping, optional
+        Catalogued effects by name and value (keys of :data:`EFFECT_NEUTRAL`).
+    method, rtol, atol
+        ``solve_ivp`` settings.
+
+    Returns
+    -------
+    ReferenceResult
+
     Raises
     ------
+    ValueError
+        An unknown parameter or effect name.
     RuntimeError
         No event within 1 s, or the solver failed.
     """
-    case = case if isinstance(case, Case) else Case(case)
-    p, delay = case.plant, case.sensors.delay
-    model = ReferenceModel(p)
+    values = _resolve(parameters, effects)
+    model = ReferenceModel(values)
+    b = model.half_gap
 
-    def f_on(t, y):
+    def f_on(t: float, y: np.ndarray) -> np.ndarray:
         return model.derivatives(t, y, True)[0]
 
-    def f_off(t, y):
+    def f_off(t: float, y: np.ndarray) -> np.ndarray:
         return model.derivatives(t, y, False)[0]
 
-    def gap(t, y):
-        return abs(y[7] - y[8]) - p.b
+    def event(direction: float) -> Callable[[float, np.ndarray], float]:
+        def gap(t: float, y: np.ndarray) -> float:
+            return float(abs(y[7] - y[8]) - b)
 
-    contact = lambda t, y: gap(t, y)  # noqa: E731
-    contact.terminal, contact.direction = True, 1.0
-    reentry = lambda t, y: gap(t, y)  # noqa: E731
-    reentry.terminal, reentry.direction = True, -1.0
+        gap.terminal = True  # type: ignore[attr-defined]
+        gap.direction = direction  # type: ignore[attr-defined]
+        return gap
 
-    kw = dict(method=method, rtol=rtol, atol=atol, dense_output=True)
-    y0 = np.zeros(10)
-    s1 = solve_ivp(f_on, (0.0, T_EVENT_MAX), y0, events=contact, **kw)
+    kw: dict[str, Any] = dict(method=method, rtol=rtol, atol=atol, dense_output=True)
+    y0 = np.zeros(model.n_states)
+    s1 = solve_ivp(f_on, (0.0, T_EVENT_MAX), y0, events=event(1.0), **kw)
     if s1.status != 1:
         raise RuntimeError(f"reference: no first contact within {T_EVENT_MAX} s ({s1.message})")
     t_c = s1.t_events[0][0]
-    s2 = solve_ivp(f_on, (t_c, T_EVENT_MAX), s1.y_events[0][0], events=reentry, **kw)
+    s2 = solve_ivp(f_on, (t_c, T_EVENT_MAX), s1.y_events[0][0], events=event(-1.0), **kw)
     if s2.status != 1:
         raise RuntimeError(f"reference: no re-entry into the backlash zone within {T_EVENT_MAX} s ({s2.message})")
     t_e = float(s2.t_events[0][0])
     y_e = s2.y_events[0][0]
-    t_k = t_e + (np.arange(N_SAMPLES) - EVENT_INDEX) * SAMPLE_INTERVAL - delay
+    t_k = t_e + (np.arange(N_SAMPLES) - EVENT_INDEX) * SAMPLE_INTERVAL - values["measurement_delay"]
     s3 = solve_ivp(f_off, (t_e, t_k[-1] + 1e-12), y_e, **kw)
     if not s3.success:
         raise RuntimeError(f"reference: solver failed after the event ({s3.message})")
-    out = np.zeros((5, N_SAMPLES))
+    analog = np.zeros((_N_CHANNELS, N_SAMPLES))
     for k, t in enumerate(t_k):
         if t < 0:
-            continue
+            continue  # before switch-on: the plant at rest
         if t < t_c:
             y, on = s1.sol(t), True
         elif t < t_e:
             y, on = s2.sol(t), True
         else:
             y, on = s3.sol(t), False
-        out[:, k] = model.channels(t, y, on)
-    return ReferenceResult(out, t_e, model.n_rhs)
+        analog[:, k] = model.channels(t, y, on)
+    out = analog.copy()
+    q = values["speed_quantization"]
+    if q > 0:
+        out[_OMEGA1] = q * np.floor(analog[_OMEGA1] / q + 0.5)
+    return ReferenceResult(out, analog, t_e, model.n_rhs)
+
+
+def reference_inputs(case: Case) -> tuple[dict[str, float], dict[str, float]]:
+    """The reference's ``(parameters, effects)`` for a simulator :class:`~engine.simulation.parameters.Case`.
+
+    A thin adapter for running both on cases built for the kernel (the
+    benchmark's grid): MODEL.md fields are copied by name, the plant's
+    extension fields and the sensor chain become their catalogue effects.
+    Multiplicative effects are already folded into the case's values. The
+    accuracy tests describe their cases to the reference directly, so that
+    :func:`~engine.simulation.effects.apply_effects` is checked too.
+    """
+    p, s = case.plant, case.sensors
+    parameters = {name: float(getattr(p, name)) for name in MODEL_DEFAULTS}
+    effects = {
+        "motor_coulomb_friction": p.tau_C1,
+        "motor_viscous_friction": p.b_1,
+        "measurement_delay": s.delay,
+        "sensor_lowpass": s.lowpass_hz,
+        "speed_quantization": s.speed_quantum,
+    }
+    return parameters, effects

@@ -12,6 +12,7 @@ import threading
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Final
 
 import numpy as np
 
@@ -22,6 +23,9 @@ from engine.simulation.effects import apply_effects
 from engine.simulation.parameters import Case, PlantParameters, SolverSettings
 
 logger = logging.getLogger(__name__)
+
+#: Integrator settings used when a caller gives none (immutable, so one shared instance).
+DEFAULT_SOLVER: Final[SolverSettings] = SolverSettings()
 
 _STATUS_TEXT = {
     kern.NO_EVENT: "no backlash event (re-entry into the zone after first contact) within {t_max} s of simulated time",
@@ -118,7 +122,7 @@ class SimulationResult:
         return [self.record(i) for i in range(len(self))]
 
 
-def parameter_vector(case: Case, solver: SolverSettings = SolverSettings()) -> np.ndarray:
+def parameter_vector(case: Case, solver: SolverSettings = DEFAULT_SOLVER) -> np.ndarray:
     """Kernel parameter vector of one case (see the ``P_*`` layout in the kernel)."""
     p, s = case.plant, case.sensors
     P = np.empty(kern.N_PARAMS)
@@ -135,7 +139,7 @@ def parameter_vector(case: Case, solver: SolverSettings = SolverSettings()) -> n
 
 
 def run_cases(
-    cases: Sequence[Case], solver: SolverSettings = SolverSettings()
+    cases: Sequence[Case], solver: SolverSettings = DEFAULT_SOLVER
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Simulate validated cases without raising: (channels, event_times, status).
 
@@ -165,7 +169,7 @@ def run_cases(
 def simulate_batch(
     cases: Sequence[Case | PlantParameters],
     effects: Mapping[str, float] | Sequence[Mapping[str, float]] | None = None,
-    solver: SolverSettings = SolverSettings(),
+    solver: SolverSettings = DEFAULT_SOLVER,
 ) -> SimulationResult:
     """Simulate many cases of the backlash test in one call.
 
@@ -195,7 +199,7 @@ def simulate_batch(
         per_case = [effects] * len(norm) if isinstance(effects, Mapping) else list(effects)
         if len(per_case) != len(norm):
             raise ValueError(f"got {len(per_case)} effect mappings for {len(norm)} cases")
-        norm = [apply_effects(c, e) for c, e in zip(norm, per_case)]
+        norm = [apply_effects(c, e) for c, e in zip(norm, per_case, strict=True)]
     for c in norm:
         c.validate()
     out, t_e, status = run_cases(norm, solver)
@@ -209,7 +213,7 @@ def simulate_batch(
 def simulate(
     case: Case | PlantParameters,
     effects: Mapping[str, float] | None = None,
-    solver: SolverSettings = SolverSettings(),
+    solver: SolverSettings = DEFAULT_SOLVER,
 ) -> Record:
     """Simulate one case and return its record (see :func:`simulate_batch`)."""
     return simulate_batch([case], effects, solver).record(0)
