@@ -9,6 +9,7 @@ from engine.simulation import (
     Case,
     ParameterError,
     PlantParameters,
+    SensorParameters,
     SimulationError,
     SolverSettings,
     UnknownEffectError,
@@ -212,3 +213,27 @@ def test_serial_kernel_matches_the_parallel_one_and_runs_concurrently():
         np.testing.assert_array_equal(r, expected)
     # single cases take the serial path too, and the context is left as it was
     np.testing.assert_array_equal(simulate_batch(cases[:1]).channels[0], expected[0])
+
+
+def test_a_diverged_integration_is_a_failure_never_a_nan_record():
+    """A sensor low-pass too fast for the RK4 step blows up; the result must say so, not hold NaNs."""
+    from engine.simulation import _kernel as kern
+    from engine.simulation.simulator import run_cases
+
+    fast = Case(PlantParameters(), SensorParameters(lowpass_hz=50_000.0))
+    out, _, status = run_cases([fast, Case()], SolverSettings())
+    assert status.tolist() == [kern.NON_FINITE, kern.OK]
+    assert np.all(np.isfinite(out[1]))
+
+
+def test_a_lowpass_too_fast_for_the_step_is_refused_with_the_limit():
+    from engine.simulation.simulator import LOWPASS_STEP_LIMIT
+
+    solver = SolverSettings()
+    f_max = LOWPASS_STEP_LIMIT / (2 * np.pi * solver.max_step)
+    with pytest.raises(ParameterError, match=rf"at most {f_max:.0f} Hz"):
+        simulate(Case(PlantParameters(), SensorParameters(lowpass_hz=20_000.0)), solver=solver)
+    # just below the limit it simulates, and finer steps admit faster filters
+    near = simulate(Case(PlantParameters(), SensorParameters(lowpass_hz=0.95 * f_max)))
+    assert all(np.all(np.isfinite(x)) for x in near.channels.values())
+    simulate(Case(PlantParameters(), SensorParameters(lowpass_hz=20_000.0)), solver=SolverSettings(max_step=1e-5))

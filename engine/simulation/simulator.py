@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import logging
+import math
 import threading
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -20,7 +21,7 @@ from engine.constants import CHANNELS, EVENT_INDEX, N_SAMPLES, SAMPLE_INTERVAL
 from engine.records import Record
 from engine.simulation import _kernel as kern
 from engine.simulation.effects import apply_effects
-from engine.simulation.parameters import Case, PlantParameters, SolverSettings
+from engine.simulation.parameters import Case, ParameterError, PlantParameters, SolverSettings
 
 logger = logging.getLogger(__name__)
 
@@ -138,6 +139,36 @@ def parameter_vector(case: Case, solver: SolverSettings = DEFAULT_SOLVER) -> np.
     return P
 
 
+#: Largest |lambda h| of a first-order sensor filter (lambda = 2 pi f_c) for which the fixed-step
+#: RK4 is used: the method's real-axis stability limit is 2.785; 2.0 keeps a margin.
+LOWPASS_STEP_LIMIT: float = 2.0
+
+
+def check_step(case: Case, solver: SolverSettings) -> None:
+    """Raise :class:`ParameterError` when the integrator step cannot resolve the case's sensor low-pass.
+
+    Parameters
+    ----------
+    case : Case
+        Its ``sensors.lowpass_hz`` [Hz] (0 = none) is checked.
+    solver : SolverSettings
+        Its ``max_step`` [s] is the RK4 step.
+
+    Raises
+    ------
+    ParameterError
+        When ``2 pi lowpass_hz max_step > LOWPASS_STEP_LIMIT``: the filter state would be
+        integrated unstably (the record would be garbage, not an answer).
+    """
+    f_c = case.sensors.lowpass_hz
+    if f_c > 0 and 2.0 * math.pi * f_c * solver.max_step > LOWPASS_STEP_LIMIT:
+        f_max = LOWPASS_STEP_LIMIT / (2.0 * math.pi * solver.max_step)
+        raise ParameterError(
+            f"lowpass_hz = {f_c:g} Hz is too fast for the integrator step {solver.max_step:.3g} s: "
+            f"at most {f_max:.0f} Hz (or a smaller max_step)"
+        )
+
+
 def run_cases(
     cases: Sequence[Case], solver: SolverSettings = DEFAULT_SOLVER
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -157,6 +188,9 @@ def run_cases(
     elif n:
         with _KERNEL_LOCK:
             kern.simulate_many(P, out, t_e, status)
+    # a record with a non-finite sample is a failed integration, never a result
+    diverged = (status == kern.OK) & ~np.isfinite(out).all(axis=(1, 2))
+    status[diverged] = kern.NON_FINITE
     # sensor quantisation of omega1 (post-sampling: a property of the reading)
     for i, case in enumerate(cases):
         q = case.sensors.speed_quantum
@@ -202,6 +236,7 @@ def simulate_batch(
         norm = [apply_effects(c, e) for c, e in zip(norm, per_case, strict=True)]
     for c in norm:
         c.validate()
+        check_step(c, solver)
     out, t_e, status = run_cases(norm, solver)
     failures = {i: _STATUS_TEXT[int(s)].format(t_max=solver.t_event_max) for i, s in enumerate(status) if s != kern.OK}
     if failures:
