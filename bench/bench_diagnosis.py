@@ -2,8 +2,9 @@
 
 Three parts, each optional:
 
-* ``--calibration N``: calibrate N simulated records (K uniform in [0.0025, 0.01] m,
-  J1 in [0.75, 0.93] kg m^2, c in [0.8, 1.5], c1 = 0.2 known, white noise at
+* ``--calibration N``: calibrate N simulated records (K, J1, c uniform in the
+  operating range, ``engine.diagnosis.space.OPERATING_RANGE``: K in [0.0025, 0.01] m,
+  J1 in [0.75, 0.93] kg m^2, c in [0.8, 1.5]; c1 = 0.2 known, white noise at
   ``--snr`` dB) and report how often the fit lands in the basin (|K error| < 3 %
   and |J1 error| < 1.5 %), the K error, the spread of (error / reported
   uncertainty), simulations and time per calibration.
@@ -18,6 +19,8 @@ Examples::
 
     python bench/bench_diagnosis.py --calibration 20 --timing 20 --seed 11
     python bench/bench_diagnosis.py --validation 200 --workers 2 --out out/diagnosis-validation
+
+Progress goes to the log (stderr); the results are printed as JSON (stdout).
 """
 
 from __future__ import annotations
@@ -28,23 +31,28 @@ import logging
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+logger = logging.getLogger("bench_diagnosis")
 
-def bench_calibration(n: int, snr_db: float, seed: int) -> dict:
+
+def bench_calibration(n: int, snr_db: float, seed: int) -> dict[str, Any]:
     from engine.diagnosis import calibrate
+    from engine.diagnosis.space import OPERATING_RANGE
     from engine.records import Record
     from engine.simulation import Case, PlantParameters, simulate_batch
     from engine.simulation.noise import noise_std
 
     rng = np.random.default_rng(seed)
+    (K_lo, K_hi, _), (J1_lo, J1_hi, _), (c_lo, c_hi, _) = (OPERATING_RANGE[k] for k in ("K", "J1", "c"))
     plants = [
-        PlantParameters(K=rng.uniform(0.0025, 0.01), J1=rng.uniform(0.75, 0.93), c=rng.uniform(0.8, 1.5))
+        PlantParameters(K=rng.uniform(K_lo, K_hi), J1=rng.uniform(J1_lo, J1_hi), c=rng.uniform(c_lo, c_hi))
         for _ in range(n)
     ]
     sims = simulate_batch([Case(p) for p in plants])
-    rows = []
+    rows: list[dict[str, float]] = []
     for i, p in enumerate(plants):
         x = sims.channels[i]
         noisy = x + rng.standard_normal(x.shape) * noise_std(x, snr_db, axis=1)
@@ -69,23 +77,32 @@ def bench_calibration(n: int, snr_db: float, seed: int) -> dict:
                 "seconds": dt,
             }
         )
-        print(
-            f"  {i + 1:3d}/{n}: K {p.K:.5f} J1 {p.J1:.4f} c {p.c:.3f} -> K err {100 * eK:+.4f} %, "
-            f"J1 err {100 * eJ:+.4f} %, c err {100 * ec:+.3f} %, chi2/n {cal.reduced_chi2:.3f}, "
-            f"{cal.n_simulations} sims, {dt:.1f} s",
-            file=sys.stderr,
+        logger.info(
+            "  %3d/%d: K %.5f J1 %.4f c %.3f -> K err %+.4f %%, J1 err %+.4f %%, c err %+.3f %%, chi2/n %.3f, "
+            "%d sims, %.1f s",
+            i + 1,
+            n,
+            p.K,
+            p.J1,
+            p.c,
+            100 * eK,
+            100 * eJ,
+            100 * ec,
+            cal.reduced_chi2,
+            cal.n_simulations,
+            dt,
         )
-    eK = np.array([r["eK"] for r in rows])
-    eJ = np.array([r["eJ1"] for r in rows])
-    inb = (np.abs(eK) < 0.03) & (np.abs(eJ) < 0.015)
+    err_K = np.array([r["eK"] for r in rows])
+    err_J = np.array([r["eJ1"] for r in rows])
+    inb = (np.abs(err_K) < 0.03) & (np.abs(err_J) < 0.015)
     pulls = np.array([r["pull_K"] for r in rows])[inb]
     return {
         "n": n,
         "snr_db": snr_db,
         "in_basin": int(inb.sum()),
-        "median_abs_K_error_pct": float(100 * np.median(np.abs(eK))),
-        "max_abs_K_error_pct_in_basin": float(100 * np.max(np.abs(eK[inb]))) if inb.any() else None,
-        "median_abs_J1_error_pct": float(100 * np.median(np.abs(eJ))),
+        "median_abs_K_error_pct": float(100 * np.median(np.abs(err_K))),
+        "max_abs_K_error_pct_in_basin": float(100 * np.max(np.abs(err_K[inb]))) if inb.any() else None,
+        "median_abs_J1_error_pct": float(100 * np.median(np.abs(err_J))),
         "median_abs_pull_K": float(np.median(np.abs(pulls))) if pulls.size else None,
         "median_chi2_n": float(np.median([r["chi2_n"] for r in rows])),
         "mean_simulations": float(np.mean([r["n_sim"] for r in rows])),
@@ -94,7 +111,7 @@ def bench_calibration(n: int, snr_db: float, seed: int) -> dict:
     }
 
 
-def bench_timing(n: int, seed: int, n_jobs: int | None = None) -> dict:
+def bench_timing(n: int, seed: int, n_jobs: int | None = None) -> dict[str, Any]:
     """Wall time of full diagnoses of ``n`` blind-validation-style cases, one after the other.
 
     The cases come from :func:`engine.diagnosis.validation.generate_cases`
@@ -105,17 +122,15 @@ def bench_timing(n: int, seed: int, n_jobs: int | None = None) -> dict:
     """
     import numba
 
-    from engine.diagnosis import diagnose
-    from engine.diagnosis.candidates import CandidateSettings
-    from engine.diagnosis.diagnose import DiagnosisSettings
+    from engine.diagnosis import CandidateSettings, DiagnosisSettings, diagnose
     from engine.diagnosis.validation import generate_cases
     from engine.simulation import CATALOGUE, EffectLibrary
 
     cases, key = generate_cases(n, seed, fractions={"effect": 0.4, "left_out": 0.4, "clean": 0.2})
     settings = DiagnosisSettings(candidates=CandidateSettings(n_jobs=n_jobs))
     diagnose(cases[0].record, EffectLibrary([CATALOGUE[x] for x in cases[0].library]), settings)  # JIT warm-up
-    rows = []
-    for case, truth in zip(cases, key):
+    rows: list[dict[str, Any]] = []
+    for case, truth in zip(cases, key, strict=True):
         lib = EffectLibrary([CATALOGUE[x] for x in case.library])
         t0 = time.perf_counter()
         res = diagnose(case.record, lib, settings)
@@ -130,10 +145,14 @@ def bench_timing(n: int, seed: int, n_jobs: int | None = None) -> dict:
                 "n_simulations": res.n_simulations,
             }
         )
-        print(
-            f"  {case.case_id} {truth.kind:8s} {truth.effect!s:24s} -> {res.verdict.status:11s} "
-            f"{dt:5.1f} s, {res.n_simulations} simulations",
-            file=sys.stderr,
+        logger.info(
+            "  %s %-8s %-24s -> %-11s %5.1f s, %d simulations",
+            case.case_id,
+            truth.kind,
+            truth.effect,
+            res.verdict.status,
+            dt,
+            res.n_simulations,
         )
     t = np.array([r["seconds"] for r in rows])
     by_status = {}
@@ -151,6 +170,11 @@ def bench_timing(n: int, seed: int, n_jobs: int | None = None) -> dict:
         "over_30_s": int(np.sum(t > 30.0)),
         "by_verdict": by_status,
     }
+
+
+def _emit(text: str) -> None:
+    """Write one result to stdout (the log goes to stderr)."""
+    sys.stdout.write(text.rstrip("\n") + "\n")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -180,19 +204,23 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("out/diagnosis-validation"))
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s", stream=sys.stderr)
-    for name in ("engine.diagnosis.calibration", "engine.diagnosis.candidates", "engine.diagnosis.diagnose"):
+    for name in (
+        "engine.diagnosis.calibration",
+        "engine.diagnosis.candidates",
+        "engine.diagnosis.diagnose",
+    ):
         logging.getLogger(name).setLevel(logging.WARNING)
     if not (args.calibration or args.timing or args.validation):
         args.calibration, args.timing = 20, 20
     if args.calibration:
         res = bench_calibration(args.calibration, args.snr, args.seed)
-        print(json.dumps({k: v for k, v in res.items() if k != "rows"}, indent=1))
+        _emit(json.dumps({k: v for k, v in res.items() if k != "rows"}, indent=1))
     if args.timing:
         res = bench_timing(args.timing, args.seed, args.jobs)
-        print(json.dumps(res, indent=1))
+        _emit(json.dumps(res, indent=1))
         if args.baseline:
             base = bench_timing(args.timing, args.seed, 1)
-            print(
+            _emit(
                 json.dumps(
                     {
                         "baseline_n_jobs_1": base,
@@ -206,9 +234,8 @@ def main(argv: list[str] | None = None) -> int:
         from engine.diagnosis.validation import run_validation
 
         rep = run_validation(args.validation, args.seed, args.out, workers=args.workers)
-        print(rep.table())
-        print()
-        print(rep.confusion_table())
+        _emit(rep.table() + "\n")
+        _emit(rep.confusion_table())
     return 0
 
 

@@ -85,6 +85,27 @@ def test_calibration_raises_when_nothing_can_be_simulated(clean):
         calibrate(rec, settings=CalibrationSettings(n_global=16))
 
 
+def test_search_box_is_the_operating_range_widened_by_its_margin():
+    from engine.diagnosis.space import DEFAULT_BOUNDS, OPERATING_RANGE, SEARCH_MARGIN
+    from engine.diagnosis.validation import C_RANGE, J1_RANGE, K_RANGE
+
+    # the values the calibration and the blind validation have always used, exactly
+    assert DEFAULT_BOUNDS == {
+        "K": (0.0022, 0.0105, "m"),
+        "J1": (0.72, 0.96, "kg m^2"),
+        "c": (0.75, 1.6, "pu"),
+        "c1": (0.0, 0.6, "pu"),
+    }
+    assert (K_RANGE, J1_RANGE, C_RANGE) == ((0.0025, 0.01), (0.75, 0.93), (0.8, 1.5))
+    for name, (lo, hi, unit) in OPERATING_RANGE.items():
+        b_lo, b_hi, b_unit = DEFAULT_BOUNDS[name]
+        assert b_unit == unit and b_lo < lo < hi < b_hi  # optima at the edge of the range stay interior
+        assert (lo - b_lo, b_hi - hi) == pytest.approx(SEARCH_MARGIN[name], rel=1e-9)
+    # the search box of a record without conditions is the default box
+    space = default_space(Record({"a1": np.zeros(2048)}))
+    assert {p.name: (p.lo, p.hi, p.unit) for p in space.params} == DEFAULT_BOUNDS
+
+
 def test_level_bands():
     assert level_band(1, SAMPLE_INTERVAL) == pytest.approx((2500.0, 5000.0))
     assert level_band(10, SAMPLE_INTERVAL) == pytest.approx((10000 / 2048, 10000 / 1024))
@@ -118,17 +139,18 @@ def test_localisation_of_pure_noise_has_little_excess(clean):
 
 
 def test_width_estimate_from_a_single_channel_ignores_a_K_condition(clean):
-    from engine.diagnosis import estimate_width
+    from engine.identification.width import estimate_width, nearest_grid_width
 
     rec, _ = noisy(clean, 40.0, seed=7, conditions={"c1": 0.2, "K": 0.009}, channels=("omega1",))
     est = estimate_width(rec)
     assert pytest.approx(TRUTH.K, rel=0.005) == est.K
     assert 0 < est.sigma_K < 0.005 * TRUTH.K
     assert "K" not in est.calibration.fixed and est.calibration.values["K"] == est.K
+    assert nearest_grid_width(est.K) == 0.0075  # 6.3 mm: nearer 7.5 mm than 5 mm
 
 
 def test_speed_quantum_is_fitted_by_dense_scan():
-    from engine.diagnosis.candidates import fit_candidate
+    from engine.diagnosis.candidate import fit_candidate
     from engine.simulation import CATALOGUE
 
     truth = simulate(TRUTH, effects={"speed_quantization": 0.37})

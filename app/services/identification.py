@@ -9,10 +9,9 @@ from typing import Literal
 from app.services.errors import IncompatibleError, NotFoundError
 from app.services.patterns import identifier_from_pattern_set
 from engine.constants import C_NOMINAL, EVENT_INDEX, K_GRID, MODEL_VERSION, SAMPLE_INTERVAL
-from engine.diagnosis.calibration import estimate_width
-from engine.diagnosis.identification import nearest_grid_width
 from engine.identification import IdentificationResult
 from engine.identification.training import DEFAULT_KIND
+from engine.identification.width import estimate_width, nearest_grid_width
 from engine.records import Record
 from engine.storage import PatternSet, PatternSetNotFound, PatternStore
 

@@ -1,22 +1,34 @@
 """Sim-to-real gap diagnosis (issue 4): calibrate, localise, rank candidate effects, decide.
 
 Entry point: :func:`diagnose`. Blind validation: :func:`engine.diagnosis.validation.run_validation`.
+
+Modules, one idea each:
+
+* :mod:`~engine.diagnosis.noise`: the channels' noise level and the whiteness of a residual;
+* :mod:`~engine.diagnosis.space`: the fitted parameters, the operating range and the search box;
+* :mod:`~engine.diagnosis.objective`: the noise-normalised cost and its Jacobian;
+* :mod:`~engine.diagnosis.calibration`: the calibration (global search, continuation, polish);
+* :mod:`~engine.diagnosis.localisation`: where the residual lies (channel x band x window);
+* :mod:`~engine.diagnosis.gap`: how large the gap is, and how much a fit shrinks it;
+* :mod:`~engine.diagnosis.candidate`: one candidate effect's joint fit and evidence;
+* :mod:`~engine.diagnosis.quantisation`: the speed quantum's dense-scan fit;
+* :mod:`~engine.diagnosis.candidates`: fitting and ranking every candidate;
+* :mod:`~engine.diagnosis.diagnose`: the decision rule and the result;
+* :mod:`~engine.diagnosis.identification`: identification before and after the fix;
+* :mod:`~engine.diagnosis.plots`, :mod:`~engine.diagnosis.validation`: figures, blind validation.
+
+The continuous width estimate built on the calibration is an identifier:
+:mod:`engine.identification.width`.
 """
 
-from engine.diagnosis.calibration import (
-    CalibrationError,
-    CalibrationResult,
-    CalibrationSettings,
-    ModelSpace,
-    WidthEstimate,
-    calibrate,
-    default_space,
-    estimate_noise,
-    estimate_width,
-)
-from engine.diagnosis.candidates import Candidate, CandidateSettings, Gap, fit_candidates, gap_of
+from engine.diagnosis.calibration import CalibrationError, CalibrationResult, CalibrationSettings, calibrate
+from engine.diagnosis.candidate import Candidate, CandidateSettings
+from engine.diagnosis.candidates import fit_candidates
 from engine.diagnosis.diagnose import DiagnosisResult, DiagnosisSettings, IdentificationHook, Verdict, diagnose
+from engine.diagnosis.gap import Gap, gap_of
 from engine.diagnosis.localisation import Cell, level_band, localise
+from engine.diagnosis.noise import estimate_noise
+from engine.diagnosis.space import ModelSpace, default_space
 
 __all__ = [
     "CalibrationError",
@@ -31,12 +43,10 @@ __all__ = [
     "IdentificationHook",
     "ModelSpace",
     "Verdict",
-    "WidthEstimate",
     "calibrate",
     "default_space",
     "diagnose",
     "estimate_noise",
-    "estimate_width",
     "fit_candidates",
     "gap_of",
     "level_band",

@@ -6,7 +6,7 @@ Every candidate effect is fitted (with the calibration) and ranked by BIC.
 The fit statistic of a calibration is its noise-normalised residual energy
 per sample, ``chi2 / n`` (1 when the model reproduces the record to the
 noise), in total and per channel. The noise level comes from the record
-itself (:func:`~engine.diagnosis.calibration.estimate_noise`, relative
+itself (:func:`~engine.diagnosis.noise.estimate_noise`, relative
 standard error about 2.2 % per channel), so the statistic scatters by a few
 per cent around 1 even without a gap; the thresholds allow for that. A fit is
 "to the noise" when total ``chi2/n <= max_reduced_chi2`` and every channel's
@@ -47,12 +47,16 @@ import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 from scipy.special import expit
 
-from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings, calibrate, default_space
-from engine.diagnosis.candidates import Candidate, CandidateSettings, Gap, fit_candidates, gap_of
+from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings, calibrate
+from engine.diagnosis.candidate import Candidate, CandidateSettings
+from engine.diagnosis.candidates import fit_candidates
+from engine.diagnosis.gap import Gap, gap_of
 from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, localise
+from engine.diagnosis.space import default_space
 from engine.parallel import single_threaded_blas
 from engine.records import Record
 from engine.simulation import CATALOGUE, EffectLibrary
@@ -75,6 +79,10 @@ __all__ = [
 #: ``before``/``after`` simulations); returns a JSON-ready dict stored under
 #: ``"identification"``.
 IdentificationHook = Callable[[Record, "DiagnosisResult"], dict]
+
+
+#: Search settings of the nominal calibration of a diagnosis.
+NOMINAL_CALIBRATION = CalibrationSettings(n_global=256, n_starts=2)
 
 
 @dataclass(frozen=True)
@@ -108,8 +116,8 @@ class DiagnosisSettings:
         excess first (None: all 5 x 11 x 5 of a five-channel record; the object keeps all).
     """
 
-    calibration: CalibrationSettings = CalibrationSettings(n_global=256, n_starts=2)
-    candidates: CandidateSettings = CandidateSettings()
+    calibration: CalibrationSettings = NOMINAL_CALIBRATION
+    candidates: CandidateSettings = field(default_factory=CandidateSettings)
     max_reduced_chi2: float = 1.05
     max_channel_chi2: float = 1.2
     chi2_scatter: float = 0.02
@@ -149,7 +157,13 @@ class Verdict:
     confidence: float
     reason: str
 
-    def to_dict(self) -> dict:
+    @classmethod
+    def without_effect(cls, status: str, confidence: float, reason: str) -> Verdict:
+        """A verdict that names no effect (``no_gap`` or ``unexplained``)."""
+        return cls(status, None, None, None, None, confidence, reason)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready copy."""
         return {
             "status": self.status,
             "effect": self.effect,
@@ -217,7 +231,7 @@ class DiagnosisResult:
                 return i + 1
         return None
 
-    def to_dict(self, include_records: bool = True) -> dict:
+    def to_dict(self, include_records: bool = True) -> dict[str, Any]:
         """JSON-ready result in the shape of issue 4."""
         out = {
             "calibration": self.calibration.to_dict(),
@@ -264,10 +278,10 @@ def _fits_noise(cal: CalibrationResult, s: DiagnosisSettings) -> bool:
 
 def decide(nominal: CalibrationResult, candidates: list[Candidate], settings: DiagnosisSettings) -> Verdict:
     """The verdict from the nominal calibration and the ranked candidates (see the module notes)."""
-    best = next((c for c in candidates if c.calibration is not None), None)
+    best, best_cal = next(((c, c.calibration) for c in candidates if c.calibration is not None), (None, None))
     total, worst = fit_statistic(nominal)
     dbic = nominal.bic - best.bic if best is not None else -math.inf
-    if dbic < settings.min_delta_bic:
+    if best is None or best_cal is None or dbic < settings.min_delta_bic:
         what = (
             f"no candidate improves the fit significantly (best: {best.effect}, BIC lower by {dbic:.1f} < "
             f"{settings.min_delta_bic:g})"
@@ -275,49 +289,33 @@ def decide(nominal: CalibrationResult, candidates: list[Candidate], settings: Di
             else "no candidate could be fitted"
         )
         if _fits_noise(nominal, settings):
-            return Verdict(
+            return Verdict.without_effect(
                 "no_gap",
-                None,
-                None,
-                None,
-                None,
                 _adequacy(nominal, settings),
                 f"the calibrated nominal model fits to the noise (chi2/n = {total:.3f}, worst channel "
                 f"{worst:.3f}) and {what}",
             )
         gap_rms = math.sqrt(max(worst - 1.0, 0.0))
         if gap_rms <= settings.min_strength:
-            return Verdict(
+            return Verdict.without_effect(
                 "no_gap",
-                None,
-                None,
-                None,
-                None,
                 float(expit((settings.min_strength - gap_rms) / settings.strength_scatter)),
                 f"the nominal model leaves a small misfit (chi2/n = {total:.3g}, worst channel {worst:.3g}: "
                 f"{gap_rms:.2f} noise RMS beyond the noise, <= {settings.min_strength:g}) and {what}: "
                 f"no gap clearly beyond the noise",
             )
-        return Verdict(
+        return Verdict.without_effect(
             "unexplained",
-            None,
-            None,
-            None,
-            None,
             1.0 - _adequacy(nominal, settings),
             f"the nominal model leaves a gap (chi2/n = {total:.3g}, worst channel {worst:.3g}) and {what}",
         )
-    b_total, b_worst = fit_statistic(best.calibration)
-    if _fits_noise(best.calibration, settings):
+    b_total, b_worst = fit_statistic(best_cal)
+    if _fits_noise(best_cal, settings):
         strength = best.strength if best.strength is not None and math.isfinite(best.strength) else math.inf
         sure = float(expit((strength - settings.min_strength) / settings.strength_scatter))
         if strength <= settings.min_strength:
-            return Verdict(
+            return Verdict.without_effect(
                 "no_gap",
-                None,
-                None,
-                None,
-                None,
                 1.0 - sure,
                 f"the best candidate, {best.effect} = {best.value:.4g} {best.unit}, fits the record but "
                 f"moves it by only {strength:.2f} noise RMS (<= {settings.min_strength:g}): no gap clearly "
@@ -329,7 +327,7 @@ def decide(nominal: CalibrationResult, candidates: list[Candidate], settings: Di
             best.value,
             best.uncertainty,
             best.unit,
-            _adequacy(best.calibration, settings) * best.weight * sure,
+            _adequacy(best_cal, settings) * best.weight * sure,
             f"adding {best.effect} = {best.value:.4g} {best.unit} brings the fit to the noise "
             f"(chi2/n {total:.3g} -> {b_total:.3f}, worst channel {b_worst:.3f}); the effect moves the "
             f"record by {strength:.3g} noise RMS",
@@ -338,25 +336,17 @@ def decide(nominal: CalibrationResult, candidates: list[Candidate], settings: Di
     strength = best.strength if best.strength is not None and math.isfinite(best.strength) else math.inf
     weakest = max(gap_rms, strength)
     if weakest <= settings.min_strength:
-        return Verdict(
+        return Verdict.without_effect(
             "no_gap",
-            None,
-            None,
-            None,
-            None,
             float(expit((settings.min_strength - weakest) / settings.strength_scatter)),
             f"no candidate brings the fit to the noise (the best, {best.effect} = {best.value:.4g} "
             f"{best.unit}, leaves chi2/n = {b_total:.3g}), but the gap is weak: the nominal misfit is "
             f"{gap_rms:.2f} noise RMS beyond the noise and the best candidate moves the record by "
             f"{strength:.2f} noise RMS (both <= {settings.min_strength:g}): no gap clearly beyond the noise",
         )
-    return Verdict(
+    return Verdict.without_effect(
         "unexplained",
-        None,
-        None,
-        None,
-        None,
-        1.0 - _adequacy(best.calibration, settings),
+        1.0 - _adequacy(best_cal, settings),
         f"no candidate brings the fit to the noise: the best, {best.effect} = {best.value:.4g} "
         f"{best.unit}, leaves chi2/n = {b_total:.3g} (worst channel {b_worst:.3g})",
     )
@@ -422,6 +412,8 @@ def _diagnose(
     cells_after: list[Cell] = []
     if verdict.status == "explained":
         best_cal = cands[0].calibration
+        if best_cal is None:  # an explained verdict names the best candidate, which is fitted
+            raise RuntimeError(f"the named effect {verdict.effect} has no fit")
         after = best_cal.simulated_record(record)
         gap_after = gap_of(best_cal)
         cells_after = localise(record, after, nominal.sigma, DEFAULT_WINDOWS_MS)

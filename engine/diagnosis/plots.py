@@ -60,7 +60,7 @@ def plot_residual_map(result: DiagnosisResult, path: str | Path, after: bool = F
         grids[ch] = g
         vmax = max(vmax, float(np.max(g)))
     im = None
-    for ax, ch in zip(axes, channels):
+    for ax, ch in zip(axes, channels, strict=True):
         im = ax.imshow(grids[ch], aspect="auto", cmap="magma", vmin=-1.0, vmax=vmax, origin="upper")
         ax.set_title(ch)
         ax.set_xticks(range(len(windows)))

@@ -50,8 +50,8 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.diagnosis.calibration import LOG_SCALED_EFFECTS
 from engine.diagnosis.diagnose import DiagnosisSettings, diagnose
+from engine.diagnosis.space import LOG_SCALED_EFFECTS, OPERATING_RANGE
 from engine.records import Record
 from engine.simulation import CATALOGUE, Case, EffectLibrary, PlantParameters, simulate_batch
 from engine.simulation.noise import noise_std
@@ -69,10 +69,11 @@ __all__ = [
     "write_cases",
 ]
 
-#: Operating-point ranges of the blind cases.
-K_RANGE = (0.0025, 0.01)
-J1_RANGE = (0.75, 0.93)
-C_RANGE = (0.8, 1.5)
+#: Operating-point ranges of the blind cases: K [m], J1 [kg m^2], c [pu] (the plausible
+#: operating range, :data:`engine.diagnosis.space.OPERATING_RANGE`).
+K_RANGE: tuple[float, float] = OPERATING_RANGE["K"][:2]
+J1_RANGE: tuple[float, float] = OPERATING_RANGE["J1"][:2]
+C_RANGE: tuple[float, float] = OPERATING_RANGE["c"][:2]
 SNR_RANGE_DB = (30.0, 50.0)
 #: An effect counts when it moves some channel by more than this many noise standard deviations (RMS).
 STRENGTH_THRESHOLD = 3.0
@@ -169,7 +170,7 @@ def generate_cases(
     """
     fractions = dict(DEFAULT_FRACTIONS if fractions is None else fractions)
     rng = np.random.default_rng(seed)
-    counts = {k: int(round(v * n_cases)) for k, v in fractions.items()}
+    counts = {k: round(v * n_cases) for k, v in fractions.items()}
     counts["effect"] += n_cases - sum(counts.values())
     kinds = [k for k, n in counts.items() for _ in range(n)]
     rng.shuffle(kinds)
@@ -192,7 +193,9 @@ def generate_cases(
 
     plants = [Case(PlantParameters(K=d[4], J1=d[5], c=d[6])) for d in draws]
     clean = simulate_batch(plants)
-    with_eff = simulate_batch(plants, effects=[{d[2]: d[3]} if d[2] else {} for d in draws])
+    with_eff = simulate_batch(
+        plants, effects=[{d[2]: d[3]} if d[2] is not None and d[3] is not None else {} for d in draws]
+    )
     cases, key = [], []
     for i, (cid, kind, effect, value, K, J1, c, snr) in enumerate(draws):
         x = with_eff.channels[i]
@@ -261,7 +264,7 @@ def _diagnose_file(path: str, results_dir: str, settings: DiagnosisSettings) -> 
     return case.case_id
 
 
-def diagnose_cases(out_dir: str | Path, workers: int = 1, settings: DiagnosisSettings = DiagnosisSettings()) -> Path:
+def diagnose_cases(out_dir: str | Path, workers: int = 1, settings: DiagnosisSettings | None = None) -> Path:
     """Diagnose every case in ``out_dir/cases`` (never reading the key); results to ``out_dir/results``.
 
     Parameters
@@ -270,9 +273,10 @@ def diagnose_cases(out_dir: str | Path, workers: int = 1, settings: DiagnosisSet
         Directory written by :func:`write_cases`.
     workers : int
         Parallel processes (each with one numba thread); 1 runs in this process.
-    settings : DiagnosisSettings
-        Diagnosis settings.
+    settings : DiagnosisSettings, optional
+        Diagnosis settings (default ``DiagnosisSettings()``).
     """
+    settings = DiagnosisSettings() if settings is None else settings
     out = Path(out_dir)
     results = out / "results"
     results.mkdir(parents=True, exist_ok=True)
@@ -411,7 +415,7 @@ def score(out_dir: str | Path, library: EffectLibrary = CATALOGUE) -> Validation
         pred = v["effect"] if v["status"] == "explained" else v["status"]
         ranking = res.get("ranking", [])
         truth = (
-            k.expected_effect
+            str(k.expected_effect)
             if k.expected_status == "explained"
             else f"left-out {k.effect}"
             if k.expected_status == "unexplained"
@@ -443,7 +447,7 @@ def score(out_dir: str | Path, library: EffectLibrary = CATALOGUE) -> Validation
                 row["fitted"] = cand["value"]
                 row["shrinkage"] = cand["shrinkage"]
                 shrink.append(cand["shrinkage"])
-                if r == 1:
+                if r == 1 and k.effect is not None:
                     lo, hi = library[k.effect].bounds
                     rel_err.append(abs(cand["value"] - k.value) / (hi - lo))
                     if cand.get("uncertainty"):
@@ -483,7 +487,7 @@ def run_validation(
     seed: int,
     out_dir: str | Path,
     workers: int = 1,
-    settings: DiagnosisSettings = DiagnosisSettings(),
+    settings: DiagnosisSettings | None = None,
     fractions: dict[str, float] | None = None,
 ) -> ValidationReport:
     """Generate, diagnose blind, then score; writes ``report.json`` and ``report.md`` in ``out_dir``.
@@ -498,8 +502,8 @@ def run_validation(
         Working directory (``cases/``, ``key/``, ``results/``, reports).
     workers : int
         Parallel diagnosis processes.
-    settings : DiagnosisSettings
-        Diagnosis settings.
+    settings : DiagnosisSettings, optional
+        Diagnosis settings (default ``DiagnosisSettings()``).
     fractions : dict, optional
         Mix of case kinds (see :func:`generate_cases`).
 

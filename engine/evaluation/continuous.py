@@ -26,9 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.constants import CHANNELS
-from engine.diagnosis.calibration import estimate_width
-from engine.diagnosis.identification import nearest_grid_width
 from engine.evaluation.accuracy import SPLITS_RANDOM, noisy_versions, random_cases
+from engine.identification.width import estimate_width, nearest_grid_width
 from engine.records import Record
 
 logger = logging.getLogger(__name__)
@@ -61,7 +60,7 @@ def calibrated_width(x: np.ndarray, channel: str, c: float, c1: float = 0.2) -> 
 
 
 def _task(channel: str, X: np.ndarray, c: np.ndarray) -> list[tuple[float, float, float]]:
-    return [calibrated_width(x, channel, float(cc)) for x, cc in zip(X, c)]
+    return [calibrated_width(x, channel, float(cc)) for x, cc in zip(X, c, strict=True)]
 
 
 def evaluate_continuous(
@@ -82,7 +81,7 @@ def evaluate_continuous(
         for (ch, split), fut in futures.items():
             est = np.array(fut.result())
             K_hat, sd, sec = est[:, 0], est[:, 1], est[:, 2]
-            correct = int(sum(np.isclose(nearest_grid_width(k), t) for k, t in zip(K_hat, truth)))
+            correct = int(sum(np.isclose(nearest_grid_width(k), t) for k, t in zip(K_hat, truth, strict=True)))
             rows.append(
                 ContinuousRow(
                     ch,

@@ -1,0 +1,223 @@
+"""The cost a calibration minimises: noise-normalised residuals of a record against simulations.
+
+For the channels j present in the record and the samples k::
+
+    chi2(theta) = sum_j sum_k ((sim_j[k](theta) - rec_j[k]) / sigma_j)^2
+
+where sigma_j is the channel's noise level (:func:`engine.diagnosis.noise.noise_weights`).
+:class:`Objective` evaluates it on points of a
+:class:`~engine.diagnosis.space.ModelSpace`'s unit box, over the first samples
+of the record only if asked (the calibration's continuation over the time
+horizon). Simulations are cached per (integrator step, point), and every batch
+of points, finite-difference Jacobians included, is simulated in one call to
+the batch-parallel simulator rather than column by column.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from engine.constants import CHANNELS, N_SAMPLES
+from engine.diagnosis.space import ModelSpace
+from engine.parallel import raise_if_cancelled
+from engine.records import Record
+from engine.simulation import SolverSettings, run_cases
+
+__all__ = ["FAILED_RESIDUAL", "Objective"]
+
+#: Residual used for a case the simulator could not run (no event, divergence), per sample.
+FAILED_RESIDUAL: float = 1e3
+#: The cache of simulations is halved when it exceeds this many points.
+_CACHE_SIZE = 4096
+
+
+class Objective:
+    """Noise-normalised residual of a record against simulations of a model space.
+
+    Parameters
+    ----------
+    record : Record
+        The measured record.
+    space : ModelSpace
+        What is fitted.
+    sigma : mapping of str to float
+        Residual normalisation per channel, in the channel's unit (see
+        :func:`engine.diagnosis.noise.noise_weights`).
+
+    Attributes
+    ----------
+    n_simulations : int
+        Simulations run so far (cache hits not counted).
+    """
+
+    def __init__(self, record: Record, space: ModelSpace, sigma: Mapping[str, float]):
+        self.record = record
+        self.space = space
+        self.names = list(record.channels)
+        self.rows = [CHANNELS.index(n) for n in self.names]
+        self.data = np.stack([record.channels[n] for n in self.names])
+        self.sigma = np.array([sigma[n] for n in self.names])
+        self.n_simulations = 0
+        #: simulated channels per (integrator step, unit-box point); None where the simulation failed
+        self._cache: dict[tuple[float, tuple[float, ...]], np.ndarray | None] = {}
+
+    def simulate(self, U: np.ndarray, solver: SolverSettings) -> tuple[np.ndarray, np.ndarray]:
+        """Simulate unit-box points.
+
+        Parameters
+        ----------
+        U : ndarray, shape (m, d)
+            Points of the unit box.
+        solver : SolverSettings
+            Integrator settings.
+
+        Returns
+        -------
+        sims : ndarray, shape (m, n_ch, 2048)
+            The record's channels, in their units (NaN where the simulation failed).
+        ok : ndarray of bool, shape (m,)
+            Which simulations succeeded.
+
+        Raises
+        ------
+        engine.parallel.Cancelled
+            When this thread's work has been cancelled (:func:`engine.parallel.cancel_scope`).
+        """
+        raise_if_cancelled()  # a fit made redundant on another thread stops here
+        U = np.atleast_2d(np.asarray(U, dtype=float))
+        keys = [(solver.max_step, tuple(np.round(u, 14))) for u in U]
+        todo = [i for i, k in enumerate(keys) if k not in self._cache]
+        if todo:
+            cases = [self.space.case(U[i]) for i in todo]
+            ch, _, status = run_cases(cases, solver)
+            self.n_simulations += len(todo)
+            for j, i in enumerate(todo):
+                sim: np.ndarray | None = ch[j, self.rows] if status[j] == 0 else None
+                if sim is not None and not np.all(np.isfinite(sim)):
+                    sim = None
+                self._cache[keys[i]] = sim
+            if len(self._cache) > _CACHE_SIZE:
+                for k in list(self._cache)[: _CACHE_SIZE // 2]:
+                    del self._cache[k]
+        sims = [self._cache[k] for k in keys]
+        ok = np.array([s is not None for s in sims])
+        out = np.stack([s if s is not None else np.full((len(self.rows), N_SAMPLES), np.nan) for s in sims])
+        return out, ok
+
+    def residuals(self, U: np.ndarray, horizon: int, solver: SolverSettings) -> np.ndarray:
+        """Normalised residuals (m, n_ch * horizon) [noise sigmas] of the first ``horizon`` samples.
+
+        A failed simulation gives :data:`FAILED_RESIDUAL` at every sample.
+        """
+        sims, ok = self.simulate(U, solver)
+        r = (sims[:, :, :horizon] - self.data[None, :, :horizon]) / self.sigma[None, :, None]
+        r[~ok] = FAILED_RESIDUAL
+        return r.reshape(r.shape[0], -1)
+
+    def chi2(self, U: np.ndarray, horizons: Sequence[int], solver: SolverSettings) -> np.ndarray:
+        """chi2 (m, len(horizons)) [noise variances] of points U on each horizon (inf where the simulation failed).
+
+        ``horizons`` are sample counts from the start of the record.
+        """
+        sims, ok = self.simulate(U, solver)
+        r2 = np.square((sims - self.data[None]) / self.sigma[None, :, None]).sum(axis=1)  # (m, 2048)
+        cum = np.cumsum(r2, axis=1)
+        out = np.stack([cum[:, h - 1] for h in horizons], axis=1)
+        out[~ok] = np.inf
+        return out
+
+    def jacobian(
+        self,
+        u: np.ndarray,
+        horizon: int,
+        solver: SolverSettings,
+        fd_step: float,
+        r0: np.ndarray | None = None,
+        central: bool = False,
+    ) -> np.ndarray:
+        """Finite-difference Jacobian (n_res, d) of the residuals in unit-box coordinates, one batch of simulations.
+
+        Parameters
+        ----------
+        u : ndarray, shape (d,)
+            The point.
+        horizon : int
+            Samples of the residual.
+        solver : SolverSettings
+            Integrator settings.
+        fd_step : float
+            Difference step, in unit-box coordinates (reversed at the upper edge).
+        r0 : ndarray, optional
+            Residual at ``u`` when already known (forward differences only).
+        central : bool
+            Central differences (clipped to the box) instead of forward ones.
+        """
+        d = self.space.dim
+        if central:
+            lo = np.maximum(u - fd_step, 0.0)
+            hi = np.minimum(u + fd_step, 1.0)
+            U = np.vstack([u[None, :] + np.diag(hi - u), u[None, :] + np.diag(lo - u)])
+            R = self.residuals(U, horizon, solver)
+            return ((R[:d] - R[d:]) / (hi - lo)[:, None]).T
+        if r0 is None:
+            r0 = self.residuals(u[None], horizon, solver)[0]
+        steps = np.where(u + fd_step <= 1.0, fd_step, -fd_step)
+        R = self.residuals(u[None, :] + np.diag(steps), horizon, solver)
+        return ((R - r0[None]) / steps[:, None]).T
+
+    def local_fit(
+        self, u0: np.ndarray, horizon: int, solver: SolverSettings, max_nfev: int, fd_step: float
+    ) -> tuple[np.ndarray, float, np.ndarray, int]:
+        """Bounded least-squares refinement on one horizon (``scipy.optimize.least_squares``, trf).
+
+        Parameters
+        ----------
+        u0 : ndarray, shape (d,)
+            Starting point in the unit box.
+        horizon : int
+            Samples of the residual.
+        solver : SolverSettings
+            Integrator settings.
+        max_nfev : int
+            Cap on residual evaluations.
+        fd_step : float
+            Finite-difference step of the Jacobian, in unit-box coordinates.
+
+        Returns
+        -------
+        u : ndarray, shape (d,)
+            The optimum.
+        chi2 : float
+            Its chi2 [noise variances].
+        jac : ndarray, shape (n_res, d)
+            The Jacobian there, in unit-box coordinates.
+        nfev : int
+            Residual evaluations.
+        """
+        d = self.space.dim
+        last: dict[str, np.ndarray] = {}
+
+        def fun(u: np.ndarray) -> np.ndarray:
+            r = self.residuals(u[None], horizon, solver)[0]
+            last["u"], last["r"] = u.copy(), r
+            return r
+
+        def jac(u: np.ndarray) -> np.ndarray:
+            r0 = last["r"] if "u" in last and np.array_equal(last["u"], u) else fun(u)
+            return self.jacobian(u, horizon, solver, fd_step, r0)
+
+        res = least_squares(
+            fun,
+            np.clip(u0, 0.0, 1.0),
+            jac=jac,
+            bounds=(np.zeros(d), np.ones(d)),
+            method="trf",
+            x_scale=np.full(d, 0.05),
+            max_nfev=max_nfev,
+            xtol=1e-6,
+            ftol=1e-6,
+        )
+        return res.x, float(2.0 * res.cost), res.jac, int(res.nfev)
