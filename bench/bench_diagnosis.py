@@ -3,7 +3,7 @@
 Three parts, each optional:
 
 * ``--calibration N``: calibrate N simulated records (K, J1, c uniform in the
-  operating range, ``engine.diagnosis.space.OPERATING_RANGE``: K in [0.0025, 0.01] m,
+  operating range, ``engine.constants.OPERATING_RANGE``: K in [0.0025, 0.01] m,
   J1 in [0.75, 0.93] kg m^2, c in [0.8, 1.5]; c1 = 0.2 known, white noise at
   ``--snr`` dB) and report how often the fit lands in the basin (|K error| < 3 %
   and |J1 error| < 1.5 %), the K error, the spread of (error / reported
@@ -39,8 +39,8 @@ logger = logging.getLogger("bench_diagnosis")
 
 
 def bench_calibration(n: int, snr_db: float, seed: int) -> dict[str, Any]:
+    from engine.constants import OPERATING_RANGE
     from engine.diagnosis import calibrate
-    from engine.diagnosis.space import OPERATING_RANGE
     from engine.records import Record
     from engine.simulation import Case, PlantParameters, simulate_batch
     from engine.simulation.noise import noise_std

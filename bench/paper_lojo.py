@@ -79,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
             ident.identify(X[te_mask][0])
             id_t.append(time.perf_counter() - t0)
             res = ident.identify_batch(X[te_mask])
-            for r, k in zip(res, y[te_mask]):
+            for r, k in zip(res, y[te_mask], strict=True):
                 correct += int(np.isclose(r.width, k))
                 ties += int(np.count_nonzero(r.D.min() == r.D) > 1)
                 te.append(r.epochs)

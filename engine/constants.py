@@ -96,6 +96,17 @@ K_GRID: Final[tuple[float, ...]] = (0.0025, 0.00375, 0.005, 0.0075, 0.009, 0.01)
 #: Apparent-viscosity groups c [pu].
 C_GROUPS: Final[tuple[float, ...]] = (0.8, 1.0, 1.25, 1.4)
 
+# --- operating range (ours, not MODEL.md) -----------------------------------
+#: Plausible operating range of the uncertain plant parameters: ``name -> (low, high, unit)``.
+#: K spans the paper's width grid; J1 [kg m^2] and c [pu] the ranges of the held-out records.
+#: The held-out evaluation, the blind validation and the benchmarks draw operating points
+#: from it; the calibration's search box is it widened by a margin (engine.diagnosis.space).
+OPERATING_RANGE: Final[dict[str, tuple[float, float, str]]] = {
+    "K": (min(K_GRID), max(K_GRID), "m"),
+    "J1": (0.75, 0.93, "kg m^2"),
+    "c": (0.8, 1.5, "pu"),
+}
+
 # --- channels (MODEL.md section 3) -----------------------------------------
 #: Recorded channels, in the canonical order.
 CHANNELS: Final[tuple[str, ...]] = ("a1", "m_el", "omega1", "a2", "v2")

@@ -86,7 +86,8 @@ def test_calibration_raises_when_nothing_can_be_simulated(clean):
 
 
 def test_search_box_is_the_operating_range_widened_by_its_margin():
-    from engine.diagnosis.space import DEFAULT_BOUNDS, OPERATING_RANGE, SEARCH_MARGIN
+    from engine.constants import OPERATING_RANGE
+    from engine.diagnosis.space import DEFAULT_BOUNDS, SEARCH_MARGIN
     from engine.diagnosis.validation import C_RANGE, J1_RANGE, K_RANGE
 
     # the values the calibration and the blind validation have always used, exactly

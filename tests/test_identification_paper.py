@@ -20,7 +20,8 @@ import pytest
 from engine.constants import K_GRID
 from engine.identification import NotFittedError, PaperIdentifier, normalisation_terms, normalise
 from engine.identification._network import initial_weights, train, train_explicit
-from engine.identification.paper import ARRAYS_FORMAT_VERSION, TERM_NAMES
+from engine.identification.normalisation import TERM_NAMES
+from engine.identification.paper import ARRAYS_FORMAT_VERSION
 
 N = 2048
 
@@ -153,7 +154,10 @@ def test_identify_result_and_argmin(fitted, data) -> None:
     X, _ = data
     r = fitted.identify(X[10])
     assert r.D.shape == (6,)
-    assert np.all(r.D >= 0)
+    # D(i) = sum_j |Wt(j) - Ww(i, j)|, recomputed from the record's own network (balanced data: 7 rows each)
+    x1 = normalise(fitted._features(X[10][None, :]), fitted.h1_, fitted.k1_, fitted.h2_, fitted.k2_)
+    wt = fitted._train(np.repeat(x1, int(fitted.pattern_rows_[0]), axis=0), "test").weights.W3[0]
+    np.testing.assert_allclose(r.D, np.abs(wt[None, :] - fitted.patterns_).sum(axis=1), rtol=1e-12)
     assert r.index == int(np.argmin(r.D)) + 1
     assert r.width == K_GRID[r.index - 1]
     assert 1 <= r.epochs <= fitted.max_epochs
@@ -167,7 +171,7 @@ def test_batch_matches_single_records(fitted, data) -> None:
     idx = [0, 13, 41]
     Dbatch = fitted.d_vectors(X[idx])
     assert Dbatch.shape == (3, 6)
-    for row, i in zip(Dbatch, idx):
+    for row, i in zip(Dbatch, idx, strict=True):
         np.testing.assert_array_equal(row, fitted.identify(X[i]).D)
     np.testing.assert_array_equal(fitted.predict(X[idx]), [K_GRID[int(np.argmin(d))] for d in Dbatch])
 
@@ -187,7 +191,7 @@ def test_identity_one_record_per_width(data) -> None:
     X, y = data
     one = np.arange(len(y)) % 7 == 3
     ident = PaperIdentifier("v2", max_epochs=300).fit(X[one], y[one])
-    for r, k in zip(ident.identify_batch(X[one]), y[one]):
+    for r, k in zip(ident.identify_batch(X[one]), y[one], strict=True):
         assert r.width == k
         assert r.D[r.index - 1] == 0.0
         assert np.sort(r.D)[1] > 0.0
@@ -196,7 +200,8 @@ def test_identity_one_record_per_width(data) -> None:
 def test_identity_training_records_mostly_win(fitted, data) -> None:
     """On the synthetic set (7 records per width) most training records win at their own width."""
     X, y = data
-    assert np.mean(fitted.predict(X) == y) >= 0.6
+    # measured: 32 of 42 (0.76); deterministic, the floor leaves room for floating-point ties only
+    assert np.mean(fitted.predict(X) == y) >= 0.7
 
 
 # --- persistence -------------------------------------------------------------------------
@@ -275,7 +280,7 @@ def test_test_network_gets_the_pattern_networks_updates_per_epoch(data) -> None:
     match = PaperIdentifier("v2").fit(np.repeat(X[one], 7, axis=0), np.repeat(y[one], 7))
     np.testing.assert_array_equal(match.pattern_rows_, 7)
     single = PaperIdentifier.from_arrays({**match.get_params(), "test_rows": "single"}, match.to_arrays())
-    for x, k in zip(X[one], y[one]):
+    for x, k in zip(X[one], y[one], strict=True):
         rm, rs = match.identify(x), single.identify(x)
         assert rm.width == k and rm.D[rm.index - 1] == 0.0
         assert rm.epochs == match.epochs_[rm.index - 1]
@@ -320,7 +325,9 @@ def test_gram_form_training_equals_explicit_reference(max_epochs: int, delta1: f
     b = train_explicit(w0, X1, T, 0.9, delta1, max_epochs)
     assert (a.epochs, a.converged) == (b.epochs, b.converged)
     assert a.rms == pytest.approx(b.rms, rel=1e-12)
-    for wa, wb in zip((a.weights.W1, a.weights.W2, a.weights.W3), (b.weights.W1, b.weights.W2, b.weights.W3)):
+    for wa, wb in zip(
+        (a.weights.W1, a.weights.W2, a.weights.W3), (b.weights.W1, b.weights.W2, b.weights.W3), strict=True
+    ):
         np.testing.assert_allclose(wa, wb, rtol=1e-12, atol=1e-14)
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from engine.constants import J1_GRID, K_GRID
-from engine.identification.paper import NotFittedError
+from engine.identification.base import NotFittedError
 from engine.identification.template import TemplateIdentifier, window_mask
 from engine.identification.training import identifier_from_pattern_set, train_pattern_set
 from engine.simulation import PlantParameters, add_white_noise, paper_grid, simulate_batch
@@ -52,7 +52,8 @@ def test_held_out_inertia_is_identified(grid):
     X, y, g = _xy(grid, "a2", lambda g: ~np.isclose(g, held))
     Xt, yt, _ = _xy(grid, "a2", lambda g: np.isclose(g, held))
     est = TemplateIdentifier("a2").fit(X, y, groups=g)
-    assert np.isclose(est.predict(Xt), yt).sum() >= 5  # of 6; chance is 1
+    # measured: 6 of 6 (chance is 1); over all seven held-out inertias 38 of 42, the misses at the grid edges
+    np.testing.assert_allclose(est.predict(Xt), yt)
 
 
 def test_off_grid_noisy_records_are_identified(grid):
@@ -60,11 +61,12 @@ def test_off_grid_noisy_records_are_identified(grid):
     est = TemplateIdentifier("v2").fit(X, y, groups=g)
     test = simulate_batch([PlantParameters(K=K, J1=0.835, c=1.05) for K in K_GRID])
     Xt = add_white_noise(test.channel("v2"), 30.0, np.random.default_rng(3))
-    assert np.isclose(est.predict(Xt), K_GRID).sum() >= 5
+    # measured: 6 of 6 for noise seeds 0-5
+    np.testing.assert_allclose(est.predict(Xt), K_GRID)
 
 
 def test_d_vector_and_result(grid):
-    X, y, g = _xy(grid, "omega1", lambda g: g > 0)
+    X, y, _ = _xy(grid, "omega1", lambda g: g > 0)
     est = TemplateIdentifier("omega1", window=600).fit(X, y)
     res = est.identify(X[0])
     assert res.D.shape == (6,) and res.index == int(np.argmin(res.D)) + 1
@@ -73,7 +75,7 @@ def test_d_vector_and_result(grid):
 
 
 def test_bad_input_raises(grid):
-    X, y, g = _xy(grid, "v2", lambda g: g > 0)
+    X, y, _ = _xy(grid, "v2", lambda g: g > 0)
     with pytest.raises(ValueError, match="missing"):
         TemplateIdentifier("v2").fit(X[y != K_GRID[0]], y[y != K_GRID[0]])
     with pytest.raises(ValueError, match="shape"):

@@ -24,7 +24,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from engine.constants import C_GROUPS, C_NOMINAL
-from engine.identification.training import DEFAULT_KIND, fit_identifier, make_identifier, simulate_training_grid
+from engine.identification.base import Identifier
+from engine.identification.training import DEFAULT_KIND, make_identifier, simulate_training_grid
 from engine.records import Record
 from engine.simulation import SimulationResult
 
@@ -36,10 +37,11 @@ logger = logging.getLogger(__name__)
 __all__ = ["identification_hook", "identify_before_after"]
 
 
-def _fit(grid: SimulationResult, channel: str, kind: str):
+def _fit(grid: SimulationResult, channel: str, kind: str) -> Identifier:
+    """An identifier of ``kind`` for ``channel`` fitted on a training grid (groups: its J1 values)."""
     y = np.array([case.plant.K for case in grid.cases])
     g = np.array([case.plant.J1 for case in grid.cases])
-    return fit_identifier(make_identifier(kind, channel), grid.channel(channel), y, g)
+    return make_identifier(kind, channel).fit(grid.channel(channel), y, groups=g)
 
 
 @lru_cache(maxsize=8)
@@ -48,12 +50,12 @@ def _nominal_grid(c_group: float) -> SimulationResult:
 
 
 @lru_cache(maxsize=64)
-def _nominal_identifier(c_group: float, channel: str, kind: str):
+def _nominal_identifier(c_group: float, channel: str, kind: str) -> Identifier:
     """Fitted identifier on the nominal grid: fitted once per (c, channel, kind), reused for every record."""
     return _fit(_nominal_grid(c_group), channel, kind)
 
 
-def _identify_all(identifier_for: Callable[[str], Any], record: Record) -> dict[str, dict[str, Any]]:
+def _identify_all(identifier_for: Callable[[str], Identifier], record: Record) -> dict[str, dict[str, Any]]:
     """Identify every channel of ``record`` with ``identifier_for(channel)``."""
     out = {}
     for ch, x in record.channels.items():

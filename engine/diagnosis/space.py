@@ -3,9 +3,9 @@
 The plant parameters that are uncertain in practice are the backlash width K,
 the motor-side inertia J1, the absorber viscosity c and the absorber
 discontinuity c1 (:data:`CALIBRATED`); a record's conditions may fix any of
-them. Their plausible operating range (:data:`OPERATING_RANGE`: the range the
-blind validation and the benchmarks draw from) is defined here once; the
-calibration's search box (:data:`DEFAULT_BOUNDS`) is that range widened by a
+them. Their plausible operating range is defined once, in
+:data:`engine.constants.OPERATING_RANGE` (the range the held-out evaluation, the
+blind validation and the benchmarks draw from); the calibration's search box (:data:`DEFAULT_BOUNDS`) is that range widened by a
 margin per parameter (:data:`SEARCH_MARGIN`), so that optima near an edge of
 the operating range stay interior to the box.
 
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.constants import K_GRID
+from engine.constants import OPERATING_RANGE
 from engine.records import Record
 from engine.simulation import Case, Effect, PlantParameters
 
@@ -30,21 +30,12 @@ __all__ = [
     "CALIBRATED",
     "DEFAULT_BOUNDS",
     "LOG_SCALED_EFFECTS",
-    "OPERATING_RANGE",
     "SEARCH_MARGIN",
     "FreeParameter",
     "ModelSpace",
     "default_space",
 ]
 
-#: Plausible operating range of the uncertain plant parameters: ``name -> (low, high, unit)``.
-#: K spans the paper's width grid; J1 [kg m^2] and c [pu] the ranges of the held-out records.
-#: The blind validation and the benchmarks draw operating points from it.
-OPERATING_RANGE: dict[str, tuple[float, float, str]] = {
-    "K": (min(K_GRID), max(K_GRID), "m"),
-    "J1": (0.75, 0.93, "kg m^2"),
-    "c": (0.8, 1.5, "pu"),
-}
 #: Margin of the search box beyond the operating range, ``name -> (below, above)``, in the
 #: parameter's unit: K 0.3 mm below and 0.5 mm above, J1 0.03 kg m^2 either side, c 0.05 pu
 #: below and 0.1 pu above.

@@ -50,8 +50,9 @@ from pathlib import Path
 
 import numpy as np
 
+from engine.constants import OPERATING_RANGE
 from engine.diagnosis.diagnose import DiagnosisSettings, diagnose
-from engine.diagnosis.space import LOG_SCALED_EFFECTS, OPERATING_RANGE
+from engine.diagnosis.space import LOG_SCALED_EFFECTS
 from engine.records import Record
 from engine.simulation import CATALOGUE, Case, EffectLibrary, PlantParameters, simulate_batch
 from engine.simulation.noise import noise_std
@@ -70,7 +71,7 @@ __all__ = [
 ]
 
 #: Operating-point ranges of the blind cases: K [m], J1 [kg m^2], c [pu] (the plausible
-#: operating range, :data:`engine.diagnosis.space.OPERATING_RANGE`).
+#: operating range, :data:`engine.constants.OPERATING_RANGE`).
 K_RANGE: tuple[float, float] = OPERATING_RANGE["K"][:2]
 J1_RANGE: tuple[float, float] = OPERATING_RANGE["J1"][:2]
 C_RANGE: tuple[float, float] = OPERATING_RANGE["c"][:2]

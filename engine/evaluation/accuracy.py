@@ -19,14 +19,14 @@ import logging
 import multiprocessing
 import os
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from engine.constants import C_GROUPS, CHANNELS, K_GRID
-from engine.identification.training import fit_identifier, make_identifier
+from engine.constants import C_GROUPS, CHANNELS, K_GRID, OPERATING_RANGE
+from engine.identification.training import make_identifier
 from engine.simulation import PlantParameters, SimulationResult, add_white_noise, simulate_batch
 
 logger = logging.getLogger(__name__)
@@ -55,7 +55,7 @@ class AccuracyRow:
 def _fit_predict(
     kind: str, channel: str, params: Mapping[str, Any], X_tr, y_tr, g_tr, X_te
 ) -> tuple[np.ndarray, np.ndarray]:
-    est = fit_identifier(make_identifier(kind, channel, **params), X_tr, y_tr, g_tr)
+    est = make_identifier(kind, channel, **params).fit(X_tr, y_tr, groups=g_tr)
     res = est.identify_batch(X_te)
     return np.array([r.width for r in res]), np.array([r.epochs for r in res])
 
@@ -71,7 +71,7 @@ def _lojo_task(kind: str, channel: str, params: Mapping[str, Any], X, y, g) -> t
     return correct, n, float(np.mean(epochs))
 
 
-SPLITS_RANDOM: tuple[str, ...] = ("random",) + tuple(f"random + {db:g} dB" for db in NOISE_LEVELS_DB)
+SPLITS_RANDOM: tuple[str, ...] = ("random", *(f"random + {db:g} dB" for db in NOISE_LEVELS_DB))
 
 
 def noisy_versions(
@@ -90,12 +90,13 @@ def noisy_versions(
 
 
 def random_cases(n: int = 240, seed: int = 20261121) -> SimulationResult:
-    """Held-out cases (b): J1 ~ U[0.75, 0.93], c ~ U[0.8, 1.5], width uniform over the six."""
+    """Held-out cases (b): J1 and c uniform over ``OPERATING_RANGE``, width uniform over the six of ``K_GRID``."""
     rng = np.random.default_rng(seed)
     K = rng.choice(np.asarray(K_GRID), n)
-    J1 = rng.uniform(0.75, 0.93, n)
-    c = rng.uniform(0.8, 1.5, n)
-    return simulate_batch([PlantParameters(K=float(k), J1=float(j), c=float(cc)) for k, j, cc in zip(K, J1, c)])
+    J1 = rng.uniform(*OPERATING_RANGE["J1"][:2], n)
+    c = rng.uniform(*OPERATING_RANGE["c"][:2], n)
+    cases = [PlantParameters(K=float(k), J1=float(j), c=float(cc)) for k, j, cc in zip(K, J1, c, strict=True)]
+    return simulate_batch(cases)
 
 
 def nearest_group_index(c: np.ndarray, groups: Sequence[float] = C_GROUPS) -> np.ndarray:
@@ -103,9 +104,21 @@ def nearest_group_index(c: np.ndarray, groups: Sequence[float] = C_GROUPS) -> np
     return np.argmin(np.abs(np.asarray(c)[:, None] - np.asarray(groups)[None, :]), axis=1)
 
 
-def _random_task(kind, channel, params, grids_X, grid_y, grid_g, X_sets, groups_idx) -> list[tuple[int, int, float]]:
-    """Fit one identifier per c group, then score every noise version of the random records."""
-    ests = [fit_identifier(make_identifier(kind, channel, **params), X_k, grid_y, grid_g) for X_k in grids_X]
+def _random_task(
+    kind: str,
+    channel: str,
+    params: Mapping[str, Any],
+    grids_X: Sequence[np.ndarray],
+    grid_y: np.ndarray,
+    grid_g: np.ndarray,
+    X_sets: Sequence[np.ndarray],
+    groups_idx: np.ndarray,
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Fit one identifier per c group, then score every noise version of the random records.
+
+    Returns, per entry of ``X_sets``, the identified widths [m] and the epochs, one per record.
+    """
+    ests = [make_identifier(kind, channel, **params).fit(X_k, grid_y, groups=grid_g) for X_k in grids_X]
     out = []
     for X in X_sets:
         widths = np.empty(X.shape[0])
@@ -116,8 +129,7 @@ def _random_task(kind, channel, params, grids_X, grid_y, grid_g, X_sets, groups_
                 res = est.identify_batch(X[sel])
                 widths[sel] = [r.width for r in res]
                 epochs[sel] = [r.epochs for r in res]
-        out.append(widths)
-        out.append(epochs)
+        out.append((widths, epochs))
     return out
 
 
@@ -150,32 +162,34 @@ def evaluate(
     gidx = nearest_group_index(np.array([c.plant.c for c in random.cases]), groups)
     splits = list(SPLITS_RANDOM)
     X_random = noisy_versions(random, channels, noise_seed)
-    tasks = []
+    lojo_tasks: list[tuple[str, str, Future[tuple[int, int, float]]]] = []
+    random_tasks: list[tuple[str, str, Future[list[tuple[np.ndarray, np.ndarray]]]]] = []
     with ProcessPoolExecutor(max_workers=n_jobs or os.cpu_count() or 1, mp_context=_SPAWN) as pool:
         for kind, params in kinds.items():
             for ch in channels:
                 for cg in groups:
-                    fut = pool.submit(_lojo_task, kind, ch, dict(params), grids[cg].channel(ch), y, g)
-                    tasks.append(("lojo", kind, ch, cg, fut))
-                grids_X = [grids[cg].channel(ch) for cg in groups]
-                fut = pool.submit(_random_task, kind, ch, dict(params), grids_X, y, g, X_random[ch], gidx)
-                tasks.append(("random", kind, ch, None, fut))
-        lojo: dict[tuple[str, str], list] = {}
-        rows: list[AccuracyRow] = []
-        for i, (what, kind, ch, cg, fut) in enumerate(tasks):
-            result = fut.result()
-            if what == "lojo":
-                lojo.setdefault((kind, ch), []).append(result)
-            else:
-                for s, split in enumerate(splits):
-                    widths, epochs = result[2 * s], result[2 * s + 1]
-                    rows.append(
-                        AccuracyRow(
-                            kind, ch, split, len(truth), int(np.isclose(widths, truth).sum()), float(epochs.mean())
-                        )
+                    lojo_tasks.append(
+                        (kind, ch, pool.submit(_lojo_task, kind, ch, dict(params), grids[cg].channel(ch), y, g))
                     )
+                grids_X = [grids[cg].channel(ch) for cg in groups]
+                random_tasks.append(
+                    (kind, ch, pool.submit(_random_task, kind, ch, dict(params), grids_X, y, g, X_random[ch], gidx))
+                )
+        n_tasks, done = len(lojo_tasks) + len(random_tasks), 0
+        lojo: dict[tuple[str, str], list[tuple[int, int, float]]] = {}
+        rows: list[AccuracyRow] = []
+        for kind, ch, lojo_fut in lojo_tasks:
+            lojo.setdefault((kind, ch), []).append(lojo_fut.result())
+            done += 1
             if progress:
-                progress(i + 1, len(tasks), f"{what} {kind} {ch}")
+                progress(done, n_tasks, f"lojo {kind} {ch}")
+        for kind, ch, random_fut in random_tasks:
+            for split, (widths, epochs) in zip(splits, random_fut.result(), strict=True):
+                n_right = int(np.isclose(widths, truth).sum())
+                rows.append(AccuracyRow(kind, ch, split, len(truth), n_right, float(epochs.mean())))
+            done += 1
+            if progress:
+                progress(done, n_tasks, f"random {kind} {ch}")
     for (kind, ch), parts in lojo.items():
         n = sum(p[1] for p in parts)
         rows.append(
@@ -188,7 +202,7 @@ def evaluate(
                 float(np.average([p[2] for p in parts], weights=[p[1] for p in parts])),
             )
         )
-    order = {s: i for i, s in enumerate(["leave-one-J1-out"] + splits)}
+    order = {s: i for i, s in enumerate(["leave-one-J1-out", *splits])}
     rows.sort(key=lambda r: (r.identifier, CHANNELS.index(r.channel), order[r.split]))
     return rows
 

@@ -27,9 +27,9 @@ def plot_channels_by_width(grid: SimulationResult, J1: float, path: Path) -> Pat
         if not np.isclose(case.plant.J1, J1):
             continue
         k = K_GRID.index(case.plant.K)
-        for ax, ch in zip(axes, CHANNELS):
+        for ax, ch in zip(axes, CHANNELS, strict=True):
             ax.plot(_T_MS, grid.channel(ch)[i], color=colors[k], lw=0.8, label=f"K = {case.plant.K * 1e3:g} mm")
-    for ax, ch in zip(axes, CHANNELS):
+    for ax, ch in zip(axes, CHANNELS, strict=True):
         ax.set_ylabel(f"{ch} [{CHANNEL_UNITS[ch]}]")
         ax.axvline(0.0, color="k", lw=0.5, ls=":")
         ax.grid(alpha=0.3)
@@ -48,7 +48,7 @@ def plot_table_d_vectors(rows: Sequence[TableRow], path: Path) -> Path:
     cols = 4
     fig, axes = plt.subplots(int(np.ceil(n / cols)), cols, figsize=(14, 2.6 * np.ceil(n / cols)), squeeze=False)
     x = np.arange(1, len(K_GRID) + 1)
-    for ax, r in zip(axes.ravel(), rows):
+    for ax, r in zip(axes.ravel(), rows, strict=False):  # the grid may have spare axes
         paper = np.asarray(r.case.D) / max(r.case.D)
         ours = r.D / r.D.max() if r.D.max() > 0 else r.D
         ax.bar(x - 0.2, paper, 0.4, label="paper", color="0.6")
@@ -72,7 +72,7 @@ def plot_accuracy_vs_noise(rows: Sequence[AccuracyRow], path: Path) -> Path:
     splits = [s for s in dict.fromkeys(r.split for r in rows) if s.startswith("random")]
     kinds = list(dict.fromkeys(r.identifier for r in rows))
     fig, axes = plt.subplots(1, len(kinds), figsize=(6 * len(kinds), 4), sharey=True, squeeze=False)
-    for ax, kind in zip(axes[0], kinds):
+    for ax, kind in zip(axes[0], kinds, strict=True):
         for ch in CHANNELS:
             acc = [
                 next(

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.constants import C_GROUPS, K_GRID
-from engine.identification.paper import PaperIdentifier
+from engine.identification.base import Identifier
 from engine.identification.training import identifier_from_pattern_set, train_pattern_set
 from engine.simulation import PlantParameters, simulate_batch
 
@@ -101,7 +101,7 @@ def rerun_tables(max_epochs: int = 500, progress=None, grids=None) -> list[Table
     grids = grids or {}
     records = simulate_batch([PlantParameters(K=tc.K, J1=tc.J1, c=tc.c) for tc in PAPER_TABLE_CASES])
     rows = []
-    cache: dict[tuple, PaperIdentifier] = {}
+    cache: dict[tuple[str, float, float, float], Identifier] = {}
     for i, tc in enumerate(PAPER_TABLE_CASES):
         group = nearest_group(tc.c)
         key = (tc.channel, group, tc.l, tc.delta1)

@@ -6,7 +6,7 @@ Pipeline, for one channel and one group of operating conditions:
    periodized level-10 wavelet coefficients (:mod:`engine.features.wavelet`),
    one row of the paper's matrix ``N``.
 2. The training rows, all six widths together, fix the normalisation of
-   eq. (2): ``h1, k1`` (range of ``N``) and ``h2, k2`` (target range, chosen by
+   eq. (2) (:mod:`engine.identification.normalisation`): ``h1, k1`` (range of ``N``) and ``h2, k2`` (target range, chosen by
    the case analysis of eqs. (3)-(5) from the auxiliary variables
    ``h3 .. h21``, ``m1 .. m5`` and the matrices ``N1 .. N5``). These constants
    are stored and applied unchanged to every test record.
@@ -34,7 +34,6 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -42,61 +41,13 @@ import numpy as np
 from engine.constants import CHANNEL_WAVELETS, CHANNELS, K_GRID, N_SAMPLES, WAVELET_LEVEL
 from engine.features.wavelet import wavelet_coefficients
 from engine.identification._network import TrainResult, Weights, initial_weights, train
+from engine.identification.base import IdentificationResult, NotFittedError
+from engine.identification.normalisation import TERM_NAMES, normalisation_terms, normalise
 
 logger = logging.getLogger(__name__)
 
-__all__ = [
-    "ARRAYS_FORMAT_VERSION",
-    "N1_WINDOWS",
-    "N2_WINDOWS",
-    "TARGETS",
-    "TERM_NAMES",
-    "TEST_ROWS",
-    "IdentificationResult",
-    "NotFittedError",
-    "PaperIdentifier",
-    "normalisation_terms",
-    "normalise",
-]
+__all__ = ["ARRAYS_FORMAT_VERSION", "TARGETS", "TEST_ROWS", "PaperIdentifier"]
 
-#: Window lengths [samples] of the running means in matrix N1 (paper: 100 .. 500).
-N1_WINDOWS: tuple[int, ...] = (100, 200, 300, 400, 500)
-#: Window lengths [samples] of the running means in matrix N2 (paper: 256 .. 1280).
-N2_WINDOWS: tuple[int, ...] = (256, 512, 768, 1024, 1280)
-#: Width indices (1-based, into K_GRID) whose N3 values enter the mean m3.
-M3_WIDTHS: tuple[int, ...] = (1, 2, 3)
-#: Width indices (1-based) whose N4 values give h17 (max) and h18 (min).
-N4_EXTREME_WIDTHS: tuple[int, ...] = (3, 4, 5, 6)
-#: Names of the scalar normalisation terms, in the order stored by ``to_arrays``.
-TERM_NAMES: tuple[str, ...] = (
-    "h1",
-    "k1",
-    "h2",
-    "k2",
-    "h3",
-    "h4",
-    "h5",
-    "h6",
-    "h7",
-    "h8",
-    "h9",
-    "h10",
-    "h11",
-    "h12",
-    "h13",
-    "h14",
-    "h15",
-    "h16",
-    "h17",
-    "h18",
-    "h19",
-    "h20",
-    "h21",
-    "m1",
-    "m2",
-    "m3",
-    "m5",
-)
 #: Version of the layout produced by :meth:`PaperIdentifier.to_arrays`
 #: (2: adds ``pattern_rows``; the target and test-row readings are parameters).
 ARRAYS_FORMAT_VERSION: int = 2
@@ -106,164 +57,6 @@ TARGETS: tuple[str, ...] = ("abs", "as_printed")
 TEST_ROWS: tuple[str, ...] = ("match", "single")
 
 _N_OUT = len(K_GRID)  # the paper's 6 output neurons, one per width
-
-
-class NotFittedError(ValueError, AttributeError):
-    """The identifier is used before :meth:`PaperIdentifier.fit` (same bases as scikit-learn's)."""
-
-
-@dataclass(frozen=True)
-class IdentificationResult:
-    """Outcome of identifying one record.
-
-    Attributes
-    ----------
-    D : ndarray, shape (6,)
-        ``D(i) = sum_j |Wt(j) - Ww(i, j)|`` for the widths in ``K_GRID`` order [-].
-    index : int
-        ``nr5``: 1-based index of the smallest ``D`` (paper's convention).
-    width : float
-        Identified backlash zone width ``K_GRID[index - 1]`` [m].
-    epochs : int
-        Epochs the record's own network needed (the cap if it did not converge).
-        If the pattern networks were trained on different numbers of rows
-        (unbalanced training data, ``test_rows="match"``), the record trains
-        one network per row count; these fields describe the one compared
-        with the winning pattern.
-    rms : float
-        RMS output error of the record's network after training [-].
-    converged : bool
-        Whether that network reached ``RMS < delta1``.
-    """
-
-    D: np.ndarray
-    index: int
-    width: float
-    epochs: int
-    rms: float
-    converged: bool
-
-
-# --------------------------------------------------------------------------
-# normalisation, eqs. (2)-(5)
-# --------------------------------------------------------------------------
-
-
-def _running_means(N: np.ndarray, windows: tuple[int, ...]) -> np.ndarray:
-    """Means of the first ``n`` coefficients of each row for each window ``n``; shape (R, len(windows))."""
-    csum = np.cumsum(N, axis=1)
-    return np.stack([csum[:, n - 1] / n for n in windows], axis=-1)
-
-
-def _chained_differences(v: np.ndarray) -> np.ndarray:
-    """Paper's ``(v1 - v2) - (v2 - v3) - (v3 - v4) - (v4 - v5)`` along the last axis (eqs. 3, 4 and N5)."""
-    return (v[..., 0] - v[..., 1]) - (v[..., 1] - v[..., 2]) - (v[..., 2] - v[..., 3]) - (v[..., 3] - v[..., 4])
-
-
-def _summed_differences(v: np.ndarray) -> np.ndarray:
-    """Paper's ``(v1 - v2) + (v2 - v3) + (v3 - v4) + (v4 - v5)`` along the last axis (h21)."""
-    return (v[..., 0] - v[..., 1]) + (v[..., 1] - v[..., 2]) + (v[..., 2] - v[..., 3]) + (v[..., 3] - v[..., 4])
-
-
-def _count_sum(h16: float, mask: np.ndarray) -> np.ndarray:
-    """Paper's cyclic summation ``sum h16 over the samples where a condition holds``, per row."""
-    return h16 * np.count_nonzero(mask, axis=-1).astype(float)
-
-
-def normalisation_terms(N: np.ndarray, width_index: np.ndarray) -> dict[str, float]:
-    """All scalar terms of eqs. (2)-(5), computed on a set of training rows.
-
-    Parameters
-    ----------
-    N : ndarray, shape (R, 2048)
-        Wavelet coefficients of the training records, one row per record
-        (all widths, all J1 cases of the pattern set).
-    width_index : ndarray of int, shape (R,)
-        1-based index into ``K_GRID`` of each row's width; all of 1..6 present.
-
-    Returns
-    -------
-    dict of str to float
-        ``h1 .. h21``, ``k1``, ``k2``, ``m1``, ``m2``, ``m3``, ``m5`` (see
-        :data:`TERM_NAMES`) and ``case`` (1, 2 or 3: which branch of eq. (5)
-        chose ``h3, h4``). Per-record quantities that the paper indexes by
-        ``p`` alone (``N1``, ``N2`` in h5/h6/h21, ``m2(p)``, ``h12``, ``h14``)
-        are evaluated on every record and averaged over the records.
-
-    Raises
-    ------
-    ValueError
-        Case 2 with ``h11 == 0`` (``h3 = m1 / h11`` undefined).
-    """
-    N = np.asarray(N, dtype=float)
-    wi = np.asarray(width_index)
-    t: dict[str, float] = {}
-    # h1, k1: range of N (eq. 2); h16: "the biggest value of the matrix N"
-    t["h1"] = float(N.min())
-    t["k1"] = float(N.max())
-    h16 = t["h16"] = float(N.max())
-    # per-record statistics
-    m4 = N.mean(axis=1)  # m4(p)(i): row means
-    sd1 = np.sqrt(np.mean((N - m4[:, None]) ** 2, axis=1))  # d1(p)(i): row standard deviations
-    N1 = _running_means(N, N1_WINDOWS)  # N1(p)(k)
-    N2 = _running_means(N, N2_WINDOWS)  # N2(p)(i,k)
-    N3 = _count_sum(h16, sd1[:, None] < N)  # N3(p)(i)
-    N4 = _count_sum(h16, m4[:, None] < N)  # N4(p)(i)
-    N5 = _chained_differences(N2)  # N5(p)(i)
-    # eqs. (3), (4) and h21 on the means of N1, N2 over the records
-    n1, n2 = N1.mean(axis=0), N2.mean(axis=0)
-    t["h5"] = float(_chained_differences(n1))
-    t["h6"] = float(_chained_differences(n2))
-    t["h21"] = float(_summed_differences(n1))
-    # h7 <= h8 test
-    t["h13"] = float(N3.max())
-    t["h8"] = float(N3.min())
-    t["m3"] = float(N3[np.isin(wi, M3_WIDTHS)].mean())
-    t["h7"] = t["h13"] + (t["m3"] - t["h8"])
-    # h9 <= h10 test
-    sel = np.isin(wi, N4_EXTREME_WIDTHS)
-    t["h17"] = float(N4[sel].max())
-    t["h18"] = float(N4[sel].min())
-    t["h15"] = abs(t["h17"] - t["h18"])
-    m2_p = N.mean(axis=1)  # m2(p): mean of the tested matrix, per record
-    t["h14"] = float(np.mean(_count_sum(h16, m2_p[:, None] < N)))
-    t["h9"] = abs(t["h14"] - t["h18"])
-    t["h10"] = max(t["h15"], h16)
-    # h11 from N5
-    t["h19"] = float(N5.min())
-    t["h20"] = float(N5.max())
-    t["m5"] = float(N5.mean())
-    t["h11"] = (t["h19"] - t["h21"]) - (t["h20"] - t["h21"]) - (t["m5"] - t["h21"])
-    # h12 from d2(p)
-    sd2 = np.sqrt(np.mean((N - m2_p[:, None]) ** 2, axis=1))
-    t["h12"] = float(np.mean(_count_sum(h16, sd2[:, None] < N)))
-    # means
-    t["m1"] = float(m4[wi == 1].mean())  # m1: rows of the smallest width
-    t["m2"] = float(N.mean())
-    # eq. (5)
-    if t["h7"] <= t["h8"]:
-        case, h3, h4 = 1, t["h5"] - t["h6"], t["h6"] - t["h5"]
-    elif t["h9"] <= t["h10"]:
-        if t["h11"] == 0.0:
-            raise ValueError("normalisation case 2 needs h3 = m1 / h11 but h11 = 0 for these training records")
-        case, h3, h4 = 2, t["m1"] / t["h11"], t["m1"] * t["h11"] / t["h11"]
-    else:
-        case, h3, h4 = 3, t["h12"], t["m2"]
-    t["h3"], t["h4"] = float(h3), float(h4)
-    t["h2"], t["k2"] = min(t["h3"], t["h4"]), max(t["h3"], t["h4"])
-    t["case"] = float(case)
-    return t
-
-
-def normalise(N: np.ndarray, h1: float, k1: float, h2: float, k2: float) -> np.ndarray:
-    """Eq. (2): map ``[h1, k1]`` (min, max of the training N) linearly onto ``[h2, k2]``.
-
-    ``X1 = (N - k1) / (h1 - k1) * (h2 - k2) + k2``. Test values outside
-    ``[h1, k1]`` land outside ``[h2, k2]``; they are not clipped.
-    """
-    if h1 == k1:
-        raise ValueError("cannot normalise: the training coefficients are all equal (h1 == k1)")
-    return (np.asarray(N, dtype=float) - k1) / (h1 - k1) * (h2 - k2) + k2
 
 
 def _init_row_values(m1_rows: np.ndarray, n_rows: int) -> np.ndarray:
@@ -464,7 +257,7 @@ class PaperIdentifier:
         T = np.full(_N_OUT, self.target_)
         return train(self._initial(), X1, T, self.learning_rate, self.delta1, int(self.max_epochs), label)
 
-    def fit(self, X: Any, y: Any) -> PaperIdentifier:
+    def fit(self, X: Any, y: Any, groups: Any = None) -> PaperIdentifier:
         """Learn the normalisation and the six width patterns.
 
         Parameters
@@ -475,6 +268,9 @@ class PaperIdentifier:
             widths of one c group).
         y : array_like, shape (n_records,)
             Backlash width K of each record [m]; values of ``K_GRID``, all six present.
+        groups : array_like, optional
+            Ignored: the paper's method has no use for the records' groups (J1); present so
+            that every identifier offers the same ``fit`` (:class:`~engine.identification.base.Identifier`).
 
         Returns
         -------
@@ -633,7 +429,7 @@ class PaperIdentifier:
         dict of str to ndarray
             ``format_version``, ``patterns`` (6, 15), ``widths`` (6,),
             ``epochs`` (6,), ``pattern_rms`` (6,), ``pattern_rows`` (6,), ``init_weights``,
-            ``terms`` (values in :data:`TERM_NAMES` order; holds h1, k1, h2, k2),
+            ``terms`` (values in :data:`~engine.identification.normalisation.TERM_NAMES` order; holds h1, k1, h2, k2),
             ``case``, ``n_features_in``.
         """
         self._check_fitted()
@@ -710,7 +506,7 @@ class PaperIdentifier:
             raise ValueError(f"stored widths {np.asarray(arrays['widths']).tolist()} differ from K_GRID {list(K_GRID)}")
         obj.wavelet_ = obj.wavelet if obj.wavelet is not None else CHANNEL_WAVELETS[obj.channel]
         obj.n_features_in_ = int(np.asarray(arrays["n_features_in"]))
-        obj.terms_ = {k: float(v) for k, v in zip(TERM_NAMES, np.asarray(arrays["terms"], dtype=float))}
+        obj.terms_ = {k: float(v) for k, v in zip(TERM_NAMES, np.asarray(arrays["terms"], dtype=float), strict=True)}
         obj.case_ = int(np.asarray(arrays["case"]))
         obj.h1_, obj.k1_, obj.h2_, obj.k2_ = (obj.terms_[k] for k in ("h1", "k1", "h2", "k2"))
         obj.target_ = obj._target(obj.h2_)

@@ -30,7 +30,7 @@ import numpy as np
 
 from engine.constants import CHANNEL_WAVELETS, CHANNELS, K_GRID, N_SAMPLES, WAVELET_LEVEL
 from engine.features.wavelet import level_slices, wavelet_coefficients
-from engine.identification.paper import IdentificationResult, NotFittedError
+from engine.identification.base import IdentificationResult, NotFittedError
 
 logger = logging.getLogger(__name__)
 

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from engine.constants import CHANNELS, J1_GRID, K_GRID, MODEL_VERSION
+from engine.identification.base import Identifier
 from engine.identification.paper import PaperIdentifier
 from engine.identification.template import TemplateIdentifier
 from engine.simulation import SimulationResult, paper_grid, simulate_batch
@@ -25,14 +26,32 @@ logger = logging.getLogger(__name__)
 
 #: Identifier kinds by name. ``template`` is the default: it beats the paper's
 #: method on every held-out evaluation (see README, "Evaluation").
-IDENTIFIERS: dict[str, type] = {"template": TemplateIdentifier, "paper": PaperIdentifier}
+IDENTIFIERS: dict[str, type[TemplateIdentifier] | type[PaperIdentifier]] = {
+    "template": TemplateIdentifier,
+    "paper": PaperIdentifier,
+}
 DEFAULT_KIND = "template"
 
 Progress = Callable[[float, str], None]
 
 
-def make_identifier(kind: str, channel: str, **params: Any):
-    """A fresh (unfitted) identifier of ``kind`` for ``channel``."""
+def make_identifier(kind: str, channel: str, **params: Any) -> Identifier:
+    """A fresh (unfitted) identifier of ``kind`` for ``channel``.
+
+    Parameters
+    ----------
+    kind : str
+        A key of :data:`IDENTIFIERS`.
+    channel : str
+        One of ``engine.constants.CHANNELS``.
+    **params
+        Constructor parameters of that kind.
+
+    Raises
+    ------
+    ValueError
+        Unknown kind, channel or parameter; the message lists the accepted ones.
+    """
     try:
         cls = IDENTIFIERS[kind]
     except KeyError:
@@ -44,13 +63,6 @@ def make_identifier(kind: str, channel: str, **params: Any):
     if unknown:
         raise ValueError(f"identifier {kind!r} has no parameter(s) {sorted(unknown)}; accepted: {sorted(accepted)}")
     return cls(channel=channel, **params)
-
-
-def fit_identifier(est, X: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None):
-    """Fit ``est``, passing ``groups`` (J1 values) where the identifier uses them."""
-    if "groups" in inspect.signature(est.fit).parameters:
-        return est.fit(X, y, groups=groups)
-    return est.fit(X, y)
 
 
 def simulate_training_grid(
@@ -102,7 +114,7 @@ def train_pattern_set(
         progress(0.4, f"fitting the {kind} identifier on {channel}")
     y = np.array([case.plant.K for case in grid.cases])
     groups = np.array([case.plant.J1 for case in grid.cases])
-    fit_identifier(est, grid.channel(channel), y, groups)
+    est.fit(grid.channel(channel), y, groups=groups)
     if progress:
         progress(0.95, "packaging the pattern set")
     stored_params = {**est.get_params(), "effects": dict(effects or {})}
@@ -118,7 +130,7 @@ def train_pattern_set(
     )
 
 
-def identifier_from_pattern_set(ps: PatternSet):
+def identifier_from_pattern_set(ps: PatternSet) -> Identifier:
     """Rebuild the fitted identifier stored in a pattern set."""
     try:
         cls = IDENTIFIERS[ps.kind]
