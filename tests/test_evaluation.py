@@ -6,6 +6,7 @@ from engine.constants import C_GROUPS, K_GRID, OPERATING_RANGE
 from engine.evaluation.accuracy import evaluate, random_cases
 from engine.evaluation.main_job import run
 from engine.evaluation.paper_tables import PAPER_TABLE_CASES, nearest_group
+from engine.identification.selection import nearest_pattern_set
 from engine.simulation import paper_grid, simulate_batch
 from engine.storage import PatternStore
 
@@ -62,6 +63,6 @@ def test_main_job_pattern_sets_load_back_for_every_kind(tmp_path):
     store = PatternStore(tmp_path / "p.sqlite3")
     rec = simulate_batch(paper_grid(1.0, (0.85,), (0.005,))).channel("v2")[0]
     for kind in ("template", "paper"):
-        ps = store.find_nearest("v2", 1.0, kind=kind)
+        ps = nearest_pattern_set(store, "v2", 1.0, kind=kind)
         assert ps.params["source"] == "main-job"
         assert identifier_from_pattern_set(ps).identify(rec).D.shape == (6,)

@@ -7,6 +7,7 @@ checks, restart, concurrent writers (threads and spawned processes) and a crash
 
 from __future__ import annotations
 
+import contextlib
 import inspect
 import json
 import multiprocessing
@@ -26,6 +27,7 @@ import pytest
 
 import engine
 from engine.constants import CHANNELS, K_GRID, MODEL_VERSION
+from engine.identification.selection import nearest_pattern_set
 from engine.storage import (
     SCHEMA_VERSION,
     CorruptPatternSet,
@@ -36,7 +38,7 @@ from engine.storage import (
     PatternStore,
     PatternStoreError,
 )
-from engine.storage import patterns as patterns_module
+from engine.storage import schema as schema_module
 
 REPO_ROOT = Path(engine.__file__).resolve().parent.parent
 
@@ -178,30 +180,6 @@ def test_list_filters_and_orders_newest_first(store: PatternStore) -> None:
         store.list(channel="A1")
 
 
-def test_find_nearest(store: PatternStore) -> None:
-    """Nearest c on the channel; newest wins ties; kind and model version filter."""
-    assert store.find_nearest("a1", 1.0) is None
-    low = store.save(make_set(0, c=0.8))
-    mid_old = store.save(make_set(1, c=1.25))
-    mid_new = store.save(make_set(2, c=1.25))
-    high = store.save(make_set(3, c=1.4, kind="template"))
-    store.save(make_set(4, channel="m_el", c=1.1))
-    store.save(make_set(5, c=1.2, model_version="0.9"))  # nearer, but another model version
-
-    assert store.find_nearest("a1", 0.5).id == low.id
-    assert store.find_nearest("a1", 1.2).id == mid_new.id  # tie on c=1.25: newest
-    assert store.find_nearest("a1", 1.2) == mid_new  # full set with arrays
-    assert store.find_nearest("a1", 9.0).id == high.id
-    assert store.find_nearest("a1", 9.0, kind="paper").id == mid_new.id
-    assert store.find_nearest("a1", 1.2, model_version="0.9").params["seed"] == 5
-    assert store.find_nearest("a1", 1.2, model_version="2.0") is None
-    assert store.find_nearest("v2", 1.0) is None
-    store.delete(mid_new.id)
-    assert store.find_nearest("a1", 1.2).id == mid_old.id
-    with pytest.raises(ValueError, match="finite"):
-        store.find_nearest("a1", float("nan"))
-
-
 def test_delete_and_not_found(store: PatternStore) -> None:
     keep = store.save(make_set(0))
     gone = store.save(make_set(1))
@@ -265,7 +243,7 @@ def test_corrupt_blob_is_detected(store: PatternStore) -> None:
     with pytest.raises(CorruptPatternSet, match=f"pattern set '{bad.id}' .* is corrupt"):
         store.get(bad.id)
     with pytest.raises(CorruptPatternSet):
-        store.find_nearest("m_el", 1.0)
+        nearest_pattern_set(store, "m_el", 1.0)
     assert store.get(good.id) == good
     assert len(store.list()) == 2  # metadata stays listable, so the set can be found and deleted
     assert store.check() == [f"pattern set '{bad.id}': arrays fail their SHA-256 check"]
@@ -286,7 +264,7 @@ def test_schema_version_pragmas_and_migration_hook(
     def add_note_column(c: sqlite3.Connection) -> None:
         c.execute("ALTER TABLE pattern_sets ADD COLUMN note TEXT DEFAULT 'migrated'")
 
-    monkeypatch.setattr(patterns_module, "MIGRATIONS", [*patterns_module.MIGRATIONS, add_note_column])
+    monkeypatch.setattr(schema_module, "MIGRATIONS", [*schema_module.MIGRATIONS, add_note_column])
     migrated = PatternStore(db_path)
     conn = sqlite3.connect(db_path)
     assert conn.execute("PRAGMA user_version").fetchone()[0] == 2
@@ -421,11 +399,9 @@ def test_concurrent_writers_never_corrupt(db_path: Path) -> None:
         try:
             while not done.is_set():
                 for summary in parent_store.list()[:3]:
-                    try:
+                    with contextlib.suppress(PatternSetNotFound):  # deleted meanwhile
                         parent_store.get(summary.id)
-                    except PatternSetNotFound:
-                        pass  # deleted meanwhile
-                parent_store.find_nearest("a1", 1.0)
+                nearest_pattern_set(parent_store, "a1", 1.0)
                 len(parent_store)
         except Exception:
             reader_errors.append(traceback.format_exc())

@@ -10,6 +10,7 @@ from app.services.errors import IncompatibleError, NotFoundError
 from app.services.patterns import identifier_from_pattern_set
 from engine.constants import C_NOMINAL, EVENT_INDEX, K_GRID, MODEL_VERSION, SAMPLE_INTERVAL
 from engine.identification import IdentificationResult
+from engine.identification.selection import nearest_pattern_set
 from engine.identification.training import DEFAULT_KIND
 from engine.identification.width import estimate_width, nearest_grid_width
 from engine.records import Record
@@ -86,12 +87,7 @@ def select_pattern_set(
     c = record.conditions.get("c")
     source: Literal["record", "nominal"] = "record" if c is not None else "nominal"
     c_used = float(c) if c is not None else C_NOMINAL
-    ps = store.find_nearest(channel, c_used, kind=kind, model_version=MODEL_VERSION)
-    if ps is not None and kind is None and ps.kind != DEFAULT_KIND:
-        # equally near sets of several kinds: prefer the default kind over the most recent one
-        alt = store.find_nearest(channel, c_used, kind=DEFAULT_KIND, model_version=MODEL_VERSION)
-        if alt is not None and math.isclose(abs(alt.c - c_used), abs(ps.c - c_used), rel_tol=1e-9, abs_tol=1e-12):
-            ps = alt
+    ps = nearest_pattern_set(store, channel, c_used, kind=kind, model_version=MODEL_VERSION, prefer_kind=DEFAULT_KIND)
     if ps is None:
         what = f"channel {channel!r}" + (f" and kind {kind!r}" if kind else "")
         raise NotFoundError(

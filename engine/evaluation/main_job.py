@@ -79,7 +79,9 @@ def train_and_store(store: PatternStore, grids: Mapping, kinds: Mapping[str, Map
                 for old in store.list(channel=ch, c=c, kind=kind):
                     if old.params.get("source") == MAIN_JOB_SOURCE:
                         store.delete(old.id)
-                ids.append(store.save(ps).id)
+                saved = store.save(ps)
+                assert saved.id is not None  # the store assigns one on save
+                ids.append(saved.id)
                 logger.info("  trained %s pattern set %d/%d (channel %s, c %g)", kind, len(ids), total, ch, c)
     return ids
 

@@ -1,0 +1,99 @@
+"""Which stored pattern set identifies a record: the policy of the nearest apparent-viscosity group.
+
+Pattern sets are trained at a few values of the apparent-viscosity group ``c`` [pu]; a record
+of another ``c`` is identified with the set whose ``c`` is nearest (as the paper does for its
+off-grid cases, section 3). The store only lists and reads sets
+(:meth:`engine.storage.PatternStore.list`, :meth:`~engine.storage.PatternStore.get`); this
+module decides which one.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+from engine.constants import MODEL_VERSION
+from engine.storage import PatternSet, PatternSetNotFound, PatternSetSummary, PatternStore
+from engine.storage.validation import require_c, require_channel, require_text
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["TIE_ABS_TOL", "TIE_REL_TOL", "nearest_pattern_set"]
+
+#: Two sets are equally near ``c`` for ``prefer_kind`` when their distances to it agree to
+#: these tolerances (``math.isclose``) [-] and [pu].
+TIE_REL_TOL = 1e-9
+TIE_ABS_TOL = 1e-12
+
+
+def _nearest(candidates: list[PatternSetSummary], c: float, prefer_kind: str | None) -> PatternSetSummary:
+    """The candidate nearest ``c``; near-ties go to ``prefer_kind``, exact ties to the first (newest) one."""
+    best = min(candidates, key=lambda s: abs(s.c - c))  # min keeps the first of equals: the newest
+    if prefer_kind is None or best.kind == prefer_kind:
+        return best
+    preferred = [s for s in candidates if s.kind == prefer_kind]
+    if not preferred:
+        return best
+    alt = min(preferred, key=lambda s: abs(s.c - c))
+    same_distance = math.isclose(abs(alt.c - c), abs(best.c - c), rel_tol=TIE_REL_TOL, abs_tol=TIE_ABS_TOL)
+    return alt if same_distance else best
+
+
+def nearest_pattern_set(
+    store: PatternStore,
+    channel: str,
+    c: float,
+    kind: str | None = None,
+    model_version: str = MODEL_VERSION,
+    *,
+    prefer_kind: str | None = None,
+) -> PatternSet | None:
+    """Return the stored set of ``channel`` whose ``c`` is nearest to the requested one.
+
+    Parameters
+    ----------
+    store : PatternStore
+        Where the sets are.
+    channel : str
+        Channel, one of ``engine.constants.CHANNELS``.
+    c : float
+        Apparent-viscosity group wanted [pu].
+    kind : str or None
+        Only sets of this identifier kind (any kind if ``None``).
+    model_version : str
+        Only sets of this reference-model version (sets of other versions are never returned).
+    prefer_kind : str or None
+        Among equally near sets (distances equal to :data:`TIE_REL_TOL` / :data:`TIE_ABS_TOL`),
+        the nearest set of this kind wins over sets of other kinds (``None``: no preference).
+
+    Returns
+    -------
+    PatternSet or None
+        The nearest set with its arrays: the ``prefer_kind`` one among equally near sets, else
+        the most recently saved one among those exactly as near. ``None`` if there is no
+        candidate.
+
+    Raises
+    ------
+    engine.storage.InvalidPatternSet
+        For an unknown channel, a non-finite ``c`` or an empty ``model_version``.
+    engine.storage.CorruptPatternSet
+        If the chosen set fails its checksum.
+
+    Notes
+    -----
+    The choice is made on the sets' metadata, then the chosen set is read; if another process
+    deletes it in between, the choice is made again among the sets that remain.
+    """
+    cv = require_c(c)
+    version = require_text(model_version, "model_version")
+    channel = require_channel(channel)
+    while True:
+        candidates = store.list(channel, kind=kind, model_version=version)
+        if not candidates:
+            return None
+        chosen = _nearest(candidates, cv, prefer_kind)
+        try:
+            return store.get(chosen.id)
+        except PatternSetNotFound:
+            logger.debug("pattern set %s was deleted while being chosen; choosing again", chosen.id)
