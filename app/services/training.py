@@ -9,10 +9,11 @@ under the id announced to the client.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from app.jobs import ProgressFn
 from app.services import simulation
 from app.services.errors import InvalidInputError
 from app.services.patterns import check_identifier
@@ -21,9 +22,6 @@ from engine.identification import training as engine_training
 from engine.identification.training import DEFAULT_KIND
 from engine.simulation import Case, paper_grid
 from engine.storage import PatternSet, PatternStore
-
-#: progress(fraction in [0, 1], stage text)
-ProgressFn = Callable[[float, str], None]
 
 
 def _no_progress(fraction: float, stage: str) -> None:

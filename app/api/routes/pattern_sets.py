@@ -9,7 +9,7 @@ from fastapi import APIRouter, Query, Response, status
 
 from app.api.deps import JobsDep, StoreDep
 from app.core.config import API_V1_STR
-from app.jobs import JobManager, JobState
+from app.jobs import JobManager, JobState, ProgressFn
 from app.schemas.common import ChannelName, ErrorPublic
 from app.schemas.pattern_sets import PatternSetCreate, PatternSetPublic, PatternSetsPublic, TrainingAccepted
 from app.services import training
@@ -68,7 +68,7 @@ def create_pattern_set(body: PatternSetCreate, store: StoreDep, jobs: JobsDep, r
     training.check(spec)
     set_id = uuid.uuid4().hex
 
-    def run(progress: training.ProgressFn) -> str:
+    def run(progress: ProgressFn) -> str:
         training.train_pattern_set(spec, store, set_id=set_id, progress=progress)
         return set_id
 
