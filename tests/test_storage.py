@@ -12,6 +12,7 @@ import inspect
 import json
 import multiprocessing
 import os
+import re
 import signal
 import sqlite3
 import subprocess
@@ -146,12 +147,13 @@ def test_save_assigns_id_and_time_and_leaves_input_alone(store: PatternStore) ->
     original = make_set(0)
     saved = store.save(original)
     assert original.id is None and original.created_at is None
-    assert len(saved.id) == 32 and int(saved.id, 16) >= 0
+    assert re.fullmatch(r"[0-9a-f]{32}", saved.id), saved.id
+    assert store.save(make_set(1)).id != saved.id  # a fresh id per save
     assert saved.created_at.endswith("+00:00")
     assert store.save(make_set(1, id="chosen-id")).id == "chosen-id"
     with pytest.raises(PatternSetExists, match="already exists"):
         store.save(make_set(2, id="chosen-id"))
-    assert len(store) == 2
+    assert len(store) == 3
     assert store.get("chosen-id").params["seed"] == 1
 
 
