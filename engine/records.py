@@ -8,6 +8,7 @@ format (issue 3): ``{"sample_interval", "event_index", "channels", "conditions"}
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -18,6 +19,39 @@ from engine.constants import CHANNELS, EVENT_INDEX, N_SAMPLES, SAMPLE_INTERVAL
 
 class RecordError(ValueError):
     """Raised when a record is malformed; the message says what to fix."""
+
+
+class ProtocolError(RecordError):
+    """Raised when a well-formed record is not in the test protocol the code reads (MODEL.md section 2)."""
+
+
+def require_test_protocol(record: Record, what: str) -> None:
+    """Refuse a record whose time grid is not MODEL.md's, rather than misread it.
+
+    Simulations, pattern sets and the calibration all produce records of
+    ``N_SAMPLES`` samples every ``SAMPLE_INTERVAL`` with the event at sample
+    ``EVENT_INDEX``; a record on another grid would be compared sample by sample
+    with the wrong instants.
+
+    Parameters
+    ----------
+    record : Record
+        The record to be read.
+    what : str
+        What would read it (for the message), e.g. ``"the gap diagnosis"``.
+
+    Raises
+    ------
+    ProtocolError
+        ``sample_interval`` differs from ``SAMPLE_INTERVAL`` [s] (relative 1e-9) or
+        ``event_index`` from ``EVENT_INDEX``; the message says what the record has.
+    """
+    if not math.isclose(record.sample_interval, SAMPLE_INTERVAL, rel_tol=1e-9) or record.event_index != EVENT_INDEX:
+        raise ProtocolError(
+            f"{what} reads records of the backlash test as MODEL.md section 2 defines them: sample_interval "
+            f"{SAMPLE_INTERVAL} s, event_index {EVENT_INDEX}; this record has sample_interval "
+            f"{record.sample_interval} s and event_index {record.event_index}: resample or realign it"
+        )
 
 
 @dataclass(frozen=True)

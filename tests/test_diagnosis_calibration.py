@@ -164,3 +164,21 @@ def test_speed_quantum_is_fitted_by_dense_scan():
     assert 0 < cand.uncertainty < 0.01
     assert cand.calibration.reduced_chi2 < 1.05
     assert cand.calibration.values["K"] == pytest.approx(TRUTH.K, rel=0.005)
+
+
+@pytest.mark.parametrize("relabel", [{"sample_interval": 2e-4}, {"event_index": 58}])
+def test_a_record_on_another_time_grid_is_refused_not_misread(relabel):
+    """The calibration simulates MODEL.md's grid; a record labelled otherwise must not be compared with it."""
+    from engine.diagnosis import calibrate, diagnose
+    from engine.identification.width import estimate_width
+    from engine.records import ProtocolError, Record, RecordError
+
+    ideal = simulate(PlantParameters())
+    rec = Record(
+        {"v2": ideal.channels["v2"]},
+        **{"sample_interval": ideal.sample_interval, "event_index": ideal.event_index, **relabel},
+    )
+    for read in (calibrate, diagnose, estimate_width):
+        with pytest.raises(ProtocolError, match="resample or realign") as info:
+            read(rec)
+        assert isinstance(info.value, RecordError)  # the service answers 422

@@ -8,12 +8,12 @@ from typing import Literal
 
 from app.services.errors import IncompatibleError, NotFoundError
 from app.services.patterns import identifier_from_pattern_set
-from engine.constants import C_NOMINAL, EVENT_INDEX, K_GRID, MODEL_VERSION, SAMPLE_INTERVAL
+from engine.constants import C_NOMINAL, K_GRID, MODEL_VERSION
 from engine.identification import IdentificationResult
 from engine.identification.selection import nearest_pattern_set
 from engine.identification.training import DEFAULT_KIND
 from engine.identification.width import estimate_width, nearest_grid_width
-from engine.records import Record
+from engine.records import Record, require_test_protocol
 from engine.storage import PatternSet, PatternSetNotFound, PatternStore
 
 
@@ -104,17 +104,10 @@ def check_record(record: Record, channel: str) -> None:
     Raises
     ------
     engine.records.RecordError
-        The record lacks the channel.
-    IncompatibleError
-        Another sample interval or event index than MODEL.md's.
+        The record lacks the channel, or (``ProtocolError``) is on another time grid than MODEL.md's.
     """
     record[channel]
-    if not math.isclose(record.sample_interval, SAMPLE_INTERVAL, rel_tol=1e-9) or record.event_index != EVENT_INDEX:
-        raise IncompatibleError(
-            f"the pattern sets are trained on records with sample_interval {SAMPLE_INTERVAL} s and event_index "
-            f"{EVENT_INDEX} (MODEL.md section 2); this record has sample_interval {record.sample_interval} s and "
-            f"event_index {record.event_index}: resample or realign it"
-        )
+    require_test_protocol(record, "identification with stored pattern sets")
 
 
 def identify(record: Record, channel: str, pattern_set: PatternSet) -> IdentificationResult:

@@ -49,7 +49,7 @@ from engine.diagnosis.noise import estimate_noise, lowfreq_ratio, noise_weights
 from engine.diagnosis.objective import Objective
 from engine.diagnosis.space import CALIBRATED, ModelSpace, default_space
 from engine.parallel import single_threaded_blas
-from engine.records import Record
+from engine.records import Record, require_test_protocol
 from engine.simulation import Case, SolverSettings, run_cases
 
 logger = logging.getLogger(__name__)
@@ -311,7 +311,10 @@ def calibrate(
     CalibrationError
         When no point of the search box (nor any seed) can be simulated, or the
         fitted parameters cannot be simulated.
+    engine.records.ProtocolError
+        The record is on another time grid than MODEL.md's (it would be misread).
     """
+    require_test_protocol(record, "the calibration")
     with single_threaded_blas():
         return _calibrate(record, space, settings, noise, seeds, polish)
 

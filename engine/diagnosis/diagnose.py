@@ -58,7 +58,7 @@ from engine.diagnosis.gap import Gap, gap_of
 from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, localise
 from engine.diagnosis.space import default_space
 from engine.parallel import single_threaded_blas
-from engine.records import Record
+from engine.records import Record, require_test_protocol
 from engine.simulation import CATALOGUE, EffectLibrary
 
 logger = logging.getLogger(__name__)
@@ -383,7 +383,10 @@ def diagnose(
     ------
     CalibrationError
         When the record cannot be fitted at all (no simulable parameter set).
+    engine.records.ProtocolError
+        The record is on another time grid than MODEL.md's (it would be misread).
     """
+    require_test_protocol(record, "the gap diagnosis")
     with single_threaded_blas():
         return _diagnose(record, library, settings, identify, noise)
 

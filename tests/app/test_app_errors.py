@@ -452,6 +452,22 @@ CASES: list[tuple[str, str, str, Callable[[Rec], dict[str, Any]], int, str]] = [
         422,
         "must hold exactly 2048 samples",
     ),
+    (
+        "diagnose other sample interval",
+        "POST",
+        "/v1/diagnose",
+        lambda r: {"json": {"record": {"channels": {"v2": _v2(r)}, "sample_interval": 2e-4}}},
+        422,
+        "this record has sample_interval 0.0002 s and event_index 48: resample or realign it",
+    ),
+    (
+        "diagnose other event index",
+        "POST",
+        "/v1/diagnose",
+        lambda r: {"json": {"record": {"channels": {"v2": _v2(r)}, "event_index": 58}}},
+        422,
+        "event_index 58: resample or realign it",
+    ),
     ("unknown path", "GET", "/v1/nothing", lambda r: {}, 404, "Not Found"),
     ("wrong method", "PUT", "/v1/simulate", lambda r: {"json": {"K": 0.005}}, 405, "Method Not Allowed"),
 ]
