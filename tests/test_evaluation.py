@@ -5,8 +5,8 @@ import numpy as np
 from engine.constants import C_GROUPS, K_GRID, OPERATING_RANGE
 from engine.evaluation.accuracy import evaluate, random_cases
 from engine.evaluation.main_job import run
-from engine.evaluation.paper_tables import PAPER_TABLE_CASES, nearest_group
-from engine.identification.selection import nearest_pattern_set
+from engine.evaluation.paper_tables import PAPER_TABLE_CASES
+from engine.identification.selection import nearest_c_group, nearest_pattern_set
 from engine.simulation import paper_grid, simulate_batch
 from engine.storage import PatternStore
 
@@ -16,7 +16,7 @@ def test_paper_table_cases_are_transcribed_consistently():
     assert len({(t.channel, t.K, t.J1, t.c) for t in PAPER_TABLE_CASES}) == 8
     for t in PAPER_TABLE_CASES:
         assert len(t.D) == 6 and t.K in K_GRID
-    assert nearest_group(1.5) == 1.4 and nearest_group(0.8) == 0.8
+    assert nearest_c_group(1.5) == 1.4 and nearest_c_group(0.8) == 0.8 and nearest_c_group(1.12) == 1.0
 
 
 def test_random_cases_are_off_grid():

@@ -23,8 +23,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from engine.constants import C_GROUPS, C_NOMINAL
+from engine.constants import C_NOMINAL
 from engine.identification.base import Identifier
+from engine.identification.selection import nearest_c_group
 from engine.identification.training import DEFAULT_KIND, make_identifier, simulate_training_grid
 from engine.records import Record
 from engine.simulation import SimulationResult
@@ -95,7 +96,7 @@ def identify_before_after(
         ``{"kind", "c_group", "effect", "value", "channels": {ch: {"before": {...}, "after": {...} or None}}}``
         where each entry has the 1-based ``index``, the ``width`` [m] and the ``D`` vector.
     """
-    group = float(min(C_GROUPS, key=lambda g: abs(g - c))) if at_groups else float(c)
+    group = nearest_c_group(c) if at_groups else float(c)
     before = _identify_all(lambda ch: _nominal_identifier(group, ch, kind), record)
     after: Mapping[str, dict[str, Any]] = {}
     if effect is not None and value is not None:

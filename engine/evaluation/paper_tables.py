@@ -22,8 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.constants import C_GROUPS, K_GRID
+from engine.constants import K_GRID
 from engine.identification.base import Identifier
+from engine.identification.selection import nearest_c_group
 from engine.identification.training import identifier_from_pattern_set, train_pattern_set
 from engine.simulation import PlantParameters, simulate_batch
 
@@ -88,11 +89,6 @@ class TableRow:
         return bool(np.isclose(self.width, self.case.K)) and not self.tie
 
 
-def nearest_group(c: float) -> float:
-    """The paper's c group nearest to ``c`` [pu]."""
-    return min(C_GROUPS, key=lambda g: abs(g - c))
-
-
 def rerun_tables(max_epochs: int = 500, progress=None, grids=None) -> list[TableRow]:
     """Re-run every table case with the paper's identifier (see the module docstring).
 
@@ -103,7 +99,7 @@ def rerun_tables(max_epochs: int = 500, progress=None, grids=None) -> list[Table
     rows = []
     cache: dict[tuple[str, float, float, float], Identifier] = {}
     for i, tc in enumerate(PAPER_TABLE_CASES):
-        group = nearest_group(tc.c)
+        group = nearest_c_group(tc.c)
         key = (tc.channel, group, tc.l, tc.delta1)
         if key not in cache:
             ps = train_pattern_set(

@@ -12,18 +12,34 @@ from __future__ import annotations
 import logging
 import math
 
-from engine.constants import MODEL_VERSION
+from engine.constants import C_GROUPS, MODEL_VERSION
 from engine.storage import PatternSet, PatternSetNotFound, PatternSetSummary, PatternStore
 from engine.storage.validation import require_c, require_channel, require_text
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["TIE_ABS_TOL", "TIE_REL_TOL", "nearest_pattern_set"]
+__all__ = ["TIE_ABS_TOL", "TIE_REL_TOL", "nearest_c_group", "nearest_pattern_set"]
 
 #: Two sets are equally near ``c`` for ``prefer_kind`` when their distances to it agree to
 #: these tolerances (``math.isclose``) [-] and [pu].
 TIE_REL_TOL = 1e-9
 TIE_ABS_TOL = 1e-12
+
+
+def nearest_c_group(c: float) -> float:
+    """The paper's apparent-viscosity group nearest to ``c`` (ties to the smaller group).
+
+    Parameters
+    ----------
+    c : float
+        Apparent viscosity of a record [pu].
+
+    Returns
+    -------
+    float
+        An element of ``engine.constants.C_GROUPS`` [pu]: the group whose patterns identify the record.
+    """
+    return float(min(C_GROUPS, key=lambda g: abs(g - c)))
 
 
 def _nearest(candidates: list[PatternSetSummary], c: float, prefer_kind: str | None) -> PatternSetSummary:
