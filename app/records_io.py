@@ -1,9 +1,19 @@
 """Records as text and files: the service's JSON record format and its CSV form.
 
-JSON is :meth:`engine.records.Record.to_dict` / ``from_dict``. The CSV form has a
-header row of channel names (a non-empty subset of ``a1, m_el, omega1, a2, v2``)
-and one row per sample; ``sample_interval`` and ``event_index`` travel beside it
-(query parameters over HTTP, options on the command line).
+JSON is :meth:`engine.records.Record.to_dict` / ``from_dict`` (``sample_interval``,
+``event_index``, ``channels``, ``conditions``, and optionally ``units``, ``t``,
+``event_time``). The CSV form has a header row of channel names (a non-empty
+subset of ``a1, m_el, omega1, a2, v2``, and optionally a time column ``t`` in
+seconds) and one row per sample, as many rows as the bench recorded; the
+sample interval (when there is no ``t`` column), the event index (when the
+event is not to be located from the data), the units and the conditions travel
+beside it (query parameters over HTTP, options on the command line).
+
+Whatever the form, the record is read by :func:`engine.records.record_from_data`,
+the engine's one boundary for records as a bench gives them: units are
+converted there, a ``t`` column defines the interval there, and a missing event
+index is located there. This module only turns text into the arguments of that
+call (and records back into text).
 
 The CSV form is a wire format of the service and the CLI (both in ``app``); the
 engine only knows :class:`~engine.records.Record`, so the codec lives here.
@@ -20,38 +30,79 @@ from typing import Any
 
 import numpy as np
 
-from engine.constants import CHANNELS, EVENT_INDEX, N_SAMPLES, SAMPLE_INTERVAL
-from engine.records import Record, RecordError
+from engine.constants import CHANNELS, POST_EVENT_TIME, PRE_EVENT_TIME
+from engine.records import UNITS, Record, RecordError, record_from_data
+from engine.records.units import BASE_TORQUE, from_model_units
+
+#: Name of the optional time column of the CSV form and the JSON format [s].
+TIME_COLUMN = "t"
 
 
 class RecordFormatError(ValueError):
     """Raised for text that is not a record in JSON or CSV form; the message says what to fix."""
 
 
-# -- CSV ------------------------------------------------------------------------
+# -- units as text ------------------------------------------------------------------
+
+#: Accepted units per channel in words, for help texts (from the engine's one table, :data:`engine.records.UNITS`).
+ACCEPTED_UNITS_DOC = "; ".join(
+    f"{c}: " + ", ".join(f"{u} (needs conditions.{BASE_TORQUE})" if f is None else u for u, f in UNITS[c].items())
+    for c in CHANNELS
+)
+
+#: How a set of units is written as one string (the ``units`` query parameter, the ``X-Units`` header).
+UNITS_SYNTAX = "CHANNEL:UNIT pairs separated by commas, e.g. omega1:rpm,a1:g"
 
 
-def record_from_csv(
-    text: str,
-    sample_interval: float = SAMPLE_INTERVAL,
-    event_index: int = EVENT_INDEX,
-    conditions: Mapping[str, float] | None = None,
-) -> Record:
-    """Parse the CSV form of a record.
+def parse_units(text: str | None) -> dict[str, str]:
+    """Units written as ``CHANNEL:UNIT`` pairs separated by commas (e.g. ``omega1:rpm,a1:g``).
+
+    Only the syntax is checked here; whether a channel may be given in a unit is the
+    engine's to say (:data:`engine.records.UNITS`, checked when the record is read).
+
+    Parameters
+    ----------
+    text : str or None
+        The string; ``None`` or blank means no units (every channel in its model unit).
+
+    Returns
+    -------
+    dict of str to str
+        Channel -> unit.
 
     Raises
     ------
     RecordFormatError
-        Malformed CSV (no header, duplicate column, ragged rows, a field that is
-        not a number).
-    engine.records.RecordError
-        Well-formed CSV that is not a valid record (unknown channel, wrong
-        number of samples, NaN or inf).
+        A pair without ``:``, an empty channel or unit, or a channel named twice.
     """
+    units: dict[str, str] = {}
+    if text is None or not text.strip():
+        return units
+    for pair in text.split(","):
+        channel, sep, unit = pair.partition(":")
+        channel, unit = channel.strip(), unit.strip()
+        if not sep or not channel or not unit:
+            raise RecordFormatError(f"units: {pair.strip()!r} is not CHANNEL:UNIT; write {UNITS_SYNTAX}")
+        if channel in units:
+            raise RecordFormatError(f"units: channel {channel!r} is given twice; write {UNITS_SYNTAX}")
+        units[channel] = unit
+    return units
+
+
+def format_units(units: Mapping[str, str]) -> str:
+    """The inverse of :func:`parse_units` (``""`` for no units)."""
+    return ",".join(f"{c}:{u}" for c, u in units.items())
+
+
+# -- CSV ------------------------------------------------------------------------
+
+
+def _csv_columns(text: str) -> tuple[list[str], list[list[float]]]:
+    """Header and numeric columns of a CSV text (``t`` included); raises on malformed CSV."""
     if not text.strip():
         raise RecordFormatError(
-            f"the CSV is empty; send a header row of channel names ({', '.join(CHANNELS)}) "
-            f"and {N_SAMPLES} rows of samples"
+            f"the CSV is empty; send a header row of channel names ({', '.join(CHANNELS)}, optionally "
+            f"{TIME_COLUMN!r} for the time in s) and one row per sample"
         )
     try:
         rows = list(csv.reader(io.StringIO(text)))
@@ -62,20 +113,27 @@ def record_from_csv(
     header = [cell.strip() for cell in rows[0]]
     if "" in header:
         raise RecordFormatError(f"malformed CSV: the header row {rows[0]!r} has an empty column name")
-    unknown = [name for name in header if name not in CHANNELS]
+    unknown = [name for name in header if name not in CHANNELS and name != TIME_COLUMN]
     if unknown:
         if _is_number(unknown[0]):
             raise RecordFormatError(
                 f"the CSV's first row {rows[0][:5]!r} is not a header; start with a row of channel names "
-                f"({', '.join(CHANNELS)})"
+                f"({', '.join(CHANNELS)}, optionally {TIME_COLUMN!r})"
             )
-        raise RecordError(f"unknown channel {unknown[0]!r} in the CSV header; known channels: {', '.join(CHANNELS)}")
+        raise RecordError(
+            f"unknown channel {unknown[0]!r} in the CSV header; known channels: {', '.join(CHANNELS)} "
+            f"(and {TIME_COLUMN!r}, the time in s)"
+        )
     if len(set(header)) != len(header):
         dup = next(name for name in header if header.count(name) > 1)
-        raise RecordFormatError(f"channel {dup!r} appears twice in the CSV header")
+        what = "column" if dup == TIME_COLUMN else "channel"
+        raise RecordFormatError(f"{what} {dup!r} appears twice in the CSV header")
     data = rows[1:]
-    if len(data) != N_SAMPLES:
-        raise RecordError(f"the CSV has {len(data)} data rows; a record needs exactly {N_SAMPLES} (one per sample)")
+    if len(data) < 2:
+        raise RecordError(
+            f"the CSV has {len(data)} data row(s); a record needs one row per sample, covering at least "
+            f"{PRE_EVENT_TIME * 1e3:g} ms before the event and {POST_EVENT_TIME * 1e3:g} ms from it on"
+        )
     columns: list[list[float]] = [[] for _ in header]
     for r, row in enumerate(data, start=2):
         if len(row) != len(header):
@@ -87,21 +145,99 @@ def record_from_csv(
                 raise RecordFormatError(
                     f"malformed CSV: line {r}, column {header[j]!r}: {cell!r} is not a number"
                 ) from None
-    return Record(
-        channels={name: np.asarray(column, dtype=float) for name, column in zip(header, columns, strict=True)},
+    return header, columns
+
+
+def record_from_csv(
+    text: str,
+    sample_interval: float | None = None,
+    event_index: int | None = None,
+    conditions: Mapping[str, float] | None = None,
+    units: Mapping[str, str] | None = None,
+) -> Record:
+    """Parse the CSV form of a record.
+
+    Parameters
+    ----------
+    text : str
+        Header row of channel names (optionally ``t``, the time [s] of each sample), then
+        one row per sample; any number of rows, the same for every column.
+    sample_interval : float, optional
+        Ts [s] (10 us to 1 ms). Default: the step of the ``t`` column, or MODEL.md's 0.1 ms
+        without one; given together with ``t`` the two must agree.
+    event_index : int, optional
+        Index of the sample at the event t_e; omitted, the event is located from m_el or a1
+        (the record's ``event_location`` says how).
+    conditions : mapping of str to float, optional
+        Known operating conditions (``K`` [m], ``J1`` [kg m^2], ``c`` [pu], ``c1`` [pu],
+        ``base_torque`` [N*m] for an m_el in N*m).
+    units : mapping of str to str, optional
+        Unit per channel (:data:`engine.records.UNITS`); a channel not named is in its model unit.
+
+    Returns
+    -------
+    Record
+        In model units, remembering ``units``.
+
+    Raises
+    ------
+    RecordFormatError
+        Malformed CSV (no header, duplicate column, ragged rows, a field that is not a number).
+    engine.records.RecordError
+        Well-formed CSV that is not a valid record (unknown channel or unit, a time column
+        that is not uniform or contradicts ``sample_interval``, NaN or inf, too little time
+        around the event: :class:`~engine.records.ProtocolError` says how much is missing).
+    """
+    header, columns = _csv_columns(text)
+    by_name = dict(zip(header, columns, strict=True))
+    time = by_name.pop(TIME_COLUMN, None)
+    if not by_name:
+        raise RecordError(f"the CSV holds only the time column; add at least one channel ({', '.join(CHANNELS)})")
+    return record_from_data(
+        channels={name: np.asarray(column, dtype=float) for name, column in by_name.items()},
         sample_interval=sample_interval,
         event_index=event_index,
         conditions=dict(conditions or {}),
+        units=dict(units or {}),
+        time=time,
     )
 
 
-def record_to_csv(record: Record) -> str:
-    """The CSV form of a record (values written with full precision: they round-trip exactly)."""
+def record_to_csv(record: Record, with_time: bool = False) -> str:
+    """The CSV form of a record, the samples in the record's own units.
+
+    Values are written with full precision: reading the text back with the same units
+    gives the same model-unit samples (to the last bit for channels in their model unit).
+
+    Parameters
+    ----------
+    record : Record
+    with_time : bool
+        Also write a first column ``t``: the time of each sample [s] counted from the
+        first sample (``k * sample_interval``, so 0 at sample 0; not relative to the
+        event), which carries the sample interval.
+
+    Returns
+    -------
+    str
+        Header row, then one row per sample.
+
+    Notes
+    -----
+    The CSV form cannot carry the unit names, the event index, the conditions, t_e or the
+    event location; without ``with_time`` it cannot carry the sample interval either. Give
+    them beside the CSV when it is read (query parameters, command-line options).
+    """
+    values = from_model_units(record.channels, record.units, record.conditions)
+    names = list(values)
+    columns = [values[n].tolist() for n in names]
+    if with_time:
+        names = [TIME_COLUMN, *names]
+        columns = [(np.arange(record.n_samples) * record.sample_interval).tolist(), *columns]
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
-    names = list(record.channels)
     writer.writerow(names)
-    for row in zip(*(record.channels[n].tolist() for n in names), strict=True):
+    for row in zip(*columns, strict=True):
         writer.writerow([repr(v) for v in row])
     return buf.getvalue()
 
@@ -121,8 +257,32 @@ def _reject_constant(token: str) -> Any:
     raise RecordFormatError(f"the JSON holds {token}, which is not a number; every sample must be finite")
 
 
-def record_from_json(text: str) -> Record:
-    """Parse the JSON record format (NaN / Infinity tokens are rejected)."""
+def record_from_json(
+    text: str,
+    sample_interval: float | None = None,
+    event_index: int | None = None,
+    conditions: Mapping[str, float] | None = None,
+    units: Mapping[str, str] | None = None,
+) -> Record:
+    """Parse the JSON record format (NaN / Infinity tokens are rejected).
+
+    Parameters
+    ----------
+    text : str
+        A JSON object with ``channels`` and optionally ``sample_interval`` [s], ``event_index``
+        (omitted: located), ``conditions``, ``units``, ``t`` [s] and ``event_time`` [s].
+    sample_interval, event_index : optional
+        Replace the record's values when given.
+    conditions, units : mapping, optional
+        Merged over the record's (a value given here wins).
+
+    Raises
+    ------
+    RecordFormatError
+        Malformed JSON, or JSON that is not a record object.
+    engine.records.RecordError
+        A record the engine refuses (the message says what to fix).
+    """
     try:
         data = json.loads(text, parse_constant=_reject_constant)
     except json.JSONDecodeError as exc:
@@ -130,8 +290,19 @@ def record_from_json(text: str) -> Record:
     if not isinstance(data, dict) or not isinstance(data.get("channels"), dict):
         raise RecordFormatError(
             "a JSON record must be an object with 'channels' (an object of channel name -> list of samples) "
-            "and optionally 'sample_interval', 'event_index', 'conditions'"
+            "and optionally 'sample_interval', 'event_index', 'conditions', 'units', 't', 'event_time'"
         )
+    for key in ("conditions", "units"):
+        if data.get(key) is not None and not isinstance(data[key], dict):
+            raise RecordFormatError(f"the JSON record's {key!r} must be an object")
+    if sample_interval is not None:
+        data["sample_interval"] = sample_interval
+    if event_index is not None:
+        data["event_index"] = event_index
+    if conditions:
+        data["conditions"] = {**(data.get("conditions") or {}), **dict(conditions)}
+    if units:
+        data["units"] = {**(data.get("units") or {}), **dict(units)}
     try:
         return Record.from_dict(data)
     except RecordError:
@@ -141,6 +312,7 @@ def record_from_json(text: str) -> Record:
 
 
 def record_to_json(record: Record) -> str:
+    """The JSON record format (:meth:`Record.to_dict`: samples in the record's own units)."""
     return json.dumps(record.to_dict(), allow_nan=False)
 
 
@@ -152,46 +324,40 @@ def read_record(
     sample_interval: float | None = None,
     event_index: int | None = None,
     conditions: Mapping[str, float] | None = None,
+    units: Mapping[str, str] | None = None,
 ) -> Record:
     """Read a record file: ``.json`` (record format) or ``.csv`` (CSV form).
 
-    ``sample_interval``, ``event_index`` and ``conditions`` complete a CSV file
-    (defaults: MODEL.md's ``SAMPLE_INTERVAL`` and ``EVENT_INDEX``); for a JSON file they override its values
-    when given.
+    ``sample_interval`` [s], ``event_index``, ``conditions`` and ``units`` complete a CSV
+    file (see :func:`record_from_csv`: without them Ts comes from its ``t`` column or is
+    0.1 ms, and the event is located); for a JSON file they override its values when given
+    (see :func:`record_from_json`).
     """
     path = Path(path)
     suffix = path.suffix.lower()
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")
     except OSError as exc:
         raise RecordFormatError(f"cannot read record file {path}: {exc.strerror or exc}") from exc
     if suffix == ".csv":
-        return record_from_csv(
-            text,
-            SAMPLE_INTERVAL if sample_interval is None else sample_interval,
-            EVENT_INDEX if event_index is None else event_index,
-            conditions,
-        )
+        return record_from_csv(text, sample_interval, event_index, conditions, units)
     if suffix == ".json":
-        record = record_from_json(text)
-        if sample_interval is None and event_index is None and not conditions:
-            return record
-        return Record(
-            channels=record.channels,
-            sample_interval=record.sample_interval if sample_interval is None else sample_interval,
-            event_index=record.event_index if event_index is None else event_index,
-            conditions={**record.conditions, **dict(conditions or {})},
-            event_time=record.event_time,
-        )
+        return record_from_json(text, sample_interval, event_index, conditions, units)
     raise RecordFormatError(f"record file {path} must end in .json or .csv")
 
 
-def write_record(record: Record, path: str | Path) -> None:
-    """Write a record file, JSON or CSV by the extension (CSV drops sample_interval, event_index, conditions)."""
+def write_record(record: Record, path: str | Path, with_time: bool = False) -> None:
+    """Write a record file, JSON or CSV by the extension.
+
+    JSON keeps everything (:meth:`Record.to_dict`). CSV (:func:`record_to_csv`) keeps the
+    samples in the record's units but loses the unit names, the event index, the conditions,
+    t_e and the event location, and (unless ``with_time`` writes a ``t`` column) the sample
+    interval: give them as options when reading it back.
+    """
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".csv":
-        text = record_to_csv(record)
+        text = record_to_csv(record, with_time=with_time)
     elif suffix == ".json":
         text = record_to_json(record)
     else:
@@ -201,8 +367,13 @@ def write_record(record: Record, path: str | Path) -> None:
 
 
 __all__ = [
+    "ACCEPTED_UNITS_DOC",
+    "TIME_COLUMN",
+    "UNITS_SYNTAX",
     "RecordError",
     "RecordFormatError",
+    "format_units",
+    "parse_units",
     "read_record",
     "record_from_csv",
     "record_from_json",

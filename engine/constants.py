@@ -88,6 +88,18 @@ EVENT_INDEX: Final[int] = 48
 #: Longest simulated time before the event must have happened [s].
 T_EVENT_MAX: Final[float] = 1.0
 
+# --- records as a bench gives them (issue 9; ours, not MODEL.md) -------------
+#: Shortest accepted sample interval of a record [s] (100 kHz).
+MIN_SAMPLE_INTERVAL: Final[float] = 1e-5
+#: Longest accepted sample interval of a record [s] (1 kHz).
+MAX_SAMPLE_INTERVAL: Final[float] = 1e-3
+#: Time a record must cover before the event [s]: MODEL.md's 48 samples of 0.1 ms.
+PRE_EVENT_TIME: Final[float] = EVENT_INDEX * SAMPLE_INTERVAL
+#: Time a record must cover from the event on [s]: MODEL.md's 2000 samples of 0.1 ms. A sample
+#: covers the interval [t_k, t_k + Ts), so a record of n samples with the event at sample e covers
+#: ``e * Ts`` before the event and ``(n - e) * Ts`` from it on.
+POST_EVENT_TIME: Final[float] = (N_SAMPLES - EVENT_INDEX) * SAMPLE_INTERVAL
+
 # --- paper grids (MODEL.md section 1.2) --------------------------------------
 #: J1 grid K_I [kg m^2], in the paper's order (nominal first).
 J1_GRID: Final[tuple[float, ...]] = (J1_NOMINAL, 0.8482, 0.8265, 0.8047, 0.7612, 0.8917, 0.9135)

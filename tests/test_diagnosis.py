@@ -189,13 +189,14 @@ def test_small_blind_validation(tmp_path):
     )
     assert rep.n_cases == 4
     assert (tmp_path / "report.md").exists() and (tmp_path / "report.json").exists()
-    # every case is answered right (measured: the same four answers on every run)
+    # every case is answered right (measured: the same four answers on every run; the draw is that of the
+    # 16-effect catalogue of issue 9)
     answers = [(r["kind"], r["effect"], r["expected"], r["status"], r["named"]) for r in rep.per_case]
     assert answers == [
         ("clean", None, "no_gap", "no_gap", None),
         ("effect", "contact_damping", "explained", "explained", "contact_damping"),
-        ("left_out", "sensor_lowpass", "unexplained", "unexplained", None),
-        ("effect", "absorber_discontinuity", "explained", "explained", "absorber_discontinuity"),
+        ("left_out", "sensor_offset", "unexplained", "unexplained", None),
+        ("effect", "trigger_offset", "explained", "explained", "trigger_offset"),
     ], rep.per_case
     # identification before/after on the same finished run (reads the key only now)
     from engine.evaluation.identification import identification_markdown, score_identification
@@ -210,9 +211,9 @@ def test_small_blind_validation(tmp_path):
         assert sorted(acc[split]) == sorted([*CHANNELS, "mean"])
         assert all(v * n[split] == pytest.approx(round(v * n[split])) for v in per_channel)  # k of n records
         assert acc[split]["mean"] == pytest.approx(np.mean(per_channel))
-    # measured: both effect cases are identified on every channel, before and after the fix and as clean twins;
-    # the clean case (37.7 dB) on a1, m_el and v2 only
-    assert acc["twin"]["mean"] == acc["before"]["mean"] == acc["after"]["mean"] == 1.0
+    # measured (deterministic): 6 of the 10 channel identifications of the clean twins are right, 7 before the
+    # fix and 6 after it; the clean case (37.7 dB) is identified on a1, m_el and v2 only
+    assert (acc["twin"]["mean"], acc["before"]["mean"], acc["after"]["mean"]) == pytest.approx((0.6, 0.7, 0.6))
     assert acc["clean"] == pytest.approx({"a1": 1.0, "m_el": 1.0, "omega1": 0.0, "a2": 0.0, "v2": 1.0, "mean": 0.6})
     # the paired difference is the difference of the channel means (same cases in both splits)
     assert ident["paired"]["after_minus_twin"] == pytest.approx(100 * (acc["after"]["mean"] - acc["twin"]["mean"]))
@@ -295,11 +296,11 @@ def test_a_running_fit_stops_when_cancelled(monkeypatch):
     batches: list[int] = []
     real_run_cases = objective.run_cases
 
-    def run_cases(cases, solver):
+    def run_cases(cases, solver, grid):
         batches.append(len(cases))
         started.set()
         assert cancelled.wait(60), "the test never cancelled the fit"
-        return real_run_cases(cases, solver)
+        return real_run_cases(cases, solver, grid)
 
     monkeypatch.setattr(objective, "run_cases", run_cases)
     rec = noisy(simulate(PLANT), 40.0, seed=22)

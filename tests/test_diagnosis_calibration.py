@@ -166,19 +166,23 @@ def test_speed_quantum_is_fitted_by_dense_scan():
     assert cand.calibration.values["K"] == pytest.approx(TRUTH.K, rel=0.005)
 
 
-@pytest.mark.parametrize("relabel", [{"sample_interval": 2e-4}, {"event_index": 58}])
-def test_a_record_on_another_time_grid_is_refused_not_misread(relabel):
-    """The calibration simulates MODEL.md's grid; a record labelled otherwise must not be compared with it."""
-    from engine.diagnosis import calibrate, diagnose
-    from engine.identification.width import estimate_width
-    from engine.records import ProtocolError, Record, RecordError
+def test_a_record_is_read_on_its_own_labels_not_misread():
+    """The same samples labelled with another interval or event index are compared at those instants.
 
-    ideal = simulate(PlantParameters())
-    rec = Record(
-        {"v2": ideal.channels["v2"]},
-        **{"sample_interval": ideal.sample_interval, "event_index": ideal.event_index, **relabel},
+    Before issue 9 the calibration ignored both labels: the chi2 came out the same whatever they said.
+    """
+    from engine.diagnosis import CalibrationSettings, calibrate
+    from engine.records import Record, SampleGrid
+
+    grid = SampleGrid.around_event(1e-4, 0.01, 0.21)
+    v2 = simulate(PlantParameters(), grid=grid)["v2"]
+    honest = calibrate(
+        Record({"v2": v2}, 1e-4, grid.event_index), settings=CalibrationSettings(n_global=64, n_starts=2)
     )
-    for read in (calibrate, diagnose, estimate_width):
-        with pytest.raises(ProtocolError, match="resample or realign") as info:
-            read(rec)
-        assert isinstance(info.value, RecordError)  # the service answers 422
+    assert honest.reduced_chi2 < 1.5
+    for relabel in ({"sample_interval": 2e-4}, {"event_index": grid.event_index + 10}):
+        wrong = calibrate(
+            Record({"v2": v2}, **{"sample_interval": 1e-4, "event_index": grid.event_index, **relabel}),
+            settings=CalibrationSettings(n_global=64, n_starts=2),
+        )
+        assert wrong.reduced_chi2 > 100 * honest.reduced_chi2, relabel

@@ -2,7 +2,8 @@
 
 The reference (:mod:`engine.simulation.reference`) is an independent
 transcription of MODEL.md, of the effect catalogue and of the sensor chain
-(delay, first-order low-pass, speed quantisation), integrated by solve_ivp
+(delay and trigger offset, first-order low-pass, gain, offset, speed
+quantisation), on any record grid, integrated by solve_ivp
 (DOP853, rtol 1e-9, atol 1e-12) with the event located by solve_ivp's event
 function. It shares no physics code with the kernel: it is given the MODEL.md
 parameters and the effects by name, while the kernel's side goes through
@@ -25,9 +26,24 @@ Two kinds of test per case:
   - sensor low-pass (3 cases): 0.172 % (m_el at 5 kHz, the first sample after
     t_e: the kernel's RK4 on a filter with 2 pi f_c h = 1.05; all channels
     within 0.002 % at a 10 us step), |dt_e| 5.2e-9 s; guard 0.35 %, 1e-8 s.
-  - speed quantisation (2 cases): 0.0101 % on the other channels (m_el, behind
-    a 2 kHz low-pass), |dt_e| 6.7e-10 s; guard 0.02 %, 1.5e-9 s. omega1: no
-    one-quantum flip (see test_quantised_speed_matches_up_to_boundary_flips).
+  - speed quantisation (3 cases, one behind a gain and an offset): 0.0101 % on
+    the other channels (m_el, behind a 2 kHz low-pass), |dt_e| 6.7e-10 s; guard
+    0.02 %, 1.5e-9 s. omega1: no one-quantum flip (see
+    test_quantised_speed_matches_up_to_boundary_flips).
+  - trigger offset (late and early), gain and offset (2 cases): 0.0042 % (a1),
+    |dt_e| 1.4e-8 s (that plant's own, K 0.0075 m, J1 0.8917, c 1.25); guard
+    0.01 %, 3e-8 s.
+  - other record grids (12 cases: Ts = 25 us, 0.5 ms and 1 ms covering the test
+    window, and 0.1 ms with 20 ms before the event; on each the reference plant,
+    a late trigger behind a 2 kHz low-pass with gain and offset, and a delay with
+    an early trigger and an offset): 0.0485 % (a1, 173 ms after the event,
+    20 ms-before grid), |dt_e| 4.6e-9 s; guard 0.1 %, 1e-8 s. One exception,
+    ``25us/delay-early-trigger``: 0.184 % at a single a1 sample that falls
+    between the kernel's and the reference's instant of a contact onset 124 ms
+    after the event (the kernel's RK4 is about 0.7 us ahead there; the onset is
+    a jump of a1 of 0.18 % of peak-to-peak), the rest of that record within
+    0.009 %; its guard is 0.37 %. The same can happen on any grid whose sample
+    falls within the integrator's timing error of a contact onset.
 
   The README's "worst 0.045 %" is the reference plant's figure.
 """
@@ -41,6 +57,7 @@ import numpy as np
 import pytest
 
 from engine.constants import CHANNELS
+from engine.records import PROTOCOL_GRID, SampleGrid
 from engine.simulation import CATALOGUE, Case, PlantParameters, simulate_batch
 from engine.simulation.reference import EFFECT_NEUTRAL, ReferenceResult, reference_simulate
 
@@ -59,6 +76,7 @@ class AccuracyCase:
     effects: dict[str, float] = field(default_factory=dict)
     guard_rel: float = 9e-4  # fraction of peak-to-peak
     guard_event_time: float = 3e-8  # s
+    grid: SampleGrid = PROTOCOL_GRID
 
     @property
     def quantum(self) -> float:
@@ -79,6 +97,10 @@ def _lowpass(id: str, kw: dict[str, float], effects: dict[str, float]) -> Accura
 
 def _quantised(id: str, kw: dict[str, float], effects: dict[str, float]) -> AccuracyCase:
     return AccuracyCase(id, kw, effects, guard_rel=2e-4, guard_event_time=1.5e-9)
+
+
+def _chain(id: str, kw: dict[str, float], effects: dict[str, float]) -> AccuracyCase:
+    return AccuracyCase(id, kw, effects, guard_rel=1e-4, guard_event_time=3e-8)
 
 
 CASES = [
@@ -126,14 +148,61 @@ CASES = [
         dict(K=0.0045, J1=0.85, c=1.0),
         {"speed_quantization": 0.05, "sensor_lowpass": 2000.0},
     ),
+    # trigger offset (either sign), gain and offset on MODEL.md's grid
+    _chain("trigger-late-2ms", dict(K=0.0063, J1=0.78, c=1.37), {"trigger_offset": -0.002}),
+    _chain(
+        "trigger-early-delay-gain-offset",
+        dict(K=0.0075, J1=0.8917, c=1.25),
+        {"trigger_offset": 0.0015, "measurement_delay": 0.001, "sensor_gain": 1.2, "sensor_offset": -0.2},
+    ),
+    _quantised(
+        "quantum-0.25-gain-offset",
+        dict(K=0.005, J1=0.87, c=1.0),
+        {"speed_quantization": 0.25, "sensor_gain": 0.8, "sensor_offset": 0.2},
+    ),
 ]
+
+#: Other record grids than MODEL.md's (``engine.records.SampleGrid``): the same spec applies.
+GRIDS = {
+    "25us": SampleGrid.protocol(25e-6),
+    "0.5ms": SampleGrid.protocol(5e-4),
+    "1ms": SampleGrid.protocol(1e-3),
+    "20ms-before": SampleGrid.around_event(1e-4, 20e-3, 200e-3),
+}
+
+
+#: Per-case guards that differ from their class's (see the module docstring).
+_GUARD_REL = {"25us/delay-early-trigger": 3.7e-3}
+
+
+def _on_grid(grid_id: str, id: str, kw: dict[str, float], effects: dict[str, float]) -> AccuracyCase:
+    full = f"{grid_id}/{id}"
+    return AccuracyCase(full, kw, effects, _GUARD_REL.get(full, 1e-3), guard_event_time=1e-8, grid=GRIDS[grid_id])
+
+
+for _g in GRIDS:
+    CASES += [
+        _on_grid(_g, "plant", dict(K=0.01, J1=0.7612, c=1.4), {}),
+        _on_grid(
+            _g,
+            "late-trigger-lowpass-gain-offset",
+            dict(K=0.0063, J1=0.78, c=1.37),
+            {"trigger_offset": -0.0017, "sensor_lowpass": 2000.0, "sensor_gain": 1.2, "sensor_offset": -0.2},
+        ),
+        _on_grid(
+            _g,
+            "delay-early-trigger",
+            dict(K=0.009, J1=0.92, c=1.5),
+            {"measurement_delay": 0.001, "trigger_offset": 0.002, "sensor_offset": 0.1},
+        ),
+    ]
 IDS = [c.id for c in CASES]
 BY_ID = {c.id: c for c in CASES}
 
 
 @dataclass(frozen=True)
 class Comparison:
-    kernel: np.ndarray  # (5, 2048)
+    kernel: np.ndarray  # (5, n_samples)
     kernel_event_time: float
     reference: ReferenceResult
 
@@ -156,9 +225,10 @@ class Comparison:
 def _compare(case_id: str) -> Comparison:
     case = BY_ID[case_id]
     # kernel side: through PlantParameters and the effect catalogue
-    sim = simulate_batch([Case(PlantParameters(**case.parameters))], case.effects)
-    # reference side: MODEL.md names and effect names, its own physics
-    ref = reference_simulate(case.parameters, case.effects)
+    sim = simulate_batch([Case(PlantParameters(**case.parameters))], case.effects, grid=case.grid)
+    # reference side: MODEL.md names and effect names, its own physics and sensor chain
+    ref = reference_simulate(case.parameters, case.effects, grid=case.grid)
+    assert sim.channels.shape == (1, len(CHANNELS), case.grid.n_samples) == (1, *ref.channels.shape)
     return Comparison(sim.channels[0], float(sim.event_times[0]), ref)
 
 

@@ -10,10 +10,11 @@ from pydantic import BaseModel, ValidationError
 
 from app.core.config import Settings
 from app.jobs import JobManager
-from app.records_io import RecordFormatError, record_from_csv
+from app.records_io import ACCEPTED_UNITS_DOC, UNITS_SYNTAX, RecordFormatError, parse_units, record_from_csv
 from app.services.errors import InvalidInputError
-from engine.constants import EVENT_INDEX, N_SAMPLES, SAMPLE_INTERVAL
+from engine.constants import MAX_SAMPLE_INTERVAL, MIN_SAMPLE_INTERVAL, SAMPLE_INTERVAL
 from engine.records import Record
+from engine.records.units import BASE_TORQUE
 from engine.storage import PatternStore
 
 M = TypeVar("M", bound=BaseModel)
@@ -69,37 +70,79 @@ async def json_body(request: Request, model: type[M]) -> M:
 
 
 class CSVRecordParams:
-    """Query parameters that complete a record sent in CSV form."""
+    """Query parameters that complete a record sent in CSV form.
+
+    ``units`` stays text until :func:`csv_record` parses it, so that a JSON body with a
+    ``units`` query parameter is told that the parameter belongs to the CSV form.
+    """
 
     def __init__(
         self,
         sample_interval: Annotated[
-            float, Query(gt=0, allow_inf_nan=False, description="CSV form: Ts [s].")
-        ] = SAMPLE_INTERVAL,
+            float | None,
+            Query(
+                gt=0,
+                allow_inf_nan=False,
+                description=f"CSV form: Ts [s], {MIN_SAMPLE_INTERVAL:g} to {MAX_SAMPLE_INTERVAL:g}. Default: the "
+                f"step of the CSV's t column, else {SAMPLE_INTERVAL:g}; given with a t column, the two must agree.",
+            ),
+        ] = None,
         event_index: Annotated[
-            int, Query(ge=0, lt=N_SAMPLES, description="CSV form: index of the sample at t_e.")
-        ] = EVENT_INDEX,
+            int | None,
+            Query(
+                ge=0,
+                description="CSV form: index of the sample at the event t_e (0 = first data row). Omitted: the "
+                "event is located from m_el, else a1 (a record with neither needs it).",
+            ),
+        ] = None,
+        units: Annotated[
+            str | None,
+            Query(
+                description=f"CSV form: units of the channels not in their model unit, as {UNITS_SYNTAX} "
+                f"(URL-encoded). Accepted: {ACCEPTED_UNITS_DOC}.",
+                examples=["omega1:rpm,a1:g"],
+            ),
+        ] = None,
         J1: Annotated[float | None, Query(allow_inf_nan=False, description="CSV form: known J1 [kg m^2].")] = None,
         c: Annotated[float | None, Query(allow_inf_nan=False, description="CSV form: known c [pu].")] = None,
         c1: Annotated[float | None, Query(allow_inf_nan=False, description="CSV form: known c1 [pu].")] = None,
         K: Annotated[float | None, Query(allow_inf_nan=False, description="CSV form: known K [m].")] = None,
+        base_torque: Annotated[
+            float | None,
+            Query(allow_inf_nan=False, description="CSV form: the motor's base torque [N*m] (for m_el in N*m)."),
+        ] = None,
     ) -> None:
         self.sample_interval = sample_interval
         self.event_index = event_index
-        self.conditions = {k: v for k, v in {"J1": J1, "c": c, "c1": c1, "K": K}.items() if v is not None}
+        self.units_text = units
+        given = {"J1": J1, "c": c, "c1": c1, "K": K, BASE_TORQUE: base_torque}
+        self.conditions = {k: v for k, v in given.items() if v is not None}
+
+    def units(self) -> dict[str, str]:
+        """The ``units`` query parameter as channel -> unit.
+
+        Raises
+        ------
+        InvalidInputError
+            Malformed (a pair that is not ``CHANNEL:UNIT``, a channel named twice): 422 with the syntax.
+        """
+        try:
+            return parse_units(self.units_text)
+        except RecordFormatError as exc:
+            raise InvalidInputError(f"query parameter {exc}") from None
 
 
 CSVRecordDep = Annotated[CSVRecordParams, Depends()]
 
 
 async def csv_record(request: Request, params: CSVRecordParams) -> Record:
-    """The record sent in CSV form (header of channel names, one row per sample)."""
+    """The record sent in CSV form (header of channel names, optionally ``t``; one row per sample)."""
     raw = await request.body()
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise RecordFormatError(f"the CSV is not UTF-8 text (byte {exc.start} is invalid)") from None
-    return record_from_csv(text, params.sample_interval, params.event_index, params.conditions)
+    return record_from_csv(text, params.sample_interval, params.event_index, params.conditions, params.units())
 
 
 def reject_query(request: Request, names: tuple[str, ...]) -> None:
@@ -113,4 +156,4 @@ def reject_query(request: Request, names: tuple[str, ...]) -> None:
 
 
 #: Query parameters of the CSV form of record bodies.
-CSV_QUERY = ("sample_interval", "event_index", "J1", "c", "c1", "K")
+CSV_QUERY = ("sample_interval", "event_index", "units", "J1", "c", "c1", "K", BASE_TORQUE)

@@ -9,12 +9,21 @@ from fastapi.openapi.utils import get_openapi
 from pydantic import BaseModel
 
 from app.api.middleware import API_KEY_HEADER
-from engine.constants import CHANNELS, N_SAMPLES
+from engine.constants import CHANNELS
 
 #: Body models documented by :func:`body_schema`; added to the components by :func:`install_openapi`.
 _BODY_MODELS: dict[str, type[BaseModel]] = {}
 
-_CSV_EXAMPLE = ",".join(CHANNELS) + "\n" + ",".join("0.0" for _ in CHANNELS) + f"\n...({N_SAMPLES} rows in all)\n"
+_ZEROS = ",".join("0.0" for _ in CHANNELS)
+_CSV_EXAMPLE = "\n".join(
+    [
+        "t," + ",".join(CHANNELS),
+        "0.0," + _ZEROS,
+        "5e-05," + _ZEROS,
+        "...(one row per sample, at least 4.8 ms before the event and 200 ms from it on)",
+        "",
+    ]
+)
 
 
 def body_schema(model: type[BaseModel], csv: bool = False) -> dict[str, Any]:
@@ -25,8 +34,10 @@ def body_schema(model: type[BaseModel], csv: bool = False) -> dict[str, Any]:
         content["text/csv"] = {
             "schema": {
                 "type": "string",
-                "description": "Header row of channel names, then one row per sample "
-                f"({N_SAMPLES}); the other values as query parameters.",
+                "description": "Header row of channel names (optionally t, the time of each sample [s], which "
+                "then defines the sample interval), then one row per sample, as many as recorded; the sample "
+                "interval (without t), the event index (omitted: located), the units and the known conditions "
+                "as query parameters.",
             },
             "example": _CSV_EXAMPLE,
         }

@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from engine.constants import EVENT_INDEX, SAMPLE_INTERVAL
+from engine.constants import SAMPLE_INTERVAL
 
 if TYPE_CHECKING:
     from app.core.config import Settings
@@ -46,6 +46,14 @@ def effect(text: str) -> tuple[str, float]:
     return name.strip(), finite(value)
 
 
+def unit(text: str) -> tuple[str, str]:
+    """``CHANNEL=UNIT`` of a record channel's unit (argparse type); whether the unit is accepted is the engine's to say."""
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip() or not value.strip():
+        raise argparse.ArgumentTypeError(f"{text!r}: write a unit as CHANNEL=UNIT, e.g. omega1=rpm or a1=g")
+    return name.strip(), value.strip()
+
+
 def param(text: str) -> tuple[str, Any]:
     """``NAME=VALUE`` of an identifier hyper-parameter, VALUE read as JSON if it is JSON (argparse type)."""
     name, sep, value = text.partition("=")
@@ -60,15 +68,44 @@ def param(text: str) -> tuple[str, Any]:
 # -- shared options -----------------------------------------------------------------
 
 
-def add_record_options(p: argparse.ArgumentParser) -> None:
-    """The record file and what completes it (Ts, event index, known conditions)."""
-    p.add_argument("record", type=Path, help="record file: .json (record format) or .csv (header of channel names)")
-    p.add_argument("--sample-interval", type=finite, help=f"Ts [s] of a CSV record (default {SAMPLE_INTERVAL:g})")
+#: Accepted units, for help texts (the engine's table is :data:`engine.records.UNITS`; not imported here to keep
+#: the command's start fast: an unknown unit's error names the accepted ones from that table).
+UNITS_HELP = "a1, a2: m/s^2 | g; omega1: rad/s | rpm | pu; v2: m/s | mm/s; m_el: pu | N*m (with --base-torque)"
+
+
+def add_unit_options(p: argparse.ArgumentParser, what: str) -> None:
+    """``--unit CHANNEL=UNIT`` (repeatable) and ``--base-torque``; ``what`` completes the help (whose units)."""
     p.add_argument(
-        "--event-index", type=int, help=f"index of the sample at the event, CSV record (default {EVENT_INDEX})"
+        "--unit",
+        type=unit,
+        action="append",
+        metavar="CHANNEL=UNIT",
+        help=f"unit of a channel {what} (repeatable; default the model units); accepted: {UNITS_HELP}",
     )
-    for name, unit in (("J1", "kg m^2"), ("c", "pu"), ("c1", "pu"), ("K", "m")):
-        p.add_argument(f"--{name}", type=finite, help=f"known condition {name} [{unit}]")
+    p.add_argument("--base-torque", type=finite, help="the motor's base torque [N*m] (for m_el in N*m)")
+
+
+def add_record_options(p: argparse.ArgumentParser) -> None:
+    """The record file and what completes it (Ts, event index, units, known conditions)."""
+    p.add_argument(
+        "record",
+        type=Path,
+        help="record file: .json (record format) or .csv (header of channel names, optionally t [s]; one row per "
+        "sample); the options complete a CSV file and override a JSON file's values",
+    )
+    p.add_argument(
+        "--sample-interval",
+        type=finite,
+        help=f"Ts [s], 10 us to 1 ms (default: the step of the CSV's t column, else {SAMPLE_INTERVAL:g})",
+    )
+    p.add_argument(
+        "--event-index",
+        type=int,
+        help="index of the sample at the event (default: the record's, else located from m_el or a1)",
+    )
+    add_unit_options(p, "in the record")
+    for name, unit_name in (("J1", "kg m^2"), ("c", "pu"), ("c1", "pu"), ("K", "m")):
+        p.add_argument(f"--{name}", type=finite, help=f"known condition {name} [{unit_name}]")
 
 
 def add_db_option(p: argparse.ArgumentParser) -> None:
@@ -117,7 +154,25 @@ def read_record(args: argparse.Namespace) -> Record:
     from app.records_io import read_record as read_file
 
     conditions = {k: getattr(args, k) for k in ("J1", "c", "c1", "K") if getattr(args, k, None) is not None}
-    return read_file(args.record, args.sample_interval, args.event_index, conditions)
+    if getattr(args, "base_torque", None) is not None:
+        conditions["base_torque"] = args.base_torque
+    return read_file(args.record, args.sample_interval, args.event_index, conditions, units_of(args))
+
+
+def units_of(args: argparse.Namespace) -> dict[str, str]:
+    """The ``--unit`` options as channel -> unit.
+
+    Raises
+    ------
+    CommandError
+        A channel given two different units.
+    """
+    units: dict[str, str] = {}
+    for channel, name in getattr(args, "unit", None) or ():
+        if units.get(channel, name) != name:
+            raise CommandError(f"--unit gives channel {channel!r} two units: {units[channel]!r} and {name!r}")
+        units[channel] = name
+    return units
 
 
 def user_errors() -> tuple[type[BaseException], ...]:

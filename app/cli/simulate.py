@@ -1,4 +1,9 @@
-"""``backlash simulate``: the backlash test of one case or a file of cases (like ``POST /v1/simulate``)."""
+"""``backlash simulate``: the backlash test of one case or a file of cases (like ``POST /v1/simulate``).
+
+The records are rendered the ways a bench gives them (:class:`app.services.simulation.Rendering`):
+any sample interval and span around the event, channels in other units, a subset of
+channels, measurement noise, only some conditions stated, no event index.
+"""
 
 from __future__ import annotations
 
@@ -8,11 +13,19 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from app import output
-from app.cli.common import EXIT_OK, CommandError, effect, finite
-from engine.constants import C1_NOMINAL, C_NOMINAL, J1_NOMINAL
+from app.cli.common import EXIT_OK, CommandError, add_unit_options, effect, finite, units_of
+from engine.constants import (
+    C1_NOMINAL,
+    C_NOMINAL,
+    CHANNELS,
+    J1_NOMINAL,
+    POST_EVENT_TIME,
+    PRE_EVENT_TIME,
+    SAMPLE_INTERVAL,
+)
 
 if TYPE_CHECKING:
-    from engine.records import Record
+    from app.services.simulation import Rendering
 
 
 def _specs(args: argparse.Namespace) -> list[tuple[float, float | None, float | None, float | None, dict[str, float]]]:
@@ -32,19 +45,22 @@ def _specs(args: argparse.Namespace) -> list[tuple[float, float | None, float | 
     return [(args.K, args.J1, args.c, args.c1, dict(args.effect or []))]
 
 
-def _measured_like(record: Record, args: argparse.Namespace) -> Record:
-    """``record`` with white noise at ``--snr-db`` and only the ``--known`` conditions, as a user would measure it."""
-    import numpy as np
+def _rendering(args: argparse.Namespace) -> Rendering:
+    """The rendering options of the command line."""
+    from app.services.simulation import Rendering
 
-    from engine.records import Record
-    from engine.simulation import add_white_noise
-
-    rng = np.random.default_rng(args.seed)
-    channels = {
-        k: v if args.snr_db is None else add_white_noise(v, args.snr_db, rng) for k, v in record.channels.items()
-    }
-    known = record.conditions if args.known is None else {k: v for k, v in record.conditions.items() if k in args.known}
-    return Record(channels, record.sample_interval, record.event_index, known, record.event_time)
+    return Rendering(
+        sample_interval=args.sample_interval,
+        before=args.before,
+        after=args.after,
+        units=units_of(args),
+        channels=args.channels,
+        include_event_index=args.event_index,
+        snr_db=args.snr_db,
+        seed=args.seed,
+        known=args.known,
+        base_torque=args.base_torque,
+    )
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
@@ -53,10 +69,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from app.services import simulation
 
     specs = _specs(args)
+    rendering = _rendering(args)
     cases = simulation.prepare([simulation.make_case(*s[:4]) for s in specs], [s[4] for s in specs])
-    records = simulation.run(cases).records
+    records = simulation.render(cases, rendering)
     if args.cases is not None:
-        data: dict[str, Any] = {"data": [r.to_dict() for r in records], "count": len(records)}
+        data: dict[str, Any] = {"data": [simulation.to_public(r, rendering) for r in records], "count": len(records)}
         if args.out is None:
             output.write_json(data)
         else:
@@ -64,13 +81,19 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             output.info(f"wrote {len(records)} records to {args.out}")
         return EXIT_OK
     record = records[0]
-    if args.snr_db is not None or args.known is not None:
-        record = _measured_like(record, args)
     if args.out is None:
-        output.write_json(record.to_dict())
+        output.write_json(simulation.to_public(record, rendering))
+    elif Path(args.out).suffix.lower() == ".json":
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(json.dumps(simulation.to_public(record, rendering), allow_nan=False), "utf-8")
+        output.info(f"wrote the record (event at t_e = {record.event_time:.6f} s) to {args.out}")
     else:
-        write_record(record, args.out)
-        output.info(f"wrote the record (event at t_e = {records[0].event_time:.6f} s) to {args.out}")
+        write_record(record, args.out, with_time=args.time_column)
+        where = f"sample {record.event_index}" if args.event_index else "a sample the CSV does not state"
+        output.info(
+            f"wrote the record (event at t_e = {record.event_time:.6f} s, {where}; Ts = {record.sample_interval:g} s"
+            f"{', units ' + str(dict(record.units)) if record.units else ''}) to {args.out}"
+        )
     return EXIT_OK
 
 
@@ -86,7 +109,38 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     p.add_argument("--cases", type=Path, help="JSON file with a list of cases (the batch form); writes JSON")
     p.add_argument("--out", type=Path, help="output file, .json or .csv (default: JSON on stdout)")
-    p.add_argument("--snr-db", type=finite, help="add white noise at this SNR [dB] to every channel (single case)")
+    p.add_argument(
+        "--sample-interval",
+        type=finite,
+        default=SAMPLE_INTERVAL,
+        help=f"Ts [s] of the rendered record, 10 us to 1 ms (default {SAMPLE_INTERVAL:g})",
+    )
+    p.add_argument(
+        "--before",
+        type=finite,
+        default=PRE_EVENT_TIME,
+        help=f"time rendered before the event [s] (default and least {PRE_EVENT_TIME:g})",
+    )
+    p.add_argument(
+        "--after",
+        type=finite,
+        default=POST_EVENT_TIME,
+        help=f"time rendered from the event on [s] (default and least {POST_EVENT_TIME:g})",
+    )
+    add_unit_options(p, "to write")
+    p.add_argument("--channels", nargs="+", choices=CHANNELS, help="channels to keep (default all)")
+    p.add_argument(
+        "--no-event-index",
+        dest="event_index",
+        action="store_false",
+        help="leave the event index out of the record: a reader has to locate the event",
+    )
+    p.add_argument(
+        "--time-column",
+        action="store_true",
+        help="CSV output: a first column t, the time of each sample [s] from the first one (carries Ts)",
+    )
+    p.add_argument("--snr-db", type=finite, help="add white noise at this SNR [dB] to every channel")
     p.add_argument("--seed", type=int, default=0, help="seed of the noise (default 0)")
     p.add_argument(
         "--known",

@@ -4,11 +4,19 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, Literal
 
-import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, FiniteFloat
 
-from engine.constants import CHANNEL_UNITS, CHANNELS, EVENT_INDEX, N_SAMPLES, SAMPLE_INTERVAL
-from engine.records import Record
+from app.records_io import ACCEPTED_UNITS_DOC
+from engine.constants import (
+    CHANNEL_UNITS,
+    CHANNELS,
+    MAX_SAMPLE_INTERVAL,
+    MIN_SAMPLE_INTERVAL,
+    POST_EVENT_TIME,
+    PRE_EVENT_TIME,
+    SAMPLE_INTERVAL,
+)
+from engine.records import Record, record_from_data
 
 if TYPE_CHECKING:
     ChannelName = str
@@ -42,20 +50,45 @@ class ConditionsIn(BaseModel):
     c: FiniteFloat | None = Field(default=None, description="Apparent viscosity of the absorber [pu].")
     c1: FiniteFloat | None = Field(default=None, description="Absorber discontinuity at zero speed [pu].")
     K: FiniteFloat | None = Field(default=None, description="Backlash zone width [m] (when known, e.g. simulated).")
+    base_torque: FiniteFloat | None = Field(
+        default=None,
+        description="The motor's base torque [N*m]: needed (positive) when m_el is given in N*m, to convert it to pu.",
+    )
 
     def as_dict(self) -> dict[str, float]:
+        """The conditions given, by name."""
         return {k: v for k, v in self.model_dump().items() if v is not None}
 
 
 class RecordIn(BaseModel):
-    """A backlash-test record in the service's JSON record format."""
+    """A backlash-test record in the service's JSON record format, as a bench gives it."""
 
     model_config = ConfigDict(extra="forbid")
 
-    sample_interval: FiniteFloat = Field(default=SAMPLE_INTERVAL, description="Ts [s].")
-    event_index: int = Field(default=EVENT_INDEX, description="Index of the sample taken at the event t_e.")
+    sample_interval: FiniteFloat | None = Field(
+        default=None,
+        description=f"Ts [s], {MIN_SAMPLE_INTERVAL:g} to {MAX_SAMPLE_INTERVAL:g}. Default: the step of `t` when "
+        f"given, else MODEL.md's {SAMPLE_INTERVAL:g}; given with `t`, the two must agree.",
+    )
+    event_index: int | None = Field(
+        default=None,
+        description="Index of the sample taken at the event t_e (the motor switched off). Omitted: the event is "
+        "located from the data (m_el, else a1; a record with neither needs it) and the answer's record "
+        "carries `event_location`.",
+    )
     channels: dict[str, list[float]] = Field(
-        description=f"Non-empty subset of the channels {_CHANNELS_DOC}; each exactly {N_SAMPLES} finite numbers."
+        description=f"Non-empty subset of the channels {_CHANNELS_DOC} (in those units unless `units` says "
+        f"otherwise); finite numbers, the same number for every channel, covering at least "
+        f"{PRE_EVENT_TIME * 1e3:g} ms before the event and {POST_EVENT_TIME * 1e3:g} ms from it on "
+        f"(a longer record is fine: analyses read that window of it)."
+    )
+    units: dict[str, str] | None = Field(
+        default=None, description="Unit of each channel not in its model unit; accepted: " + ACCEPTED_UNITS_DOC + "."
+    )
+    t: list[float] | None = Field(
+        default=None,
+        description="Time of each sample [s] (uniform, increasing; any origin), one per sample: defines the "
+        "sample interval.",
     )
     conditions: ConditionsIn | None = Field(default=None, description="Known operating conditions.")
     event_time: FiniteFloat | None = Field(
@@ -63,21 +96,58 @@ class RecordIn(BaseModel):
     )
 
     def to_record(self) -> Record:
-        """The engine's record; raises ``RecordError`` (wrong length, NaN/inf, unknown channel, ...)."""
-        return Record(
-            channels={name: np.asarray(values, dtype=float) for name, values in self.channels.items()},
+        """The engine's record, read by :func:`engine.records.record_from_data`.
+
+        Raises
+        ------
+        engine.records.RecordError
+            Unknown channel or unit, unequal lengths, NaN/inf, a bad time column, or (as
+            :class:`~engine.records.ProtocolError`) too little time around the event or an
+            event that cannot be located; the message says what to fix.
+        """
+        return record_from_data(
+            channels=self.channels,
             sample_interval=self.sample_interval,
             event_index=self.event_index,
             conditions=self.conditions.as_dict() if self.conditions else {},
+            units=self.units or {},
+            time=self.t,
             event_time=self.event_time,
         )
 
 
+class EventLocationPublic(BaseModel):
+    """How the event was located in a record that did not give ``event_index``."""
+
+    index: int = Field(description="The first sample at or after the event (the record's event_index).")
+    interval: list[float] = Field(
+        description="The event lies in (interval[0], interval[1]] relative to that sample [s], i.e. (-Ts, 0]."
+    )
+    sigma: float = Field(description="Standard uncertainty of the event time [s] (Ts / sqrt(12)).")
+    channel: str = Field(description="The channel it was located from (m_el or a1).")
+    method: str = Field(description="How, in words.")
+
+
 class RecordPublic(BaseModel):
-    """A record in the JSON record format."""
+    """A record in the JSON record format (the samples in the record's own units)."""
 
     sample_interval: float = Field(description="Ts [s].")
-    event_index: int = Field(description="Index of the sample taken at the event t_e.")
-    channels: dict[str, list[float]] = Field(description=f"Channels {_CHANNELS_DOC}, {N_SAMPLES} samples each.")
-    conditions: dict[str, float] = Field(description="Operating conditions (J1 [kg m^2], c [pu], c1 [pu], K [m]).")
+    event_index: int | None = Field(
+        default=None,
+        description="Index of the sample taken at the event t_e (absent when the request asked to leave it out: "
+        "the reader then locates the event).",
+    )
+    channels: dict[str, list[float]] = Field(
+        description=f"Channels {_CHANNELS_DOC} (in those units unless `units` says otherwise), the same number "
+        "of samples each."
+    )
+    units: dict[str, str] | None = Field(
+        default=None, description="Unit of each channel not in its model unit (absent: all in model units)."
+    )
+    conditions: dict[str, float] = Field(
+        description="Operating conditions (J1 [kg m^2], c [pu], c1 [pu], K [m], base_torque [N*m])."
+    )
     event_time: float | None = Field(default=None, description="t_e [s] since the motor was switched on.")
+    event_location: EventLocationPublic | None = Field(
+        default=None, description="How the event was located, when the record did not give event_index."
+    )

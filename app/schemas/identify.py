@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -43,6 +43,27 @@ class ContinuousWidthPublic(BaseModel):
     seconds: float = Field(description="Time of the fit [s].")
 
 
+class RecordReadPublic(BaseModel):
+    """How the record was read: its grid, where its event is, which samples were used."""
+
+    sample_interval: float = Field(description="The record's Ts [s].")
+    n_samples: int = Field(description="Samples per channel in the record.")
+    event_index: int = Field(description="Sample at the event (given, or located from the data).")
+    event_location: dict[str, Any] | None = Field(
+        default=None,
+        description="When the record gave no event_index: the located index, the interval (-Ts, 0] [s] in which "
+        "the event lies relative to it, its standard uncertainty sigma [s], the channel and the method.",
+    )
+    window: dict[str, int | float] = Field(
+        description="The samples used (the test window, 4.8 ms before to 200 ms after the event) and how many "
+        "were ignored before and after them."
+    )
+    patterns_read: str = Field(
+        description="What the pattern set compared: the window as recorded (0.1 ms records) or resampled to "
+        "0.1 ms (scipy.signal.resample_poly)."
+    )
+
+
 class IdentificationPublic(BaseModel):
     D: list[float] = Field(description="D(i) = sum_j |Wt(j) - Ww(i,j)| for the six widths [-].")
     index: int = Field(ge=1, le=len(K_GRID), description="1-based index of the smallest D (the paper's nr5).")
@@ -66,3 +87,4 @@ class IdentificationPublic(BaseModel):
     continuous: ContinuousWidthPublic | None = Field(
         default=None, description="The calibrated K as a continuous width (only when requested)."
     )
+    record: RecordReadPublic = Field(description="How the record was read.")

@@ -4,8 +4,21 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field, FiniteFloat
 
-from app.schemas.common import RecordPublic
-from engine.constants import C1_NOMINAL, C_NOMINAL, J1_NOMINAL, K_GRID, K_NOMINAL
+from app.records_io import ACCEPTED_UNITS_DOC
+from app.schemas.common import ChannelName, RecordPublic
+from app.services.simulation import Rendering
+from engine.constants import (
+    C1_NOMINAL,
+    C_NOMINAL,
+    J1_NOMINAL,
+    K_GRID,
+    K_NOMINAL,
+    MAX_SAMPLE_INTERVAL,
+    MIN_SAMPLE_INTERVAL,
+    POST_EVENT_TIME,
+    PRE_EVENT_TIME,
+    SAMPLE_INTERVAL,
+)
 
 _EFFECTS_DOC = (
     'Unmodelled effects by catalogue name and value, e.g. {"motor_coulomb_friction": 0.02}; see the '
@@ -13,15 +26,10 @@ _EFFECTS_DOC = (
 )
 
 
-class SimulateCreate(BaseModel):
+class SimulateCase(BaseModel):
     """One case of the backlash test; omitted values take MODEL.md's defaults."""
 
-    model_config = ConfigDict(
-        extra="forbid",
-        json_schema_extra={
-            "examples": [{"K": K_NOMINAL, "J1": J1_NOMINAL, "c": C_NOMINAL, "c1": C1_NOMINAL, "effects": {}}]
-        },
-    )
+    model_config = ConfigDict(extra="forbid")
 
     K: FiniteFloat = Field(description=f"Backlash zone width [m] (paper grid {K_GRID[0]:g} .. {K_GRID[-1]:g}).")
     J1: FiniteFloat | None = Field(default=None, description=f"Motor-side inertia [kg m^2]; default {J1_NOMINAL:g}.")
@@ -34,12 +42,88 @@ class SimulateCreate(BaseModel):
     effects: dict[str, FiniteFloat] = Field(default_factory=dict, description=_EFFECTS_DOC)
 
 
-class SimulateBatchCreate(BaseModel):
-    """Several cases simulated in one call (at most BACKLASH_MAX_BATCH_CASES)."""
+class RenderIn(BaseModel):
+    """How the simulated records are rendered, the ways a test bench gives them; defaults: MODEL.md's record."""
 
     model_config = ConfigDict(extra="forbid")
 
-    cases: list[SimulateCreate] = Field(min_length=1, description="The cases, simulated in this order.")
+    sample_interval: FiniteFloat = Field(
+        default=SAMPLE_INTERVAL,
+        description=f"Ts [s] of the rendered record, {MIN_SAMPLE_INTERVAL:g} to {MAX_SAMPLE_INTERVAL:g}.",
+    )
+    before: FiniteFloat = Field(
+        default=PRE_EVENT_TIME,
+        description=f"Time rendered before the event [s]; at least {PRE_EVENT_TIME * 1e3:g} ms (MODEL.md's window).",
+    )
+    after: FiniteFloat = Field(
+        default=POST_EVENT_TIME,
+        description=f"Time rendered from the event on [s]; at least {POST_EVENT_TIME * 1e3:g} ms (MODEL.md's window).",
+    )
+    units: dict[ChannelName, str] = Field(
+        default_factory=dict,
+        description="Unit to write each channel in (the others in their model units); accepted: "
+        + ACCEPTED_UNITS_DOC
+        + ". m_el in N*m needs base_torque.",
+    )
+    channels: list[ChannelName] | None = Field(
+        default=None, min_length=1, description="Channels to keep (default all five)."
+    )
+    include_event_index: bool = Field(
+        default=True,
+        description="false leaves event_index out of the answer (and the X-Event-Index header of the CSV form): "
+        "the reader has to locate the event from the data, as with a bench record.",
+    )
+    base_torque: FiniteFloat | None = Field(
+        default=None,
+        description="The motor's base torque [N*m], stated in the record's conditions; needed for m_el in N*m.",
+    )
+
+    def rendering(self) -> Rendering:
+        """The service's :class:`~app.services.simulation.Rendering` of these options."""
+        return Rendering(
+            sample_interval=self.sample_interval,
+            before=self.before,
+            after=self.after,
+            units=dict(self.units),
+            channels=None if self.channels is None else list(self.channels),
+            include_event_index=self.include_event_index,
+            base_torque=self.base_torque,
+        )
+
+
+class SimulateCreate(SimulateCase, RenderIn):
+    """One case of the backlash test, rendered as asked; omitted values take MODEL.md's defaults."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        json_schema_extra={
+            "examples": [
+                {"K": K_NOMINAL, "J1": J1_NOMINAL, "c": C_NOMINAL, "c1": C1_NOMINAL, "effects": {}},
+                {
+                    "K": K_NOMINAL,
+                    "sample_interval": 5e-5,
+                    "before": 0.01,
+                    "after": 0.3,
+                    "units": {"omega1": "rpm", "a1": "g"},
+                    "include_event_index": False,
+                },
+            ]
+        },
+    )
+
+    time_column: bool = Field(
+        default=False,
+        description="CSV form (Accept: text/csv): add a first column t, the time of each sample [s] from the "
+        "first sample, which carries the sample interval.",
+    )
+
+
+class SimulateBatchCreate(RenderIn):
+    """Several cases simulated in one call (at most BACKLASH_MAX_BATCH_CASES), all rendered the same way."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    cases: list[SimulateCase] = Field(min_length=1, description="The cases, simulated in this order.")
 
 
 class SimulationPublic(RecordPublic):

@@ -13,7 +13,7 @@ from engine.identification import IdentificationResult
 from engine.identification.selection import nearest_pattern_set
 from engine.identification.training import DEFAULT_KIND
 from engine.identification.width import estimate_width, nearest_grid_width
-from engine.records import Record, require_test_protocol
+from engine.records import Record, to_protocol_grid
 from engine.storage import PatternSet, PatternSetNotFound, PatternStore
 
 
@@ -99,21 +99,24 @@ def select_pattern_set(
 
 
 def check_record(record: Record, channel: str) -> None:
-    """The record must hold ``channel`` and follow the test protocol the patterns are trained on.
+    """The record must hold ``channel``.
 
     Raises
     ------
     engine.records.RecordError
-        The record lacks the channel, or (``ProtocolError``) is on another time grid than MODEL.md's.
+        The record lacks the channel.
     """
     record[channel]
-    require_test_protocol(record, "identification with stored pattern sets")
 
 
 def identify(record: Record, channel: str, pattern_set: PatternSet) -> IdentificationResult:
-    """Identify the backlash width of ``record`` on ``channel`` with a stored pattern set (see :func:`check_record`)."""
+    """Identify the backlash width of ``record`` on ``channel`` with a stored pattern set.
+
+    Pattern sets are trained on MODEL.md's grid: the record's test window is resampled onto
+    it first when it has another interval (:func:`engine.records.to_protocol_grid`).
+    """
     check_record(record, channel)
-    return identifier_from_pattern_set(pattern_set).identify(record[channel])
+    return identifier_from_pattern_set(pattern_set).identify(to_protocol_grid(record)[channel])
 
 
 def continuous_width(record: Record, channel: str) -> dict:
@@ -124,13 +127,7 @@ def continuous_width(record: Record, channel: str) -> dict:
     the README's "calibrated K as a continuous width estimate".
     """
     check_record(record, channel)
-    single = Record(
-        {channel: record[channel]},
-        record.sample_interval,
-        record.event_index,
-        dict(record.conditions),
-        record.event_time,
-    )
+    single = record.replace(channels={channel: record[channel]}, units={})
     est = estimate_width(single)
     cal = est.calibration
     return {
@@ -159,6 +156,7 @@ def identify_from_store(
     check_record(record, channel)
     sel = select_pattern_set(store, channel, record, set_id=set_id, kind=kind)
     res = identify(record, channel, sel.pattern_set)
+    analysed, window = record.test_window()
     return {
         "D": [float(d) for d in res.D],
         "index": int(res.index),
@@ -175,4 +173,17 @@ def identify_from_store(
         "c_used": sel.c_used,
         "c_source": sel.c_source,
         "continuous": continuous_width(record, channel) if continuous else None,
+        "record": {
+            "sample_interval": record.sample_interval,
+            "n_samples": record.n_samples,
+            "event_index": record.event_index,
+            "event_location": record.event_location.to_dict() if record.event_location else None,
+            "window": window.to_dict(),
+            "patterns_read": (
+                "the test window as recorded (MODEL.md's grid)"
+                if analysed.grid.is_protocol()
+                else f"the test window resampled from {record.sample_interval:g} s to MODEL.md's 0.1 ms "
+                "(scipy.signal.resample_poly, anti-aliased)"
+            ),
+        },
     }

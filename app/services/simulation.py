@@ -1,15 +1,90 @@
-"""Simulation for the service: request values -> engine cases -> records.
+"""Simulation for the service: request values -> engine cases -> records, rendered as a bench gives them.
 
 Everything physical happens in :mod:`engine.simulation`; this module only builds
-``Case`` objects from the request's flat values and calls ``simulate_batch``
-(which is safe to call from request threads and training threads at once).
+``Case`` objects from the request's flat values, calls ``simulate_batch``
+(which is safe to call from request threads and training threads at once) on
+the requested sample grid, and dresses the records the way a test bench hands
+them over (:class:`Rendering`): measurement noise, the conditions the bench
+states, a subset of channels, units, and whether the event index is given.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import logging
+from collections.abc import Collection, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
 
-from engine.simulation import Case, SimulationResult, apply_effects, simulate_batch
+import numpy as np
+
+from app.services.errors import InvalidInputError
+from engine.constants import POST_EVENT_TIME, PRE_EVENT_TIME, SAMPLE_INTERVAL
+from engine.records import PROTOCOL_GRID, GridError, ProtocolError, Record, SampleGrid
+from engine.records.units import BASE_TORQUE
+from engine.simulation import Case, SimulationResult, add_white_noise, apply_effects, simulate_batch
+
+logger = logging.getLogger(__name__)
+
+#: Most samples per channel one call may render, summed over its cases (bounds the answer's size:
+#: about 100 bytes of JSON per sample of five channels). MODEL.md's grid is 2048 per case.
+MAX_RENDERED_SAMPLES: int = 1_000_000
+
+
+@dataclass(frozen=True)
+class Rendering:
+    """How simulated records are rendered, the ways a test bench gives them.
+
+    Attributes
+    ----------
+    sample_interval : float
+        Ts [s], 10 us to 1 ms.
+    before, after : float
+        Time rendered before the event and from it on [s] (defaults: MODEL.md's test
+        window, 4.8 ms and 200 ms).
+    units : mapping of str to str
+        Unit per channel the record is written in (:data:`engine.records.UNITS`); the
+        others in their model units.
+    channels : sequence of str or None
+        Channels to keep (default all five).
+    include_event_index : bool
+        Whether the written record states its event index; ``False`` leaves it out, so a
+        reader has to locate the event from the data.
+    snr_db : float or None
+        White measurement noise at this SNR [dB] on every channel (none when ``None``).
+    seed : int
+        Seed of the noise (one generator for all records of a call, in order).
+    known : collection of str or None
+        Conditions (of K, J1, c, c1) the record states; ``None`` = all of them.
+    base_torque : float or None
+        The motor's base torque [N*m], stated in the conditions (needed for m_el in N*m).
+    """
+
+    sample_interval: float = SAMPLE_INTERVAL
+    before: float = PRE_EVENT_TIME
+    after: float = POST_EVENT_TIME
+    units: Mapping[str, str] = field(default_factory=dict)
+    channels: Sequence[str] | None = None
+    include_event_index: bool = True
+    snr_db: float | None = None
+    seed: int = 0
+    known: Collection[str] | None = None
+    base_torque: float | None = None
+
+    def grid(self) -> SampleGrid:
+        """The sample grid of the rendered records (:meth:`SampleGrid.around_event`).
+
+        Raises
+        ------
+        ProtocolError
+            Sample interval outside 10 us - 1 ms, or a span that does not cover the test
+            window (the engine's message says how much is missing).
+        """
+        try:
+            grid = SampleGrid.around_event(self.sample_interval, self.before, self.after)
+            grid.require_test_window()
+            return grid
+        except GridError as exc:
+            raise ProtocolError(str(exc)) from None
 
 
 def make_case(K: float, J1: float | None = None, c: float | None = None, c1: float | None = None) -> Case:
@@ -29,6 +104,84 @@ def prepare(cases: Sequence[Case], effects: Sequence[Mapping[str, float] | None]
     return [apply_effects(case, eff or {}).validate() for case, eff in zip(cases, effects, strict=True)]
 
 
-def run(cases: Sequence[Case]) -> SimulationResult:
-    """Simulate prepared cases (see :func:`prepare`); raises ``SimulationError`` for cases without an event."""
-    return simulate_batch(list(cases))
+def run(cases: Sequence[Case], grid: SampleGrid = PROTOCOL_GRID) -> SimulationResult:
+    """Simulate prepared cases (see :func:`prepare`) on ``grid``.
+
+    Raises ``SimulationError`` for cases without an event.
+    """
+    return simulate_batch(list(cases), grid=grid)
+
+
+def render(cases: Sequence[Case], rendering: Rendering | None = None) -> list[Record]:
+    """Simulate prepared cases and render their records as ``rendering`` says.
+
+    Parameters
+    ----------
+    cases : sequence of Case
+        Prepared cases (:func:`prepare`).
+    rendering : Rendering, optional
+        Default: MODEL.md's grid, all channels in model units, no noise.
+
+    Returns
+    -------
+    list of Record
+        One per case, in order; noise is added in model units before any unit is applied
+        (units only change how the record is written).
+
+    Raises
+    ------
+    ProtocolError
+        A grid that cannot hold the test (interval out of range, less than 4.8 ms before or
+        200 ms after the event).
+    InvalidInputError
+        More than :data:`MAX_RENDERED_SAMPLES` samples per channel in all.
+    engine.records.RecordError
+        An unknown unit, or units for a channel not kept.
+    """
+    r = Rendering() if rendering is None else rendering
+    grid = r.grid()
+    total = grid.n_samples * len(cases)
+    if total > MAX_RENDERED_SAMPLES:
+        raise InvalidInputError(
+            f"{len(cases)} case(s) of {grid.n_samples} samples each ({grid.sample_interval:g} s from "
+            f"{r.before:g} s before the event to {r.after:g} s after it) make {total} samples per channel; at most "
+            f"{MAX_RENDERED_SAMPLES} are rendered per request: shorten the span, lengthen the interval or split the cases"
+        )
+    records = run(cases, grid).records
+    rng = np.random.default_rng(r.seed)
+    return [_dress(record, r, rng) for record in records]
+
+
+def _dress(record: Record, r: Rendering, rng: np.random.Generator) -> Record:
+    """One simulated record with noise, stated conditions, kept channels and units."""
+    channels: dict[str, np.ndarray] = dict(record.channels)
+    if r.snr_db is not None:  # in model units, on every channel (the kept ones get the same noise whatever is kept)
+        channels = {k: add_white_noise(v, r.snr_db, rng) for k, v in channels.items()}
+    if r.channels is not None:
+        keep = set(r.channels)
+        channels = {k: v for k, v in channels.items() if k in keep}
+    conditions = dict(record.conditions)
+    if r.known is not None:
+        conditions = {k: v for k, v in conditions.items() if k in r.known}
+    if r.base_torque is not None:
+        conditions[BASE_TORQUE] = r.base_torque
+    return record.replace(channels=channels, conditions=conditions, units=dict(r.units))
+
+
+def to_public(record: Record, rendering: Rendering | None = None) -> dict[str, Any]:
+    """A rendered record in the JSON record format, without ``event_index`` when the rendering leaves it out."""
+    out = record.to_dict()
+    if rendering is not None and not rendering.include_event_index:
+        out.pop("event_index", None)
+    return out
+
+
+__all__ = [
+    "MAX_RENDERED_SAMPLES",
+    "Rendering",
+    "make_case",
+    "prepare",
+    "render",
+    "run",
+    "to_public",
+]

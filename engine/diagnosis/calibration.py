@@ -44,12 +44,13 @@ from typing import Any, TypedDict
 import numpy as np
 from scipy.stats import qmc
 
-from engine.constants import CHANNEL_WAVELETS, CHANNELS, N_SAMPLES
+from engine.constants import CHANNEL_WAVELETS, CHANNELS
 from engine.diagnosis.noise import estimate_noise, lowfreq_ratio, noise_weights
 from engine.diagnosis.objective import Objective
 from engine.diagnosis.space import CALIBRATED, ModelSpace, default_space
+from engine.features.wavelet import level_for_interval
 from engine.parallel import single_threaded_blas
-from engine.records import Record, require_test_protocol
+from engine.records import Record, SampleGrid
 from engine.simulation import Case, SolverSettings, run_cases
 
 logger = logging.getLogger(__name__)
@@ -130,12 +131,11 @@ class CalibrationSettings:
     seed: int = 0
 
     def horizons(self, record: Record) -> list[int]:
-        """Horizons as sample counts from the start of the record."""
-        hs = sorted(
-            {min(N_SAMPLES, record.event_index + round(h * 1e-3 / record.sample_interval)) for h in self.horizons_ms}
-        )
-        if hs[-1] != N_SAMPLES:
-            hs.append(N_SAMPLES)
+        """Horizons as sample counts from the start of the record (on its own interval)."""
+        n = record.n_samples
+        hs = sorted({min(n, record.event_index + round(h * 1e-3 / record.sample_interval)) for h in self.horizons_ms})
+        if hs[-1] != n:
+            hs.append(n)
         return hs
 
 
@@ -174,16 +174,18 @@ class CalibrationResult:
         [samples], chi2, integrator step [s] and residual evaluations.
     case : Case
         The calibrated simulation case (effect applied).
-    simulation : ndarray, shape (5, 2048)
-        Its five channels.
+    simulation : ndarray, shape (5, n_samples)
+        Its five channels on the record's grid (the test window), model units.
     event_time : float
         Its event time t_e [s].
     step : float
         Integrator step of the reported fit [s].
+    grid : SampleGrid or None
+        The grid calibrated on (the record's test window).
     lowfreq_ratio : dict of str to float
         Per channel, mean squared wavelet coefficient of the normalised residual
-        below 625 Hz (levels D4..D10 and A10, 256 coefficients) over that of
-        levels D1-D2 (1250-5000 Hz, 1536 coefficients): about 1 for a white
+        below fs / 16 (levels D4 and coarser; 625 Hz at 0.1 ms) over that of
+        levels D1-D2 (fs / 8 to fs / 2): about 1 for a white
         residual whatever the noise estimate's error; a structured (mostly
         low-frequency) gap raises it. Reported as a diagnostic
         (:func:`engine.diagnosis.noise.lowfreq_ratio`).
@@ -206,6 +208,7 @@ class CalibrationResult:
     event_time: float | None = None
     step: float = 2e-5
     lowfreq_ratio: dict[str, float] = field(default_factory=dict)
+    grid: SampleGrid | None = None
 
     @property
     def n_params(self) -> int:
@@ -241,19 +244,32 @@ class CalibrationResult:
         }
 
     def simulated_record(self, template: Record) -> Record:
-        """The calibrated simulation in the record format (all five channels).
+        """The calibrated simulation in the record format (all five channels) on ``template``'s grid.
 
-        Its conditions carry the calibrated J1, c, c1 and K.
+        Its conditions carry the calibrated J1, c, c1 and K (and the template's other
+        conditions, e.g. the ``base_torque`` of an m_el in N*m), and it keeps the template's
+        units (its :meth:`Record.to_dict` writes them). When the template's grid is the one
+        calibrated on, the stored simulation is used; otherwise (e.g. the whole of a record
+        longer than the test window) the calibrated case is simulated on it.
         """
         if self.case is None or self.simulation is None:
             raise CalibrationError("this calibration result holds no simulation")
+        sim = self.simulation
+        if sim.shape[-1] != template.n_samples or self.grid != template.grid:
+            ch, _, st = run_cases([self.case], SolverSettings(max_step=self.step), template.grid)
+            if st[0] != 0:
+                raise CalibrationError(
+                    f"the calibrated parameters cannot be simulated on the record's grid (status {int(st[0])})"
+                )
+            sim = ch[0]
         p = self.case.plant
         return Record(
-            channels={n: self.simulation[j] for j, n in enumerate(CHANNELS)},
+            channels={n: sim[j] for j, n in enumerate(CHANNELS)},
             sample_interval=template.sample_interval,
             event_index=template.event_index,
-            conditions={"J1": p.J1, "c": p.c, "c1": p.c1, "K": p.K},
+            conditions={**template.conditions, "J1": p.J1, "c": p.c, "c1": p.c1, "K": p.K},
             event_time=self.event_time,
+            units=template.units,
         )
 
 
@@ -311,10 +327,13 @@ def calibrate(
     CalibrationError
         When no point of the search box (nor any seed) can be simulated, or the
         fitted parameters cannot be simulated.
-    engine.records.ProtocolError
-        The record is on another time grid than MODEL.md's (it would be misread).
+
+    Notes
+    -----
+    The record's test window (:meth:`engine.records.Record.test_window`) is fitted, on the
+    record's own sample grid: the simulations are sampled at its instants.
     """
-    require_test_protocol(record, "the calibration")
+    record, _ = record.test_window()
     with single_threaded_blas():
         return _calibrate(record, space, settings, noise, seeds, polish)
 
@@ -361,7 +380,7 @@ def _calibrate(
         for s, kind in starts:
             u = s
             trace: list[Stage] = []
-            for h in horizons if kind == "global" else [N_SAMPLES]:
+            for h in horizons if kind == "global" else [record.n_samples]:
                 u, c2, _, nfev = obj.local_fit(u, h, coarse, settings.max_nfev, settings.fd_step)
                 trace.append({"start": kind, "horizon": h, "chi2": c2, "step": settings.search_step, "nfev": nfev})
             logger.debug("%s start %s -> %s chi2 %.4g", kind, np.round(s, 3), np.round(u, 3), trace[-1]["chi2"])
@@ -373,25 +392,26 @@ def _calibrate(
         # 3. polish at the final integrator step, full horizon; small difference steps near the optimum
         if polish:
             u_best, c2, _, nfev = obj.local_fit(
-                u_best, N_SAMPLES, final, settings.polish_nfev, 3 * settings.fd_step_uncertainty
+                u_best, record.n_samples, final, settings.polish_nfev, 3 * settings.fd_step_uncertainty
             )
             stages.append(
-                {"start": "polish", "horizon": N_SAMPLES, "chi2": c2, "step": settings.final_step, "nfev": nfev}
+                {"start": "polish", "horizon": record.n_samples, "chi2": c2, "step": settings.final_step, "nfev": nfev}
             )
 
     case = space.case(u_best)
-    ch_all, t_e, st = run_cases([case], final)
+    ch_all, t_e, st = run_cases([case], final, record.grid)
     obj.n_simulations += 1
     if st[0] != 0:
         raise CalibrationError(f"the calibrated parameters cannot be simulated (kernel status {int(st[0])})")
     r = (ch_all[0, obj.rows] - obj.data) / obj.sigma[:, None]
     chi2_ch = {n: float(np.sum(r[j] ** 2)) for j, n in enumerate(obj.names)}
     chi2 = float(sum(chi2_ch.values()))
-    lowfreq = {n: lowfreq_ratio(r[j], CHANNEL_WAVELETS[n]) for j, n in enumerate(obj.names)}
+    level = level_for_interval(record.sample_interval, record.n_samples)
+    lowfreq = {n: lowfreq_ratio(r[j], CHANNEL_WAVELETS[n], level) for j, n in enumerate(obj.names)}
     n_data = int(r.size)
     unc: dict[str, float] = {}
     if d > 0:
-        J = obj.jacobian(u_best, N_SAMPLES, final, settings.fd_step_uncertainty, central=True)
+        J = obj.jacobian(u_best, record.n_samples, final, settings.fd_step_uncertainty, central=True)
         unc = _uncertainties(space, u_best, J, chi2, n_data)
     res = CalibrationResult(
         values=space.values(u_best),
@@ -411,6 +431,7 @@ def _calibrate(
         event_time=float(t_e[0]),
         step=final.max_step,
         lowfreq_ratio=lowfreq,
+        grid=record.grid,
     )
     logger.info(
         "calibration%s: %s chi2/n %.3f (%d simulations, %.1f s)",

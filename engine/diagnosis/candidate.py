@@ -29,12 +29,12 @@ from typing import Any
 import numba
 import numpy as np
 
-from engine.constants import CHANNELS, N_SAMPLES
+from engine.constants import CHANNELS
 from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings, calibrate
 from engine.diagnosis.gap import Gap, gap_of, shrinkage_ratio
 from engine.diagnosis.objective import Objective
 from engine.diagnosis.quantisation import fit_quantisation, is_speed_quantum
-from engine.diagnosis.space import ModelSpace
+from engine.diagnosis.space import TIME_SHIFT_EFFECTS, ModelSpace
 from engine.records import Record
 from engine.simulation import Effect, SolverSettings, run_cases
 
@@ -196,6 +196,11 @@ def _identifiable(effect: Effect, space: ModelSpace, record: Record) -> str:
         return (
             f"{effect.field} is calibrated (not fixed by the record's conditions), so this effect is degenerate with it"
         )
+    if space.aligned and effect.name in TIME_SHIFT_EFFECTS:
+        return (
+            "the record's event was located from the data, which absorbs any shift of every channel in time "
+            "(give event_index to diagnose a trigger offset or a measurement delay)"
+        )
     if is_speed_quantum(effect) and "omega1" not in record.channels:
         return "the record has no omega1 channel, which is the only channel this effect changes"
     return ""
@@ -217,7 +222,7 @@ def _seeds(
     U = np.repeat(base[None], settings.n_scan + 1, axis=0)
     U[:-1, -1] = np.linspace(0.0, 1.0, settings.n_scan)
     U[-1, -1] = space.params[-1].unit_coord(space.effect.neutral)
-    c2 = obj.chi2(U, [N_SAMPLES], SolverSettings(max_step=search_step))[:, 0]
+    c2 = obj.chi2(U, [record.n_samples], SolverSettings(max_step=search_step))[:, 0]
     seeds = [space.values(U[-1])]
     i = int(np.argmin(c2[:-1]))
     if np.isfinite(c2[i]) and abs(U[i, -1] - U[-1, -1]) > 1e-9:
@@ -305,7 +310,7 @@ def effect_strength(cand: Candidate, space: ModelSpace, record: Record, noise: M
     if cal is None or cal.simulation is None:
         return math.nan
     plain = {k: v for k, v in cal.values.items() if k in space.names}
-    ch, _, status = run_cases([space.case(space.unit(plain))], SolverSettings(max_step=cal.step))
+    ch, _, status = run_cases([space.case(space.unit(plain))], SolverSettings(max_step=cal.step), record.grid)
     if status[0] != 0:
         return math.nan
     out = 0.0

@@ -56,9 +56,9 @@ from engine.diagnosis.candidate import Candidate, CandidateSettings
 from engine.diagnosis.candidates import fit_candidates
 from engine.diagnosis.gap import Gap, gap_of
 from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, localise
-from engine.diagnosis.space import default_space
+from engine.diagnosis.space import ALIGNMENT, default_space
 from engine.parallel import single_threaded_blas
-from engine.records import Record, require_test_protocol
+from engine.records import Record, WindowUse
 from engine.simulation import CATALOGUE, EffectLibrary
 
 logger = logging.getLogger(__name__)
@@ -192,7 +192,8 @@ class DiagnosisResult:
     gap_before, gap_after : Gap, Gap or None
         Gap of the nominal calibration and of the named effect's fit.
     before, after : Record, Record or None
-        Calibrated simulations without and with the named effect.
+        Calibrated simulations without and with the named effect, on the record's own
+        grid (all its samples) and in its units, to overlay on it directly.
     cells_after : list of Cell
         Localisation of the residual left by the named effect's fit (empty if none).
     identification : dict or None
@@ -201,6 +202,10 @@ class DiagnosisResult:
         Simulations run in total.
     seconds : float
         Wall time [s].
+    window : WindowUse or None
+        Which of the record's samples were analysed (the test window).
+    record : Record or None
+        The diagnosed record (for its grid, units and event location in :meth:`to_dict`).
     """
 
     calibration: CalibrationResult
@@ -216,6 +221,44 @@ class DiagnosisResult:
     n_simulations: int = 0
     seconds: float = 0.0
     n_cells: int | None = None
+    window: WindowUse | None = None
+    record: Record | None = None
+
+    def record_summary(self) -> dict[str, Any] | None:
+        """How the record was read: its grid, units, the samples analysed and where the event is.
+
+        ``event.time`` is the event instant in seconds from the record's first sample. For a
+        located event the calibration places it within the located interval (``event.offset``
+        [s] = the fitted ``trigger_offset`` relative to sample ``event.index``; ``event.sigma``
+        its uncertainty); a given event is the labelled sample.
+        """
+        rec = self.record
+        if rec is None:
+            return None
+        ts = rec.sample_interval
+        loc = rec.event_location
+        event: dict[str, Any] = {"index": rec.event_index, "located": loc is not None}
+        if loc is None:
+            event.update({"time": rec.event_index * ts, "sigma": 0.0})
+        else:
+            cal = self.calibration
+            offset = cal.values.get(ALIGNMENT)
+            sigma = cal.uncertainties.get(ALIGNMENT)
+            event.update(loc.to_dict())
+            event.update(
+                {
+                    "offset": offset,
+                    "time": rec.event_index * ts + (offset if offset is not None else 0.0),
+                    "sigma": sigma if sigma is not None and math.isfinite(sigma) else loc.sigma,
+                }
+            )
+        return {
+            "sample_interval": ts,
+            "n_samples": rec.n_samples,
+            "units": {c: rec.unit(c) for c in rec.channels},
+            "event": event,
+            "window": self.window.to_dict() if self.window is not None else None,
+        }
 
     def candidate(self, name: str) -> Candidate:
         """The candidate of one effect (KeyError when it was not in the library)."""
@@ -236,6 +279,7 @@ class DiagnosisResult:
         out = {
             "calibration": self.calibration.to_dict(),
             "cells": [c.to_dict() for c in self.cells[: self.n_cells]],
+            "record": self.record_summary(),
             "candidates": [c.to_dict() for c in self.candidates],
             "verdict": self.verdict.to_dict(),
             "gap": {
@@ -383,10 +427,15 @@ def diagnose(
     ------
     CalibrationError
         When the record cannot be fitted at all (no simulable parameter set).
-    engine.records.ProtocolError
-        The record is on another time grid than MODEL.md's (it would be misread).
+
+    Notes
+    -----
+    The record's test window (4.8 ms before to 200 ms after the event) is analysed on the
+    record's own grid; ``records.before``/``records.after`` cover all its samples. When the
+    record's event was located from the data, its instant within the located interval is
+    calibrated too, and pure time shifts (trigger offset, measurement delay) cannot be
+    diagnosed (their candidates say so).
     """
-    require_test_protocol(record, "the gap diagnosis")
     with single_threaded_blas():
         return _diagnose(record, library, settings, identify, noise)
 
@@ -399,10 +448,11 @@ def _diagnose(
     noise: Mapping[str, float] | None,
 ) -> DiagnosisResult:
     t0 = time.perf_counter()
+    whole = record
+    record, window = whole.test_window()
     space = default_space(record)
     nominal = calibrate(record, space, settings.calibration, noise=noise)
-    before = nominal.simulated_record(record)
-    cells = localise(record, before, nominal.sigma, DEFAULT_WINDOWS_MS)
+    cells = localise(record, nominal.simulated_record(record), nominal.sigma, DEFAULT_WINDOWS_MS)
     gap_before = gap_of(nominal)
     n_sim = nominal.n_simulations
 
@@ -417,9 +467,9 @@ def _diagnose(
         best_cal = cands[0].calibration
         if best_cal is None:  # an explained verdict names the best candidate, which is fitted
             raise RuntimeError(f"the named effect {verdict.effect} has no fit")
-        after = best_cal.simulated_record(record)
+        after = best_cal.simulated_record(whole)
         gap_after = gap_of(best_cal)
-        cells_after = localise(record, after, nominal.sigma, DEFAULT_WINDOWS_MS)
+        cells_after = localise(record, best_cal.simulated_record(record), nominal.sigma, DEFAULT_WINDOWS_MS)
     result = DiagnosisResult(
         calibration=nominal,
         cells=cells,
@@ -427,14 +477,16 @@ def _diagnose(
         verdict=verdict,
         gap_before=gap_before,
         gap_after=gap_after,
-        before=before,
+        before=nominal.simulated_record(whole),
         after=after,
         cells_after=cells_after,
         n_simulations=n_sim,
         n_cells=settings.n_cells,
+        window=window,
+        record=whole,
     )
     if identify is not None:
-        result.identification = identify(record, result)
+        result.identification = identify(whole, result)
     result.seconds = time.perf_counter() - t0
     logger.info(
         "diagnosis: %s %s (confidence %.2f), %d simulations, %.1f s",

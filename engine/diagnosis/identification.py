@@ -27,7 +27,7 @@ from engine.constants import C_NOMINAL
 from engine.identification.base import Identifier
 from engine.identification.selection import nearest_c_group
 from engine.identification.training import DEFAULT_KIND, make_identifier, simulate_training_grid
-from engine.records import Record
+from engine.records import Record, to_protocol_grid
 from engine.simulation import SimulationResult
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -78,7 +78,8 @@ def identify_before_after(
     Parameters
     ----------
     record : Record
-        The measured record (every channel it holds is identified).
+        The measured record (every channel it holds is identified), on any grid: its test
+        window is resampled onto MODEL.md's grid first (:func:`engine.records.to_protocol_grid`).
     effect, value : str or None, float or None
         The named effect and its fitted value; None gives only the nominal identification.
     c : float
@@ -96,6 +97,7 @@ def identify_before_after(
         ``{"kind", "c_group", "effect", "value", "channels": {ch: {"before": {...}, "after": {...} or None}}}``
         where each entry has the 1-based ``index``, the ``width`` [m] and the ``D`` vector.
     """
+    record = to_protocol_grid(record)  # pattern sets read MODEL.md's grid only
     group = nearest_c_group(c) if at_groups else float(c)
     before = _identify_all(lambda ch: _nominal_identifier(group, ch, kind), record)
     after: Mapping[str, dict[str, Any]] = {}

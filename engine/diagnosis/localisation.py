@@ -17,6 +17,11 @@ zero), and its *share* is its excess over the sum of all excesses.
 Frequency band of detail level j for sample interval Ts:
 ``[1 / (2**(j+1) Ts), 1 / (2**j Ts)]`` Hz (level 1: 2500-5000 Hz at Ts = 0.1 ms;
 level 10: 4.9-9.8 Hz); the approximation of level 10 covers ``[0, 1 / (2**11 Ts)]``.
+The bands follow the record's own interval: on another grid the level is chosen
+so that the bands in Hz stay near those of 0.1 ms
+(:func:`engine.features.wavelet.level_for_interval`: level 12 at 25 us, 8 at
+0.5 ms), and a cell's expected noise energy uses the actual number of
+coefficients of its level.
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ import numpy as np
 import pywt
 
 from engine.constants import CHANNEL_WAVELETS, WAVELET_LEVEL
+from engine.features.wavelet import level_for_interval
 from engine.records import Record
 
 __all__ = ["DEFAULT_WINDOWS_MS", "Cell", "level_band", "localise", "residual_components"]
@@ -116,7 +122,7 @@ def localise(
     simulation: Record | Mapping[str, np.ndarray],
     sigma: Mapping[str, float],
     windows_ms: Sequence[tuple[str, float, float]] = DEFAULT_WINDOWS_MS,
-    level: int = WAVELET_LEVEL,
+    level: int | None = None,
 ) -> list[Cell]:
     """Split the residual record - simulation into cells, sorted by excess energy.
 
@@ -130,8 +136,9 @@ def localise(
         Noise standard deviation per channel (channel unit).
     windows_ms : sequence of (name, start, end)
         Time windows relative to the event [ms].
-    level : int
-        Wavelet decomposition level.
+    level : int, optional
+        Wavelet decomposition level; default from the record's interval and length
+        (:func:`~engine.features.wavelet.level_for_interval`: 10 at 0.1 ms).
 
     Returns
     -------
@@ -141,6 +148,8 @@ def localise(
     sim = simulation.channels if isinstance(simulation, Record) else simulation
     t_ms = record.time * 1e3
     n = t_ms.size
+    if level is None:
+        level = level_for_interval(record.sample_interval, n)
     win_masks = []
     for name, lo, hi in windows_ms:
         mask = (t_ms >= lo) & (t_ms < hi)
@@ -154,10 +163,10 @@ def localise(
         comps = residual_components(r, CHANNEL_WAVELETS[ch], level)
         for idx, comp in enumerate(comps):
             if idx == 0:
-                lname, band, n_level = f"A{level}", level_band(level, record.sample_interval, True), n >> level
+                lname, band, n_level = f"A{level}", level_band(level, record.sample_interval, True), n / 2**level
             else:
                 j = level - idx + 1
-                lname, band, n_level = f"D{j}", level_band(j, record.sample_interval), n >> j
+                lname, band, n_level = f"D{j}", level_band(j, record.sample_interval), n / 2**j
             for wname, mask, wms in win_masks:
                 e = float(np.sum(comp[mask] ** 2))
                 e0 = n_level / n * float(mask.sum())

@@ -8,7 +8,8 @@ where sigma_j is the channel's noise level (:func:`engine.diagnosis.noise.noise_
 :class:`Objective` evaluates it on points of a
 :class:`~engine.diagnosis.space.ModelSpace`'s unit box, over the first samples
 of the record only if asked (the calibration's continuation over the time
-horizon). Simulations are cached per (integrator step, point), and every batch
+horizon). The simulations are sampled on the record's own grid
+(:attr:`engine.records.Record.grid`), so no record is ever resampled here. Simulations are cached per (integrator step, point), and every batch
 of points, finite-difference Jacobians included, is simulated in one call to
 the batch-parallel simulator rather than column by column.
 """
@@ -20,7 +21,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from scipy.optimize import least_squares
 
-from engine.constants import CHANNELS, N_SAMPLES
+from engine.constants import CHANNELS
 from engine.diagnosis.space import ModelSpace
 from engine.parallel import raise_if_cancelled
 from engine.records import Record
@@ -56,6 +57,7 @@ class Objective:
     def __init__(self, record: Record, space: ModelSpace, sigma: Mapping[str, float]):
         self.record = record
         self.space = space
+        self.grid = record.grid
         self.names = list(record.channels)
         self.rows = [CHANNELS.index(n) for n in self.names]
         self.data = np.stack([record.channels[n] for n in self.names])
@@ -76,8 +78,8 @@ class Objective:
 
         Returns
         -------
-        sims : ndarray, shape (m, n_ch, 2048)
-            The record's channels, in their units (NaN where the simulation failed).
+        sims : ndarray, shape (m, n_ch, n_samples)
+            The record's channels on its grid, in model units (NaN where the simulation failed).
         ok : ndarray of bool, shape (m,)
             Which simulations succeeded.
 
@@ -92,7 +94,7 @@ class Objective:
         todo = [i for i, k in enumerate(keys) if k not in self._cache]
         if todo:
             cases = [self.space.case(U[i]) for i in todo]
-            ch, _, status = run_cases(cases, solver)
+            ch, _, status = run_cases(cases, solver, self.grid)
             self.n_simulations += len(todo)
             for j, i in enumerate(todo):
                 sim: np.ndarray | None = ch[j, self.rows] if status[j] == 0 else None
@@ -104,7 +106,7 @@ class Objective:
                     del self._cache[k]
         sims = [self._cache[k] for k in keys]
         ok = np.array([s is not None for s in sims])
-        out = np.stack([s if s is not None else np.full((len(self.rows), N_SAMPLES), np.nan) for s in sims])
+        out = np.stack([s if s is not None else np.full((len(self.rows), self.grid.n_samples), np.nan) for s in sims])
         return out, ok
 
     def residuals(self, U: np.ndarray, horizon: int, solver: SolverSettings) -> np.ndarray:
@@ -123,7 +125,7 @@ class Objective:
         ``horizons`` are sample counts from the start of the record.
         """
         sims, ok = self.simulate(U, solver)
-        r2 = np.square((sims - self.data[None]) / self.sigma[None, :, None]).sum(axis=1)  # (m, 2048)
+        r2 = np.square((sims - self.data[None]) / self.sigma[None, :, None]).sum(axis=1)  # (m, n_samples)
         cum = np.cumsum(r2, axis=1)
         out = np.stack([cum[:, h - 1] for h in horizons], axis=1)
         out[~ok] = np.inf

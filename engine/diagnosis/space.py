@@ -12,6 +12,13 @@ the operating range stay interior to the box.
 A :class:`ModelSpace` maps points of the unit box ``[0, 1]^d`` to simulation
 cases: every free parameter (:class:`FreeParameter`) on a linear or
 logarithmic scale, optionally plus the scalar value of one unmodelled effect.
+
+When a record's event was located from the data rather than given
+(:class:`engine.records.EventLocation`), the event lies somewhere within one
+sample interval before the located sample; the exact instant is then a free
+nuisance parameter, :data:`ALIGNMENT` (the sensor chain's ``trigger_offset``
+[s], searched over the located interval), so that the record is compared with
+simulations sampled at its own instants however coarse its interval.
 """
 
 from __future__ import annotations
@@ -24,9 +31,10 @@ import numpy as np
 
 from engine.constants import OPERATING_RANGE
 from engine.records import Record
-from engine.simulation import Case, Effect, PlantParameters
+from engine.simulation import Case, Effect, PlantParameters, SensorParameters
 
 __all__ = [
+    "ALIGNMENT",
     "CALIBRATED",
     "DEFAULT_BOUNDS",
     "LOG_SCALED_EFFECTS",
@@ -68,6 +76,11 @@ DEFAULT_BOUNDS: dict[str, tuple[float, float, str]] = {
 }
 #: Plant parameters a record's conditions may fix (MODEL.md; others are nominal).
 CALIBRATED: tuple[str, ...] = ("K", "J1", "c", "c1")
+#: The free parameter that places a located event within its sample interval: the sensor
+#: chain's ``trigger_offset`` [s] (the true event lies that long after the located sample).
+ALIGNMENT: str = "trigger_offset"
+#: Effects that are pure time shifts of every channel: absorbed by :data:`ALIGNMENT` when it is free.
+TIME_SHIFT_EFFECTS: frozenset[str] = frozenset({"trigger_offset", "measurement_delay"})
 #: Effects whose value is best searched on a logarithmic scale.
 LOG_SCALED_EFFECTS: frozenset[str] = frozenset({"contact_stiffness", "contact_damping", "sensor_lowpass"})
 
@@ -139,6 +152,11 @@ class ModelSpace:
         return len(self.params)
 
     @property
+    def aligned(self) -> bool:
+        """Whether the event instant is a free parameter (:data:`ALIGNMENT`; the record's event was located)."""
+        return ALIGNMENT in self.names
+
+    @property
     def names(self) -> list[str]:
         """Names of the free parameters, in order."""
         return [p.name for p in self.params]
@@ -154,8 +172,10 @@ class ModelSpace:
     def case(self, u: np.ndarray) -> Case:
         """The simulation case at unit-box point u."""
         vals = self.values(u)
-        plant_changes = {k: v for k, v in vals.items() if self.effect is None or k != self.effect.name}
-        case = Case(self.base.plant.replace(**plant_changes), self.base.sensors)
+        own = {k: v for k, v in vals.items() if self.effect is None or k != self.effect.name}
+        sensor_changes = {k: v for k, v in own.items() if k in _SENSOR_FIELDS}
+        plant_changes = {k: v for k, v in own.items() if k not in _SENSOR_FIELDS}
+        case = Case(self.base.plant.replace(**plant_changes), self.base.sensors.replace(**sensor_changes))
         if self.effect is not None:
             case = self.effect.apply(case, vals[self.effect.name])
         return case
@@ -175,6 +195,8 @@ def default_space(record: Record, bounds: Mapping[str, tuple[float, float, str]]
     record : Record
         Its ``conditions`` may fix ``K`` [m], ``J1`` [kg m^2], ``c`` [pu], ``c1`` [pu]
         (and any other ``PlantParameters`` field, which is then applied as known).
+        When its event was located from the data, the event instant within the
+        located interval is free too (:data:`ALIGNMENT`, last).
     bounds : mapping, optional
         Search box per free parameter, ``name -> (low, high, unit)``;
         defaults to :data:`DEFAULT_BOUNDS`.
@@ -193,4 +215,10 @@ def default_space(record: Record, bounds: Mapping[str, tuple[float, float, str]]
         for name in CALIBRATED
         if name not in known
     )
+    if record.event_location is not None:
+        lo, hi = record.event_location.interval
+        free = (*free, FreeParameter(ALIGNMENT, lo, hi, "s"))
     return ModelSpace(base, free)
+
+
+_SENSOR_FIELDS = frozenset(SensorParameters.__dataclass_fields__)

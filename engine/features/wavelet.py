@@ -281,3 +281,25 @@ def level_slices(
         bands.append(Band(f"cD{j}", "detail", j, slice(start, start + size), fs / 2 ** (j + 1), fs / 2**j))
         start += size
     return tuple(bands)
+
+
+def level_for_interval(sample_interval: float, n: int) -> int:
+    """Decomposition level whose bands in Hz are nearest MODEL.md's level 10 at 0.1 ms, for another grid.
+
+    The level grows by one for every halving of the interval (its coarsest band stays near
+    0-2.4 Hz and the detail bands keep their frequencies), and is capped at ``log2(n)``.
+
+    Parameters
+    ----------
+    sample_interval : float
+        Ts [s].
+    n : int
+        Samples of the signal.
+
+    Returns
+    -------
+    int
+        At least 1.
+    """
+    level = WAVELET_LEVEL + round(math.log2(SAMPLE_INTERVAL / sample_interval))
+    return max(1, min(level, int(math.log2(max(n, 2)))))

@@ -60,7 +60,8 @@ def estimate_width(record: Record, settings: CalibrationSettings = WIDTH_SETTING
     Parameters
     ----------
     record : Record
-        The measured record.
+        The measured record, on any grid (its test window is fitted on its own instants; a
+        located event's instant is fitted too).
     settings : CalibrationSettings
         Search settings (default :data:`WIDTH_SETTINGS`).
 
@@ -74,13 +75,7 @@ def estimate_width(record: Record, settings: CalibrationSettings = WIDTH_SETTING
         When the record cannot be fitted.
     """
     if "K" in record.conditions:
-        record = Record(
-            record.channels,
-            record.sample_interval,
-            record.event_index,
-            {k: v for k, v in record.conditions.items() if k != "K"},
-            record.event_time,
-        )
+        record = record.replace(conditions={k: v for k, v in record.conditions.items() if k != "K"})
     cal = calibrate(record, settings=settings)
     return WidthEstimate(cal.values["K"], cal.uncertainties["K"], cal)
 

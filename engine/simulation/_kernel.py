@@ -13,7 +13,9 @@ State vector ``y`` (15 entries)::
     10..14 low-pass sensor states of the five channels       [channel units]
 
 The parameter vector layout is given by the ``P_*`` indices below and built by
-:func:`engine.simulation.simulator.parameter_matrix`.
+:func:`engine.simulation.simulator.parameter_vector`; it carries the record's
+sample grid too (``P_TS``, ``P_EVENT_INDEX``), and the number of samples is the
+length of the output array, so one compiled kernel renders any grid.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from engine.constants import CHANNELS, EVENT_INDEX, N_SAMPLES, OMEGA_B, SAMPLE_INTERVAL, W_B, W_SMOOTH
+from engine.constants import CHANNELS, OMEGA_B, W_B, W_SMOOTH
 
 # parameter vector layout
 P_R_S, P_R_R, P_X_S, P_X_R, P_X_M, P_U, P_F = 0, 1, 2, 3, 4, 5, 6
@@ -31,7 +33,8 @@ P_T1, P_T2, P_T3 = 7, 8, 9
 P_B, P_K12, P_D12, P_K2, P_D2, P_C, P_C1 = 10, 11, 12, 13, 14, 15, 16
 P_TAU_C1, P_B_1, P_RADIUS = 17, 18, 19
 P_DELAY, P_LOWPASS, P_STEP, P_T_MAX = 20, 21, 22, 23
-N_PARAMS = 24
+P_TS, P_EVENT_INDEX, P_TRIGGER_OFFSET = 24, 25, 26
+N_PARAMS = 27
 
 N_CHANNELS = len(CHANNELS)
 N_STATES = 10 + N_CHANNELS
@@ -42,8 +45,27 @@ NO_EVENT = 1
 NON_FINITE = 2
 HISTORY_TOO_SHORT = 3
 
-# checkpoint ring used to re-integrate the pre-event window on the sample grid
-_N_RING = 64
+# checkpoint ring used to re-integrate the pre-event window on the sample grid: a checkpoint
+# every CHECKPOINT_INTERVAL [s]; at least MIN_RING entries (16 ms of history), more when the
+# record reaches further back (see ring_size)
+CHECKPOINT_INTERVAL = 2.5e-4
+MIN_RING = 64
+_RING_MARGIN = 4
+
+
+@njit(cache=True, fastmath=False)
+def ring_size(P):
+    """Checkpoints to keep so that one lies at or before the record's first sample instant.
+
+    The record reaches ``event_index * Ts + max(shift, 0)`` [s] before t_e (shift = delay +
+    trigger offset). Checkpoint j is taken at the start of the first step at or after
+    j * CHECKPOINT_INTERVAL (steps are shorter than it), so ``span / CHECKPOINT_INTERVAL`` plus
+    a margin of a few entries always holds one at or before the first instant. History older
+    than ``t_event_max`` is never needed: a first instant before switch-on starts from rest.
+    """
+    span = P[P_EVENT_INDEX] * P[P_TS] + max(P[P_DELAY] + P[P_TRIGGER_OFFSET], 0.0)
+    span = min(span, P[P_T_MAX])
+    return max(MIN_RING, math.ceil(span / CHECKPOINT_INTERVAL) + _RING_MARGIN)
 
 
 @njit(cache=True, fastmath=False)
@@ -230,12 +252,17 @@ def advance(t, y, t_end, P, motor_on, work):
 def simulate_one(P, out):
     """Run the backlash test of MODEL.md section 2 for one parameter vector.
 
+    Sample k of the record is taken at ``t_e + (k - P[P_EVENT_INDEX]) * P[P_TS] - shift`` with
+    ``shift = P[P_DELAY] + P[P_TRIGGER_OFFSET]`` [s] (a negative shift samples later than
+    nominal); an instant before switch-on (t < 0) reads the plant at rest (zeros).
+
     Parameters
     ----------
     P : ndarray, shape (N_PARAMS,)
         Parameter vector.
-    out : ndarray, shape (N_CHANNELS, N_SAMPLES)
-        Receives the record (a1, m_el, omega1, a2, v2) before quantisation.
+    out : ndarray, shape (N_CHANNELS, n_samples)
+        Receives the record (a1, m_el, omega1, a2, v2) before gain, offset and quantisation;
+        its length sets the number of samples.
 
     Returns
     -------
@@ -256,10 +283,10 @@ def simulate_one(P, out):
         np.zeros(N_STATES),
         np.zeros(N_STATES),
     )
-    ring_t = np.zeros(_N_RING)
-    ring_y = np.zeros((_N_RING, N_STATES))
-    # checkpoint every 0.25 ms; the ring then covers 16 ms of history
-    ck_dt = 2.5e-4
+    n_ring = ring_size(P)
+    ring_t = np.zeros(n_ring)
+    ring_y = np.zeros((n_ring, N_STATES))
+    ck_dt = CHECKPOINT_INTERVAL
     next_ck = 0.0
     t = 0.0
     armed = False
@@ -267,7 +294,7 @@ def simulate_one(P, out):
     n_ck = 0
     while t < P[P_T_MAX]:
         if t >= next_ck:
-            slot = n_ck % _N_RING
+            slot = n_ck % n_ring
             ring_t[slot] = t
             for i in range(N_STATES):
                 ring_y[slot, i] = y[i]
@@ -289,10 +316,13 @@ def simulate_one(P, out):
         return NO_EVENT, math.nan
 
     # re-integrate from the newest checkpoint before the first sample instant
-    t_first = t_e - EVENT_INDEX * SAMPLE_INTERVAL - P[P_DELAY]
+    ts = P[P_TS]
+    e_idx = P[P_EVENT_INDEX]
+    shift = P[P_DELAY] + P[P_TRIGGER_OFFSET]
+    t_first = t_e - e_idx * ts - shift
     best = -1
     best_t = -1.0
-    n_valid = min(n_ck, _N_RING)
+    n_valid = min(n_ck, n_ring)
     for s in range(n_valid):
         if ring_t[s] <= t_first and ring_t[s] > best_t:
             best = s
@@ -311,8 +341,8 @@ def simulate_one(P, out):
     lowpass = P[P_LOWPASS] > 0.0
     dy = np.empty(N_STATES)
     chv = np.empty(N_CHANNELS)
-    for k in range(N_SAMPLES):
-        tk = t_e + (k - EVENT_INDEX) * SAMPLE_INTERVAL - P[P_DELAY]
+    for k in range(out.shape[1]):
+        tk = t_e + (k - e_idx) * ts - shift
         if tk < 0.0:
             for i in range(N_CHANNELS):
                 out[i, k] = 0.0

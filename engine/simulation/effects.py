@@ -144,6 +144,12 @@ CATALOGUE = EffectLibrary(
                "sensors", "delay", "set", (0.0, 0.001), 0.0, "s"),
         Effect("sensor_lowpass", "first-order low-pass of cut-off value on every channel",
                "sensors", "lowpass_hz", "set", (200.0, 5000.0), 0.0, "Hz"),
+        Effect("trigger_offset", "the record's alignment is off by value: the true event lies value after the labelled one",
+               "sensors", "trigger_offset", "set", (-0.002, 0.002), 0.0, "s"),
+        Effect("sensor_gain", "every channel scaled by value",
+               "sensors", "gain", "multiply", (0.8, 1.2), 1.0, "x"),
+        Effect("sensor_offset", "constant offset of value times the channel's RMS over the test window on every channel",
+               "sensors", "offset_rms", "set", (-0.2, 0.2), 0.0, "x RMS"),
     ]
 )
 # fmt: on

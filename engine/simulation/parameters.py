@@ -3,9 +3,9 @@
 Names follow the maths of MODEL.md; units are in each field's docstring.
 Two fields are *extensions* of MODEL.md with a neutral default (zero), so the
 reference plant is unchanged unless an effect sets them: ``tau_C1`` and
-``b_1`` (motor-shaft friction). The sensor chain (delay, low-pass,
-quantisation) is also an extension with neutral defaults. See
-``docs/model-changes.md``.
+``b_1`` (motor-shaft friction). The sensor chain (delay, trigger offset,
+low-pass, gain, offset, quantisation) is also an extension with neutral
+defaults. See ``docs/model-changes.md``.
 """
 
 from __future__ import annotations
@@ -136,20 +136,47 @@ class PlantParameters:
 class SensorParameters:
     """Measurement chain between the plant and the record (extension of MODEL.md).
 
+    Every field's default is neutral (the record is then MODEL.md's). The chain acts in
+    the order of the measurement:
+
+    1. **delay and trigger shift**: sample k of a record on a grid of interval Ts with the
+       event at sample E holds the value at ``t_e + (k - E) Ts - (delay + trigger_offset)``
+       (an instant before switch-on reads the plant at rest: 0);
+    2. **low-pass**: a first-order filter on every channel (continuous-time, integrated with
+       the plant from switch-on);
+    3. **gain**: every channel multiplied by ``gain``;
+    4. **offset**: ``offset_rms`` times the channel's RMS added to every channel, the RMS taken
+       after the gain over the test window's samples (4.8 ms before to 200 ms after the event,
+       :meth:`engine.records.SampleGrid.window`), so it does not depend on the record's length;
+    5. **quantisation** of omega1 to multiples of ``speed_quantum``.
+
+    Steps 1-2 are in the kernel, 3-5 act on the sampled values
+    (:func:`engine.simulation.simulator.apply_sensor_readout`).
+
     Parameters
     ----------
     delay : float
-        Every channel is recorded ``delay`` seconds late: sample k holds the
-        value at t_e + (k - 48) Ts - delay [s].
+        Every channel is recorded ``delay`` seconds late [s], in [0, 5e-3].
     lowpass_hz : float
         Cut-off of a first-order low-pass on every channel [Hz]; 0 means none.
     speed_quantum : float
         omega1 is rounded to multiples of this [rad/s]; 0 means none.
+    trigger_offset : float
+        The record's alignment is off by this [s], in [-5e-3, 5e-3]: the true event lies
+        ``trigger_offset`` after the labelled one (the same shift as ``delay``, of either sign;
+        negative: samples taken later than nominal).
+    gain : float
+        Every channel scaled by this [x], in [0.1, 10]; 1 means none.
+    offset_rms : float
+        Constant offset of every channel in units of the channel's RMS [x RMS], in [-1, 1]; 0 means none.
     """
 
     delay: float = 0.0
     lowpass_hz: float = 0.0
     speed_quantum: float = 0.0
+    trigger_offset: float = 0.0
+    gain: float = 1.0
+    offset_rms: float = 0.0
 
     def validate(self) -> SensorParameters:
         for f in fields(self):
@@ -160,6 +187,9 @@ class SensorParameters:
         if self.lowpass_hz != 0.0:
             _check_range("lowpass_hz", self.lowpass_hz, 10.0, 50_000.0, "Hz")
         _check_range("speed_quantum", self.speed_quantum, 0.0, 10.0, "rad/s")
+        _check_range("trigger_offset", self.trigger_offset, -0.005, 0.005, "s")
+        _check_range("gain", self.gain, 0.1, 10.0, "x")
+        _check_range("offset_rms", self.offset_rms, -1.0, 1.0, "x RMS")
         return self
 
     def replace(self, **changes: Any) -> SensorParameters:
@@ -175,8 +205,9 @@ class SolverSettings:
     ----------
     max_step : float
         Largest RK4 step [s]; every interval between sample instants is split
-        into equal steps no longer than this. The default Ts / 3 (33 us) meets MODEL.md
-        section 4 with a wide margin (tests/test_simulation_accuracy.py).
+        into equal steps no longer than this (on a grid finer than it, the steps are the
+        sample spacing). The default MODEL.md's Ts / 3 (33 us) meets MODEL.md section 4 with
+        a wide margin on every grid (tests/test_simulation_accuracy.py).
     t_event_max : float
         Simulated time within which the backlash event must occur [s].
     """

@@ -14,19 +14,27 @@ The reference shares no code with the kernel's physics path: it does not use
 flat mapping of MODEL.md's names to values (:data:`MODEL_DEFAULTS`), plus
 effects by catalogue name, and it writes every effect's physics out again
 from the effect's documented meaning (:data:`EFFECT_NEUTRAL`). The only thing
-shared are the *numbers* of the spec, read from :mod:`engine.constants`.
+shared are the *numbers* of the spec, read from :mod:`engine.constants`, and the record's grid (only its three numbers:
+interval, length, event index).
 
 Sensor chain
 ------------
 Applied in the order of the measurement:
 
-1. **Delay**: sample k is taken at ``t_e + (k - 48) Ts - delay``; an instant
-   before switch-on reads the plant at rest (zeros).
+1. **Delay and trigger offset**: on a grid of interval Ts, n samples, the event
+   at sample E, sample k is taken at ``t_e + (k - E) Ts - delay - offset``
+   (``offset``: the ``trigger_offset`` effect, either sign); an instant before
+   switch-on reads the plant at rest (zeros).
 2. **First-order low-pass** on every channel, ``tau dy/dt = x - y`` with
    ``tau = 1 / (2 pi f_c)``, integrated as five extra ODE states from
    ``t = 0`` together with the plant (so to the solver's tolerance); the
    filter states are continuous across the event.
-3. **Quantisation** of omega1 to the nearest multiple of the quantum
+3. **Gain**: every sampled channel multiplied by the ``sensor_gain`` value.
+4. **Offset**: every sampled channel plus the ``sensor_offset`` value times
+   that channel's root mean square (after the gain) over the test window:
+   the samples from ``ceil(4.8 ms / Ts)`` before the event to
+   ``ceil(200 ms / Ts)`` from it on.
+5. **Quantisation** of omega1 to the nearest multiple of the quantum
    (``q * floor(x / q + 1/2)``), after sampling.
 """
 
@@ -43,10 +51,9 @@ from scipy.integrate import solve_ivp
 from engine import constants as const
 from engine.constants import (
     CHANNELS,
-    EVENT_INDEX,
-    N_SAMPLES,
     OMEGA_B,
-    SAMPLE_INTERVAL,
+    POST_EVENT_TIME,
+    PRE_EVENT_TIME,
     T_EVENT_MAX,
     TM_PER_J,
     W_B,
@@ -54,6 +61,7 @@ from engine.constants import (
 )
 
 if TYPE_CHECKING:
+    from engine.records.grid import SampleGrid
     from engine.simulation.parameters import Case
 
 #: MODEL.md's parameters by their MODEL.md names, at the spec's values.
@@ -98,6 +106,9 @@ EFFECT_NEUTRAL: Mapping[str, float] = {
     "speed_quantization": 0.0,  # rad/s: omega1 rounded to multiples of value (0: none)
     "measurement_delay": 0.0,  # s: every channel recorded value late
     "sensor_lowpass": 0.0,  # Hz: first-order low-pass of cut-off value on every channel (0: none)
+    "trigger_offset": 0.0,  # s: the true event lies value after the labelled one (either sign)
+    "sensor_gain": 1.0,  # every channel multiplied by value
+    "sensor_offset": 0.0,  # every channel plus value * its RMS over the test window
 }
 
 _N_PLANT = 10  # psi_s (2), psi_r (2), w_1..3, theta_1..3
@@ -111,11 +122,12 @@ class ReferenceResult:
 
     Attributes
     ----------
-    channels : ndarray, shape (5, 2048)
+    channels : ndarray, shape (5, n_samples)
         a1 [m/s^2], m_el [pu], omega1 [rad/s], a2 [m/s^2], v2 [m/s] after the
         whole sensor chain.
-    unquantised : ndarray, shape (5, 2048)
-        The same before the quantisation of omega1 (delay and low-pass applied).
+    unquantised : ndarray, shape (5, n_samples)
+        The same before the quantisation of omega1 (delay, trigger offset, low-pass,
+        gain and offset applied).
     event_time : float
         t_e [s] since switch-on.
     n_rhs : int
@@ -222,6 +234,7 @@ def reference_simulate(
     method: str = "DOP853",
     rtol: float = 1e-9,
     atol: float = 1e-12,
+    grid: SampleGrid | None = None,
 ) -> ReferenceResult:
     """Solve the backlash test with ``solve_ivp`` (see the module docstring).
 
@@ -234,6 +247,9 @@ def reference_simulate(
         Catalogued effects by name and value (keys of :data:`EFFECT_NEUTRAL`).
     method, rtol, atol
         ``solve_ivp`` settings.
+    grid : SampleGrid, optional
+        The record's sample grid (its ``sample_interval`` [s], ``n_samples`` and
+        ``event_index`` only); default MODEL.md's (0.1 ms, 2048 samples, event at 48).
 
     Returns
     -------
@@ -275,11 +291,12 @@ def reference_simulate(
         raise RuntimeError(f"reference: no re-entry into the backlash zone within {T_EVENT_MAX} s ({s2.message})")
     t_e = float(s2.t_events[0][0])
     y_e = s2.y_events[0][0]
-    t_k = t_e + (np.arange(N_SAMPLES) - EVENT_INDEX) * SAMPLE_INTERVAL - values["measurement_delay"]
-    s3 = solve_ivp(f_off, (t_e, t_k[-1] + 1e-12), y_e, **kw)
+    ts, n, e = _grid_numbers(grid)
+    t_k = t_e + (np.arange(n) - e) * ts - values["measurement_delay"] - values["trigger_offset"]
+    s3 = solve_ivp(f_off, (t_e, max(t_k[-1], t_e) + 1e-9), y_e, **kw)
     if not s3.success:
         raise RuntimeError(f"reference: solver failed after the event ({s3.message})")
-    analog = np.zeros((_N_CHANNELS, N_SAMPLES))
+    analog = np.zeros((_N_CHANNELS, n))
     for k, t in enumerate(t_k):
         if t < 0:
             continue  # before switch-on: the plant at rest
@@ -290,11 +307,26 @@ def reference_simulate(
         else:
             y, on = s3.sol(t), False
         analog[:, k] = model.channels(t, y, on)
+    analog = analog * values["sensor_gain"]
+    first = e - math.ceil(PRE_EVENT_TIME / ts - 1e-9)
+    stop = e + math.ceil(POST_EVENT_TIME / ts - 1e-9)
+    if values["sensor_offset"] != 0.0:
+        if first < 0 or stop > n:
+            raise ValueError("reference: sensor_offset needs a grid covering the test window")
+        rms = np.sqrt(np.mean(analog[:, first:stop] ** 2, axis=1))
+        analog = analog + values["sensor_offset"] * rms[:, None]
     out = analog.copy()
     q = values["speed_quantization"]
     if q > 0:
         out[_OMEGA1] = q * np.floor(analog[_OMEGA1] / q + 0.5)
     return ReferenceResult(out, analog, t_e, model.n_rhs)
+
+
+def _grid_numbers(grid: SampleGrid | None) -> tuple[float, int, int]:
+    """(interval [s], samples, event index) of ``grid``; MODEL.md section 2's without one."""
+    if grid is None:
+        return const.SAMPLE_INTERVAL, const.N_SAMPLES, const.EVENT_INDEX
+    return float(grid.sample_interval), int(grid.n_samples), int(grid.event_index)
 
 
 def reference_inputs(case: Case) -> tuple[dict[str, float], dict[str, float]]:
@@ -315,5 +347,8 @@ def reference_inputs(case: Case) -> tuple[dict[str, float], dict[str, float]]:
         "measurement_delay": s.delay,
         "sensor_lowpass": s.lowpass_hz,
         "speed_quantization": s.speed_quantum,
+        "trigger_offset": s.trigger_offset,
+        "sensor_gain": s.gain,
+        "sensor_offset": s.offset_rms,
     }
     return parameters, effects

@@ -2,7 +2,14 @@
 
 ``simulate_batch`` runs many cases in one call through the numba kernel
 (:mod:`engine.simulation._kernel`), in parallel over cases, and returns a
-:class:`SimulationResult`.
+:class:`SimulationResult`. Records are rendered on any
+:class:`~engine.records.SampleGrid` (default: MODEL.md's, ``PROTOCOL_GRID``).
+
+The measurement chain (:class:`~engine.simulation.parameters.SensorParameters`)
+is applied in the order of the measurement: the delay and trigger offset shift
+the sample instants and the low-pass filters the channels (both in the kernel);
+the gain, the offset and the quantisation of omega1 act on the sampled values
+(:func:`apply_sensor_readout`, vectorised numpy).
 """
 
 from __future__ import annotations
@@ -17,8 +24,8 @@ from typing import Final
 
 import numpy as np
 
-from engine.constants import CHANNELS, EVENT_INDEX, N_SAMPLES, SAMPLE_INTERVAL
-from engine.records import Record
+from engine.constants import CHANNELS
+from engine.records import PROTOCOL_GRID, Record, SampleGrid
 from engine.simulation import _kernel as kern
 from engine.simulation.effects import apply_effects
 from engine.simulation.parameters import Case, ParameterError, PlantParameters, SolverSettings
@@ -31,7 +38,7 @@ DEFAULT_SOLVER: Final[SolverSettings] = SolverSettings()
 _STATUS_TEXT = {
     kern.NO_EVENT: "no backlash event (re-entry into the zone after first contact) within {t_max} s of simulated time",
     kern.NON_FINITE: "the integration diverged (non-finite or absurd state); check the parameters",
-    kern.HISTORY_TOO_SHORT: "the pre-event window reaches further back than the integrator keeps history (delay too long)",
+    kern.HISTORY_TOO_SHORT: "the pre-event window reaches further back than the integrator keeps history",
 }
 
 
@@ -90,30 +97,39 @@ class SimulationResult:
     ----------
     cases : list of Case
         The simulated cases (effects already applied).
-    channels : ndarray, shape (n_cases, 5, 2048)
+    channels : ndarray, shape (n_cases, 5, grid.n_samples)
         a1 [m/s^2], m_el [pu], omega1 [rad/s], a2 [m/s^2], v2 [m/s].
     event_times : ndarray, shape (n_cases,)
         t_e [s] since switch-on.
+    grid : SampleGrid
+        The sample grid of every record (default: MODEL.md's, 2048 samples of 0.1 ms, the event at 48).
     """
 
     cases: list[Case]
     channels: np.ndarray
     event_times: np.ndarray
+    grid: SampleGrid = PROTOCOL_GRID
 
     def __len__(self) -> int:
         return len(self.cases)
 
     def channel(self, name: str) -> np.ndarray:
-        """All cases' samples of one channel, shape (n_cases, 2048)."""
+        """All cases' samples of one channel, shape (n_cases, grid.n_samples)."""
         return self.channels[:, CHANNELS.index(name), :]
 
     def record(self, i: int) -> Record:
-        """Case ``i`` as a :class:`Record` whose conditions carry its J1, c, c1 and K."""
+        """Case ``i`` as a :class:`Record` on :attr:`grid` whose conditions carry its J1, c, c1 and K.
+
+        Raises
+        ------
+        ProtocolError
+            The grid does not cover the test window (4.8 ms before to 200 ms after the event).
+        """
         p = self.cases[i].plant
         return Record(
             channels={name: self.channels[i, j] for j, name in enumerate(CHANNELS)},
-            sample_interval=SAMPLE_INTERVAL,
-            event_index=EVENT_INDEX,
+            sample_interval=self.grid.sample_interval,
+            event_index=self.grid.event_index,
             conditions={"J1": p.J1, "c": p.c, "c1": p.c1, "K": p.K},
             event_time=float(self.event_times[i]),
         )
@@ -123,8 +139,25 @@ class SimulationResult:
         return [self.record(i) for i in range(len(self))]
 
 
-def parameter_vector(case: Case, solver: SolverSettings = DEFAULT_SOLVER) -> np.ndarray:
-    """Kernel parameter vector of one case (see the ``P_*`` layout in the kernel)."""
+def parameter_vector(
+    case: Case, solver: SolverSettings = DEFAULT_SOLVER, grid: SampleGrid = PROTOCOL_GRID
+) -> np.ndarray:
+    """Kernel parameter vector of one case on ``grid`` (see the ``P_*`` layout in the kernel).
+
+    Parameters
+    ----------
+    case : Case
+        Plant and measurement chain; only the chain's delay, trigger offset and low-pass
+        enter the kernel (gain, offset and quantisation act afterwards: :func:`apply_sensor_readout`).
+    solver : SolverSettings
+        RK4 step [s] and the longest time to the event [s].
+    grid : SampleGrid
+        Sample interval [s] and event index of the record (its length is the output array's).
+
+    Returns
+    -------
+    ndarray, shape (N_PARAMS,)
+    """
     p, s = case.plant, case.sensors
     P = np.empty(kern.N_PARAMS)
     P[kern.P_R_S], P[kern.P_R_R] = p.r_s, p.r_r
@@ -136,6 +169,8 @@ def parameter_vector(case: Case, solver: SolverSettings = DEFAULT_SOLVER) -> np.
     P[kern.P_TAU_C1], P[kern.P_B_1], P[kern.P_RADIUS] = p.tau_C1, p.b_1, p.r
     P[kern.P_DELAY], P[kern.P_LOWPASS] = s.delay, s.lowpass_hz
     P[kern.P_STEP], P[kern.P_T_MAX] = solver.max_step, solver.t_event_max
+    P[kern.P_TS], P[kern.P_EVENT_INDEX] = grid.sample_interval, float(grid.event_index)
+    P[kern.P_TRIGGER_OFFSET] = s.trigger_offset
     return P
 
 
@@ -169,18 +204,81 @@ def check_step(case: Case, solver: SolverSettings) -> None:
         )
 
 
+def apply_sensor_readout(channels: np.ndarray, cases: Sequence[Case], grid: SampleGrid = PROTOCOL_GRID) -> None:
+    """Gain, offset and omega1 quantisation of the sampled records, in place (in that order).
+
+    Parameters
+    ----------
+    channels : ndarray, shape (n_cases, 5, grid.n_samples)
+        The kernel's records (delay, trigger offset and low-pass already applied), model units.
+    cases : sequence of Case
+        One per record; their ``sensors.gain`` [x], ``sensors.offset_rms`` [x RMS] and
+        ``sensors.speed_quantum`` [rad/s] are applied.
+    grid : SampleGrid
+        The records' grid; the offset's RMS is taken over its test window (:meth:`SampleGrid.window`),
+        so it does not depend on how long a record is.
+
+    Notes
+    -----
+    Each step touches only the records whose value differs from neutral, so a neutral chain
+    leaves the samples bit for bit as the kernel produced them.
+
+    Raises
+    ------
+    GridError
+        A case has an offset and ``grid`` does not cover the test window.
+    """
+    if not len(cases):
+        return
+    gain = np.array([c.sensors.gain for c in cases], dtype=float)
+    scaled = np.flatnonzero(gain != 1.0)
+    if scaled.size:
+        channels[scaled] *= gain[scaled, None, None]
+    offset = np.array([c.sensors.offset_rms for c in cases], dtype=float)
+    shifted = np.flatnonzero(offset != 0.0)
+    if shifted.size:
+        window = channels[shifted][:, :, grid.window()]
+        rms = np.sqrt(np.mean(window**2, axis=2))  # (n, 5)
+        channels[shifted] += (offset[shifted, None] * rms)[:, :, None]
+    quantum = np.array([c.sensors.speed_quantum for c in cases], dtype=float)
+    rounded = np.flatnonzero(quantum > 0.0)
+    if rounded.size:
+        j = CHANNELS.index("omega1")
+        q = quantum[rounded, None]
+        channels[rounded, j] = q * np.round(channels[rounded, j] / q)
+
+
 def run_cases(
-    cases: Sequence[Case], solver: SolverSettings = DEFAULT_SOLVER
+    cases: Sequence[Case], solver: SolverSettings = DEFAULT_SOLVER, grid: SampleGrid = PROTOCOL_GRID
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Simulate validated cases without raising: (channels, event_times, status).
 
     For search loops (calibration) that prefer an infinite cost to an
     exception; ``status`` holds the kernel's codes (0 is success).
+
+    Parameters
+    ----------
+    cases : sequence of Case
+        Validated cases (see :meth:`Case.validate`).
+    solver : SolverSettings
+        Integrator settings: each interval between sample instants is split into equal RK4
+        steps of at most ``solver.max_step`` [s].
+    grid : SampleGrid
+        Sample instants of the records (default: MODEL.md's grid).
+
+    Returns
+    -------
+    channels : ndarray, shape (n_cases, 5, grid.n_samples)
+        a1 [m/s^2], m_el [pu], omega1 [rad/s], a2 [m/s^2], v2 [m/s], after the whole sensor chain.
+    event_times : ndarray, shape (n_cases,)
+        t_e [s] since switch-on (NaN where the case failed).
+    status : ndarray of int, shape (n_cases,)
+        The kernel's status codes.
     """
     solver.validate()
-    P = np.stack([parameter_vector(c, solver) for c in cases]) if cases else np.empty((0, kern.N_PARAMS))
+    P = np.stack([parameter_vector(c, solver, grid) for c in cases]) if cases else np.empty((0, kern.N_PARAMS))
     n = P.shape[0]
-    out = np.zeros((n, kern.N_CHANNELS, N_SAMPLES))
+    out = np.zeros((n, kern.N_CHANNELS, grid.n_samples))
     t_e = np.full(n, np.nan)
     status = np.zeros(n, dtype=np.int64)
     if n == 1 or (n and getattr(_THREAD, "serial", False) and _n_serial > 1):
@@ -191,12 +289,8 @@ def run_cases(
     # a record with a non-finite sample is a failed integration, never a result
     diverged = (status == kern.OK) & ~np.isfinite(out).all(axis=(1, 2))
     status[diverged] = kern.NON_FINITE
-    # sensor quantisation of omega1 (post-sampling: a property of the reading)
-    for i, case in enumerate(cases):
-        q = case.sensors.speed_quantum
-        if q > 0:
-            j = CHANNELS.index("omega1")
-            out[i, j] = q * np.round(out[i, j] / q)
+    # gain, offset and quantisation (post-sampling: properties of the reading)
+    apply_sensor_readout(out, cases, grid)
     return out, t_e, status
 
 
@@ -204,6 +298,7 @@ def simulate_batch(
     cases: Sequence[Case | PlantParameters],
     effects: Mapping[str, float] | Sequence[Mapping[str, float]] | None = None,
     solver: SolverSettings = DEFAULT_SOLVER,
+    grid: SampleGrid = PROTOCOL_GRID,
 ) -> SimulationResult:
     """Simulate many cases of the backlash test in one call.
 
@@ -216,6 +311,9 @@ def simulate_batch(
         :mod:`engine.simulation.effects`), one mapping for all cases or one per case.
     solver : SolverSettings
         Integrator settings.
+    grid : SampleGrid
+        Sample instants of the records (default: MODEL.md's grid, 2048 samples of 0.1 ms,
+        the event at sample 48); e.g. a measured record's ``grid`` to compare with it.
 
     Returns
     -------
@@ -225,6 +323,8 @@ def simulate_batch(
     ------
     ParameterError
         A parameter or effect is out of range.
+    GridError
+        A case has a ``sensor_offset`` and ``grid`` does not cover the test window.
     SimulationError
         A case has no event within ``solver.t_event_max`` or diverged.
     """
@@ -237,18 +337,21 @@ def simulate_batch(
     for c in norm:
         c.validate()
         check_step(c, solver)
-    out, t_e, status = run_cases(norm, solver)
+    if not isinstance(grid, SampleGrid):
+        raise TypeError(f"grid must be an engine.records.SampleGrid, got {type(grid).__name__}")
+    out, t_e, status = run_cases(norm, solver, grid)
     failures = {i: _STATUS_TEXT[int(s)].format(t_max=solver.t_event_max) for i, s in enumerate(status) if s != kern.OK}
     if failures:
         raise SimulationError(failures)
-    logger.debug("simulated %d cases", len(norm))
-    return SimulationResult(cases=norm, channels=out, event_times=t_e)
+    logger.debug("simulated %d cases on %s", len(norm), grid)
+    return SimulationResult(cases=norm, channels=out, event_times=t_e, grid=grid)
 
 
 def simulate(
     case: Case | PlantParameters,
     effects: Mapping[str, float] | None = None,
     solver: SolverSettings = DEFAULT_SOLVER,
+    grid: SampleGrid = PROTOCOL_GRID,
 ) -> Record:
-    """Simulate one case and return its record (see :func:`simulate_batch`)."""
-    return simulate_batch([case], effects, solver).record(0)
+    """Simulate one case and return its record on ``grid`` (see :func:`simulate_batch`)."""
+    return simulate_batch([case], effects, solver, grid).record(0)

@@ -123,10 +123,26 @@ def test_pattern_sets_list_show_delete(env: Path, capsys: pytest.CaptureFixture[
         ),
         (["identify", "missing.csv", "--channel", "v2"], "cannot read record file"),
         (["identify", "record.txt", "--channel", "v2"], "must end in .json or .csv"),
-        (["identify", "short.csv", "--channel", "v2"], "the CSV has 3 data rows"),
-        (["identify", "full.csv", "--channel", "v2"], "no pattern set for channel 'v2'"),
+        (["identify", "short.csv", "--channel", "v2", "--event-index", "1"], "4.7 ms before the event and 199.8"),
+        (["identify", "full.csv", "--channel", "v2"], "holds neither m_el nor a1"),
+        (["identify", "full.csv", "--channel", "v2", "--event-index", "48"], "no pattern set for channel 'v2'"),
+        (
+            ["identify", "full.csv", "--channel", "v2", "--event-index", "48", "--unit", "v2=knots"],
+            "unknown unit 'knots' for channel 'v2'; accepted units: m/s, mm/s",
+        ),
+        (
+            ["identify", "full.csv", "--channel", "v2", "--event-index", "48", "--unit", "v2=m/s", "--unit", "v2=mm/s"],
+            "--unit gives channel 'v2' two units",
+        ),
+        (
+            ["identify", "timed.csv", "--channel", "v2", "--event-index", "48", "--sample-interval", "1e-4"],
+            "contradicts the time column 't'",
+        ),
         (["identify", "nan.json", "--channel", "v2"], "the JSON holds NaN, which is not a number"),
-        (["diagnose", "full.csv", "--effects", "magic"], "unknown effect 'magic'"),
+        (["diagnose", "full.csv", "--event-index", "48", "--effects", "magic"], "unknown effect 'magic'"),
+        (["simulate", "--K", "0.005", "--unit", "omega1=rpmm"], "unknown unit 'rpmm' for channel 'omega1'"),
+        (["simulate", "--K", "0.005", "--sample-interval", "2e-3"], "outside the accepted range"),
+        (["simulate", "--K", "0.005", "--after", "0.1"], "100 ms after it missing"),
     ],
 )
 def test_user_errors_exit_2_with_a_message(
@@ -141,6 +157,7 @@ def test_user_errors_exit_2_with_a_message(
     Path("record.txt").write_text("x")
     Path("short.csv").write_text("v2\n1\n2\n3\n")
     Path("full.csv").write_text("v2\n" + "0.5\n" * N_SAMPLES)
+    Path("timed.csv").write_text("t,v2\n" + "".join(f"{k * 5e-5!r},0.5\n" for k in range(4 * N_SAMPLES)))
     Path("nan.json").write_text('{"channels": {"v2": [NaN]}}')
     code, out, err = run(capsys, *argv)
     assert code == 2, err
@@ -153,6 +170,10 @@ def test_bad_usage_is_argparse_exit_2(env: Path, capsys: pytest.CaptureFixture[s
         cli.main(["simulate", "--K", "0.005", "--effect", "no-equals-sign"])
     assert exc.value.code == 2
     assert "NAME=VALUE" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["simulate", "--K", "0.005", "--unit", "omega1:rpm"])
+    assert exc.value.code == 2
+    assert "write a unit as CHANNEL=UNIT" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         cli.main(["simulate", "--K", "nan"])
     assert "not a finite number" in capsys.readouterr().err
@@ -306,3 +327,56 @@ def test_simulate_can_make_a_measured_like_record(
     v_clean, v_noisy = np.array(clean["channels"]["v2"]), np.array(noisy["channels"]["v2"])
     snr = 10 * np.log10(np.var(v_clean) / np.var(v_noisy - v_clean))
     assert 28.0 < snr < 32.0
+
+
+def test_simulate_as_a_bench_gives_it_and_read_it_back(
+    env: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from app.records_io import read_record
+    from engine.records import SampleGrid
+
+    grid = SampleGrid.around_event(5e-5, 0.01, 0.3)
+    render = ["--sample-interval", "5e-5", "--before", "0.01", "--after", "0.3"]
+    units = ["--unit", "omega1=rpm", "--unit", "a1=g"]
+    bench_csv, bench_json = tmp_path / "bench.csv", tmp_path / "bench.json"
+    code, _, err = run(capsys, "simulate", "--K", "0.005", *render, *units, "--no-event-index", "--time-column",
+                       "--out", str(bench_csv))  # fmt: skip
+    assert code == 0, err
+    lines = bench_csv.read_text().splitlines()
+    assert lines[0] == "t,a1,m_el,omega1,a2,v2" and len(lines) == grid.n_samples + 1
+    code, out, _ = run(capsys, "simulate", "--K", "0.005", *render, *units, "--no-event-index")
+    stdout_rec = json.loads(out)
+    assert "event_index" not in stdout_rec and stdout_rec["units"] == {"omega1": "rpm", "a1": "g"}
+    assert run(capsys, "simulate", "--K", "0.005", *render, "--out", str(bench_json))[0] == 0
+
+    model = read_record(bench_json)  # rad/s and m/s^2, the event index stated
+    assert (model.n_samples, model.event_index, model.units) == (grid.n_samples, grid.event_index, {})
+    from_csv = read_record(bench_csv, units={"omega1": "rpm", "a1": "g"})  # Ts from t, the event located
+    assert from_csv.event_location is not None and from_csv.event_index == grid.event_index
+    assert from_csv.sample_interval == pytest.approx(5e-5, rel=1e-9)
+    for name in CHANNELS:
+        np.testing.assert_allclose(from_csv[name], model[name], rtol=1e-12, atol=1e-12)
+    assert float(lines[1 + 300].split(",")[3]) == pytest.approx(model["omega1"][300] * 60 / (2 * np.pi), rel=1e-12)
+
+
+def test_simulate_noise_is_added_in_model_units(env: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    noisy = ["simulate", "--K", "0.005", "--snr-db", "30", "--seed", "3", "--known", "c1"]
+    code, out, _ = run(capsys, *noisy)
+    assert code == 0
+    plain = json.loads(out)
+    assert plain["conditions"] == {"c1": 0.2}
+    code, out, _ = run(capsys, *noisy, "--unit", "v2=mm/s", "--channels", "v2", "a2")
+    assert code == 0
+    mm_s = json.loads(out)
+    assert set(mm_s["channels"]) == {"a2", "v2"}  # the same noise on a kept channel, whatever else is kept
+    np.testing.assert_allclose(np.asarray(mm_s["channels"]["v2"]) * 1e-3, plain["channels"]["v2"], rtol=1e-12)
+    assert mm_s["channels"]["a2"] == plain["channels"]["a2"]
+
+
+def test_unit_help_lists_the_engines_units() -> None:
+    from app.cli.common import UNITS_HELP
+    from engine.records import UNITS
+
+    for channel, units in UNITS.items():
+        section = next(s for s in UNITS_HELP.split(";") if channel in s.split(":")[0])
+        assert all(u in section for u in units), (channel, section)

@@ -34,5 +34,5 @@ def test_diagnose_names_a_hidden_effect(client: httpx.Client) -> None:
 def test_diagnose_validates_its_input_first(client: httpx.Client, sim_record: dict[str, Any]) -> None:
     r = client.post("/v1/diagnose", json={"record": sim_record, "effects": ["no_such_effect"]})
     assert r.status_code == 422 and "unknown effect 'no_such_effect'" in r.json()["detail"]
-    r = client.post("/v1/diagnose", json={"record": {"channels": {"v2": [0.0] * 10}}})
-    assert r.status_code == 422 and "exactly 2048 samples" in r.json()["detail"]
+    r = client.post("/v1/diagnose", json={"record": {"channels": {"v2": [0.0] * 10}, "event_index": 5}})
+    assert r.status_code == 422 and "4.3 ms before the event and 199.5 ms after it missing" in r.json()["detail"]

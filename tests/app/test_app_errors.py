@@ -13,7 +13,7 @@ import httpx
 import pytest
 from servicekit import SMALL_TRAINING
 
-from engine.constants import CHANNELS, N_SAMPLES
+from engine.constants import CHANNELS, EVENT_INDEX, N_SAMPLES
 
 JSON = {"Content-Type": "application/json"}
 CSV = {"Content-Type": "text/csv"}
@@ -27,6 +27,11 @@ def _v2(rec: Rec) -> list[float]:
 
 def _identify(record: Rec, **extra: Any) -> dict[str, Any]:
     return {"json": {"record": record, "channel": "v2", **extra}}
+
+
+def _v2_only(rec: Rec, **extra: Any) -> Rec:
+    """The v2 channel of ``rec`` at its event index (v2 alone cannot locate the event)."""
+    return {"channels": {"v2": _v2(rec)}, "event_index": EVENT_INDEX, **extra}
 
 
 def _raw_identify(rec: Rec, token: str) -> dict[str, Any]:
@@ -128,9 +133,10 @@ CASES: list[tuple[str, str, str, Callable[[Rec], dict[str, Any]], int, str]] = [
         "wrong length",
         "POST",
         "/v1/identify",
-        lambda r: _identify({"channels": {"v2": _v2(r)[:-1]}}),
+        lambda r: _identify({"channels": {"v2": _v2(r)[:-1]}, "event_index": EVENT_INDEX}),
         422,
-        f"has shape ({N_SAMPLES - 1},); it must hold exactly {N_SAMPLES} samples",
+        "the record covers 4.8 ms before the event and 199.9 ms from it on (2047 samples of 0.0001 s, event at "
+        "sample 48); the backlash test needs at least 4.8 ms before and 200 ms after: 0.1 ms after it missing",
     ),
     (
         "NaN sample",
@@ -176,7 +182,7 @@ CASES: list[tuple[str, str, str, Callable[[Rec], dict[str, Any]], int, str]] = [
         "channel not in record",
         "POST",
         "/v1/identify",
-        lambda r: {"json": {"record": {"channels": {"v2": _v2(r)}}, "channel": "a2"}},
+        lambda r: {"json": {"record": _v2_only(r), "channel": "a2"}},
         422,
         "channel 'a2' is not in this record",
     ),
@@ -200,17 +206,82 @@ CASES: list[tuple[str, str, str, Callable[[Rec], dict[str, Any]], int, str]] = [
         "bad event_index",
         "POST",
         "/v1/identify",
-        lambda r: _identify({"channels": {"v2": _v2(r)}, "event_index": 5000}),
+        lambda r: _identify(_v2_only(r, event_index=5000)),
         422,
         "event_index must lie in [0, 2047]",
     ),
     (
-        "other sample interval",
+        "sample interval out of range",
         "POST",
         "/v1/identify",
-        lambda r: _identify({"channels": {"v2": _v2(r)}, "sample_interval": 2e-4}),
+        lambda r: _identify(_v2_only(r, sample_interval=2e-3)),
         422,
-        "resample or realign",
+        "sample_interval 0.002 s is outside the accepted range 1e-05 to 0.001 s",
+    ),
+    (
+        "event not locatable",
+        "POST",
+        "/v1/identify",
+        lambda r: _identify({"channels": {"v2": _v2(r)}}),
+        422,
+        "holds neither m_el nor a1, from which the event could be located (it holds v2); give event_index",
+    ),
+    (
+        "unknown unit",
+        "POST",
+        "/v1/identify",
+        lambda r: _identify({**r, "units": {"omega1": "rpmm"}}),
+        422,
+        "unknown unit 'rpmm' for channel 'omega1'; accepted units: rad/s, rpm, pu",
+    ),
+    (
+        "unit of a channel not in the record",
+        "POST",
+        "/v1/identify",
+        lambda r: _identify(_v2_only(r, units={"a1": "g"})),
+        422,
+        "units are given for channel 'a1', which the record does not hold",
+    ),
+    (
+        "m_el in N*m without base torque",
+        "POST",
+        "/v1/identify",
+        lambda r: _identify({**r, "units": {"m_el": "N*m"}}),
+        422,
+        "needs conditions.base_torque",
+    ),
+    (
+        "record too short",
+        "POST",
+        "/v1/identify",
+        lambda r: _identify({**r, "channels": {k: v[:1200] for k, v in r["channels"].items()}}),
+        422,
+        "the record covers 4.8 ms before the event and 115.2 ms from it on (1200 samples of 0.0001 s, event at "
+        "sample 48); the backlash test needs at least 4.8 ms before and 200 ms after: 84.8 ms after it missing",
+    ),
+    (
+        "time contradicting the sample interval",
+        "POST",
+        "/v1/identify",
+        lambda r: _identify({**r, "t": [k * 2e-4 for k in range(N_SAMPLES)]}),
+        422,
+        "sample_interval 0.0001 s contradicts the time column 't' (step 0.0002 s); give one of them",
+    ),
+    (
+        "time not uniform",
+        "POST",
+        "/v1/identify",
+        lambda r: _identify({**_v2_only(r), "t": [k * 1e-4 + (5e-5 if k == 7 else 0.0) for k in range(N_SAMPLES)]}),
+        422,
+        "the time column 't' is not uniform: the step to sample",
+    ),
+    (
+        "time of another length",
+        "POST",
+        "/v1/identify",
+        lambda r: _identify({**_v2_only(r), "t": [k * 1e-4 for k in range(10)]}),
+        422,
+        "the time column 't' has 10 values and the channels 2048 samples",
     ),
     (
         "unknown pattern set",
@@ -281,9 +352,10 @@ CASES: list[tuple[str, str, str, Callable[[Rec], dict[str, Any]], int, str]] = [
         "CSV too few rows",
         "POST",
         "/v1/identify",
-        lambda r: _csv_request(_csv(r, ["1.0"] * 100)),
+        lambda r: _csv_request(_csv(r, ["1.0"] * 100), event_index=EVENT_INDEX),
         422,
-        f"the CSV has 100 data rows; a record needs exactly {N_SAMPLES}",
+        "the record covers 4.8 ms before the event and 5.2 ms from it on (100 samples of 0.0001 s, event at "
+        "sample 48); the backlash test needs at least 4.8 ms before and 200 ms after: 194.8 ms after it missing",
     ),
     (
         "CSV unknown channel",
@@ -318,6 +390,75 @@ CASES: list[tuple[str, str, str, Callable[[Rec], dict[str, Any]], int, str]] = [
         lambda r: {"content": _csv(r), "headers": CSV},
         422,
         "query parameter ?channel=",
+    ),
+    (
+        "CSV event not locatable",
+        "POST",
+        "/v1/identify",
+        lambda r: _csv_request(_csv(r)),
+        422,
+        "holds neither m_el nor a1",
+    ),
+    (
+        "CSV unknown unit",
+        "POST",
+        "/v1/identify",
+        lambda r: _csv_request(_csv(r), event_index=EVENT_INDEX, units="v2:furlong/s"),
+        422,
+        "unknown unit 'furlong/s' for channel 'v2'; accepted units: m/s, mm/s",
+    ),
+    (
+        "CSV malformed units",
+        "POST",
+        "/v1/identify",
+        lambda r: _csv_request(_csv(r), event_index=EVENT_INDEX, units="v2=mm/s"),
+        422,
+        "query parameter units: 'v2=mm/s' is not CHANNEL:UNIT; write CHANNEL:UNIT pairs separated by commas, "
+        "e.g. omega1:rpm,a1:g",
+    ),
+    (
+        "CSV unit given twice",
+        "POST",
+        "/v1/identify",
+        lambda r: _csv_request(_csv(r), event_index=EVENT_INDEX, units="v2:mm/s,v2:m/s"),
+        422,
+        "channel 'v2' is given twice",
+    ),
+    (
+        "CSV time contradicting sample_interval",
+        "POST",
+        "/v1/identify",
+        lambda r: _csv_request(
+            _csv(r, [f"{k * 1e-4!r},{v!r}" for k, v in enumerate(_v2(r))], header="t,v2"),
+            event_index=EVENT_INDEX,
+            sample_interval=5e-5,
+        ),
+        422,
+        "sample_interval 5e-05 s contradicts the time column 't'",
+    ),
+    (
+        "CSV negative event_index",
+        "POST",
+        "/v1/identify",
+        lambda r: _csv_request(_csv(r), event_index=-1),
+        422,
+        "query event_index: Input should be greater than or equal to 0",
+    ),
+    (
+        "CSV event_index beyond the record",
+        "POST",
+        "/v1/identify",
+        lambda r: _csv_request(_csv(r), event_index=N_SAMPLES),
+        422,
+        "event_index must lie in [0, 2047], got 2048",
+    ),
+    (
+        "units query with JSON body",
+        "POST",
+        "/v1/identify",
+        lambda r: {**_identify(r), "params": {"units": "omega1:rpm"}},
+        422,
+        "query parameter(s) units apply only to a record sent as CSV",
     ),
     (
         "CSV bad sample_interval",
@@ -440,33 +581,41 @@ CASES: list[tuple[str, str, str, Callable[[Rec], dict[str, Any]], int, str]] = [
         "diagnose unknown effect",
         "POST",
         "/v1/diagnose",
-        lambda r: {"json": {"record": {"channels": {"v2": _v2(r)}}, "effects": ["magic"]}},
+        lambda r: {"json": {"record": _v2_only(r), "effects": ["magic"]}},
         422,
         "unknown effect 'magic'",
     ),
     (
-        "diagnose wrong length",
+        "diagnose too short",
         "POST",
         "/v1/diagnose",
-        lambda r: {"json": {"record": {"channels": {"v2": [1.0]}}}},
+        lambda r: {"json": {"record": {"channels": {"v2": [1.0] * 10}, "event_index": 5}}},
         422,
-        "must hold exactly 2048 samples",
+        "4.3 ms before the event and 199.5 ms after it missing",
     ),
     (
-        "diagnose other sample interval",
+        "diagnose event too early",
         "POST",
         "/v1/diagnose",
-        lambda r: {"json": {"record": {"channels": {"v2": _v2(r)}, "sample_interval": 2e-4}}},
+        lambda r: {"json": {"record": _v2_only(r, event_index=20)}},
         422,
-        "this record has sample_interval 0.0002 s and event_index 48: resample or realign it",
+        "2.8 ms before the event missing",
     ),
     (
-        "diagnose other event index",
+        "diagnose event not locatable",
         "POST",
         "/v1/diagnose",
-        lambda r: {"json": {"record": {"channels": {"v2": _v2(r)}, "event_index": 58}}},
+        lambda r: {"json": {"record": {"channels": {"v2": _v2(r)}}}},
         422,
-        "event_index 58: resample or realign it",
+        "give event_index",
+    ),
+    (
+        "diagnose CSV unknown unit",
+        "POST",
+        "/v1/diagnose",
+        lambda r: {"content": _csv(r), "headers": CSV, "params": {"event_index": EVENT_INDEX, "units": "v2:knots"}},
+        422,
+        "unknown unit 'knots' for channel 'v2'",
     ),
     ("unknown path", "GET", "/v1/nothing", lambda r: {}, 404, "Not Found"),
     ("wrong method", "PUT", "/v1/simulate", lambda r: {"json": {"K": 0.005}}, 405, "Method Not Allowed"),

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import httpx
 
 from engine.constants import MODEL_VERSION
@@ -42,3 +44,27 @@ def test_openapi_documents_every_endpoint_and_both_body_forms(client: httpx.Clie
     ref = identify_body["application/json"]["schema"]["$ref"].rsplit("/", 1)[-1]
     schemas = doc["components"]["schemas"]
     assert ref in schemas and "RecordIn" in schemas  # referenced models are resolvable
+
+
+def test_openapi_documents_records_as_a_bench_gives_them(client: httpx.Client) -> None:
+    import inspect
+
+    from app.api.deps import CSV_QUERY, CSVRecordParams
+
+    doc = client.get("/openapi.json").json()
+    schemas = doc["components"]["schemas"]
+    record_in = schemas["RecordIn"]["properties"]
+    assert {"t", "units", "event_index", "sample_interval"} <= set(record_in)
+    assert "accepted: a1: m/s^2, g;" in record_in["units"]["description"]
+    assert "located from the data" in record_in["event_index"]["description"]
+    assert "base_torque" in schemas["ConditionsIn"]["properties"]
+    assert {"units", "event_location"} <= set(schemas["SimulationPublic"]["properties"])
+    assert "exactly" not in json.dumps(schemas["SimulationPublic"])
+    assert {"sample_interval", "before", "after", "units", "channels", "include_event_index"} <= set(
+        schemas["SimulateCreate"]["properties"]
+    )
+    query = {p["name"]: p for p in doc["paths"]["/v1/identify"]["post"]["parameters"]}
+    assert "CHANNEL:UNIT pairs separated by commas" in query["units"]["description"]
+    assert "maximum" not in json.dumps(query["event_index"]["schema"])  # the engine checks the record's length
+    # the names a JSON body must not come with are exactly the CSV form's query parameters
+    assert set(CSV_QUERY) == set(inspect.signature(CSVRecordParams.__init__).parameters) - {"self"}

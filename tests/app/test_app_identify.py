@@ -41,7 +41,7 @@ def test_identify_chooses_by_the_records_c(
     res = client.post("/v1/identify", json={"record": far, "channel": "v2"}).json()
     assert (res["selection"], res["c_used"], res["c_source"]) == ("nearest", 1.4, "record")
 
-    bare = {"channels": {"v2": sim_record["channels"]["v2"]}}  # no conditions: nominal c
+    bare = {"channels": {"v2": sim_record["channels"]["v2"]}, "event_index": 48}  # no conditions: nominal c
     res = client.post("/v1/identify", json={"record": bare, "channel": "v2"}).json()
     assert (res["selection"], res["c_used"], res["c_source"]) == ("exact", 1.0, "nominal")
 
@@ -81,7 +81,7 @@ def test_identify_a_record_with_one_channel(
         "/v1/identify",
         content="\n".join(lines) + "\n",
         headers={"Content-Type": "text/csv"},
-        params={"channel": "v2", "pattern_set": trained_set["pattern_set_id"]},
+        params={"channel": "v2", "pattern_set": trained_set["pattern_set_id"], "event_index": 48},
     )
     assert r.status_code == 200, r.text
     assert r.json()["selection"] == "requested"
@@ -125,9 +125,39 @@ def test_identify_offers_the_calibrated_K_as_a_continuous_width(
         "/v1/identify",
         content=csv_text,
         headers={"Content-Type": "text/csv"},
-        params={"channel": "v2", "continuous": "true", **{k: sim_record["conditions"][k] for k in ("J1", "c", "c1")}},
+        params={
+            "channel": "v2",
+            "continuous": "true",
+            "event_index": 48,
+            **{k: sim_record["conditions"][k] for k in ("J1", "c", "c1")},
+        },
     )
     assert r.status_code == 200, r.text
     assert abs(r.json()["continuous"]["K"] - cont["K"]) < 1e-6 * cont["K"]
     r = client.post("/v1/identify", json={"record": sim_record, "channel": "v2", "continuous": "perhaps"})
     assert r.status_code == 422 and "continuous" in r.text
+
+
+def test_identify_a_20_khz_csv_with_time_in_rpm_and_g_as_its_json(
+    client: httpx.Client, trained_set: dict[str, Any]
+) -> None:
+    """A bench's CSV (t column, rpm and g, the event located) reads as the same record as its JSON form."""
+    render = {"K": 0.005, "sample_interval": 5e-5, "before": 0.01, "after": 0.3, "units": {"omega1": "rpm", "a1": "g"}}
+    csv_r = client.post(
+        "/v1/simulate",
+        json={**render, "include_event_index": False, "time_column": True},
+        headers={"Accept": "text/csv"},
+    )
+    json_rec = client.post("/v1/simulate", json=render).json()
+    assert csv_r.status_code == 200 and csv_r.text.startswith("t,a1,m_el,omega1,a2,v2\n")
+    by_csv = client.post(
+        "/v1/identify",
+        content=csv_r.text,
+        headers={"Content-Type": "text/csv"},
+        params={"channel": "v2", "units": csv_r.headers["x-units"], "c": 1.0},  # Ts from t, no event_index
+    )
+    assert by_csv.status_code == 200, by_csv.text
+    by_json = client.post("/v1/identify", json={"record": json_rec, "channel": "v2"})
+    assert by_json.status_code == 200, by_json.text
+    assert by_csv.json()["D"] == by_json.json()["D"]
+    assert by_csv.json()["width"] == 0.005

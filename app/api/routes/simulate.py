@@ -1,4 +1,4 @@
-"""POST /v1/simulate and /v1/simulate/batch: the backlash test of one or several cases."""
+"""POST /v1/simulate and /v1/simulate/batch: the backlash test of one or several cases, rendered as a bench gives it."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from typing import Any
 from fastapi import APIRouter, Request, Response
 
 from app.api.deps import SettingsDep
-from app.records_io import record_to_csv
+from app.records_io import format_units, record_to_csv
 from app.schemas.common import ErrorPublic
-from app.schemas.simulate import SimulateBatchCreate, SimulateCreate, SimulationPublic, SimulationsPublic
+from app.schemas.simulate import SimulateBatchCreate, SimulateCase, SimulateCreate, SimulationPublic, SimulationsPublic
 from app.services import simulation
 from app.services.errors import InvalidInputError
 from engine.records import Record
@@ -17,15 +17,19 @@ from engine.records import Record
 router = APIRouter(prefix="/simulate", tags=["simulate"])
 
 _ERRORS: dict[int | str, dict[str, Any]] = {
-    422: {"model": ErrorPublic, "description": "Out-of-range parameter, unknown effect, or no backlash event"}
+    422: {
+        "model": ErrorPublic,
+        "description": "Out-of-range parameter, unknown effect or unit, a grid that cannot hold the test, "
+        "or no backlash event",
+    }
 }
 
 
-def _simulate(cases: list[SimulateCreate]) -> list[Record]:
+def _simulate(cases: list[SimulateCase], rendering: simulation.Rendering) -> list[Record]:
     prepared = simulation.prepare(
         [simulation.make_case(c.K, c.J1, c.c, c.c1) for c in cases], [c.effects for c in cases]
     )
-    return simulation.run(prepared).records
+    return simulation.render(prepared, rendering)
 
 
 def _wants_csv(request: Request) -> bool:
@@ -36,43 +40,57 @@ def _wants_csv(request: Request) -> bool:
 @router.post(
     "",
     response_model=SimulationPublic,
+    response_model_exclude_none=True,
     summary="Simulate one case",
     responses={
         **_ERRORS,
         200: {
             "content": {"text/csv": {}},
-            "description": "The record (CSV form with Accept: text/csv; "
-            "headers X-Sample-Interval, X-Event-Index, X-Event-Time)",
+            "description": "The record (CSV form with Accept: text/csv; headers X-Sample-Interval, "
+            "X-Event-Index (unless include_event_index is false), X-Event-Time and, when some channel is not "
+            "in its model unit, X-Units as CHANNEL:UNIT pairs separated by commas)",
         },
     },
 )
 def simulate(body: SimulateCreate, request: Request) -> Any:
     """Run the backlash test of MODEL.md for one case and return its record plus ``event_time``.
 
-    With ``Accept: text/csv`` the record comes in CSV form (a header row of channel
-    names, one row per sample) and Ts, the event index and t_e in response headers.
+    The record is rendered on the grid ``sample_interval`` [s], from ``before`` [s] before the
+    event to ``after`` [s] after it, with the ``channels`` asked for in the ``units`` asked for;
+    ``include_event_index: false`` leaves the event index out, so that a reader has to locate it.
+
+    With ``Accept: text/csv`` the record comes in CSV form (a header row of channel names,
+    optionally ``t`` first with ``time_column``; one row per sample) and Ts, the event index,
+    t_e and the units in response headers.
     """
-    record = _simulate([body])[0]
+    rendering = body.rendering()
+    record = _simulate([body], rendering)[0]
     if _wants_csv(request):
-        return Response(
-            record_to_csv(record),
-            media_type="text/csv",
-            headers={
-                "X-Sample-Interval": repr(record.sample_interval),
-                "X-Event-Index": str(record.event_index),
-                "X-Event-Time": repr(record.event_time),
-            },
-        )
-    return record.to_dict()
+        headers = {"X-Sample-Interval": repr(record.sample_interval), "X-Event-Time": repr(record.event_time)}
+        if rendering.include_event_index:
+            headers["X-Event-Index"] = str(record.event_index)
+        if record.units:
+            headers["X-Units"] = format_units(record.units)
+        return Response(record_to_csv(record, with_time=body.time_column), media_type="text/csv", headers=headers)
+    return simulation.to_public(record, rendering)
 
 
-@router.post("/batch", response_model=SimulationsPublic, summary="Simulate several cases", responses=_ERRORS)
+@router.post(
+    "/batch",
+    response_model=SimulationsPublic,
+    response_model_exclude_none=True,
+    summary="Simulate several cases",
+    responses=_ERRORS,
+)
 def simulate_batch(body: SimulateBatchCreate, settings: SettingsDep) -> Any:
-    """Run the backlash test for every case, in order; at most BACKLASH_MAX_BATCH_CASES cases."""
+    """Run the backlash test for every case, in order, all rendered the same way (the same options as
+    ``POST /v1/simulate``, given once beside ``cases``); at most BACKLASH_MAX_BATCH_CASES cases.
+    """
     if len(body.cases) > settings.max_batch_cases:
         raise InvalidInputError(
             f"the batch has {len(body.cases)} cases; at most {settings.max_batch_cases} are allowed per request "
             "(BACKLASH_MAX_BATCH_CASES): split it into several requests"
         )
-    records = _simulate(body.cases)
-    return {"data": [r.to_dict() for r in records], "count": len(records)}
+    rendering = body.rendering()
+    records = _simulate(body.cases, rendering)
+    return {"data": [simulation.to_public(r, rendering) for r in records], "count": len(records)}

@@ -1,0 +1,180 @@
+"""The record boundary: a record as a bench gives it, read once into a :class:`~engine.records.record.Record`.
+
+Everything about how a record was taken is settled here and nowhere else:
+
+* **interval**: ``sample_interval`` [s] (10 us to 1 ms), or a time column ``t`` [s]
+  whose (uniform) spacing defines it; given both, they must agree.
+* **length**: any number of samples, the same for every channel, covering at
+  least 4.8 ms before the event and 200 ms from it on (else a
+  :class:`~engine.records.errors.ProtocolError` that says how much is missing).
+  Analyses read the test window of it (:meth:`Record.test_window`) and say which
+  samples that was.
+* **alignment**: ``event_index`` when given; else the event is located from the
+  data (:func:`engine.records.event.locate_event`) and the record carries the
+  :class:`~engine.records.event.EventLocation`.
+* **units**: per channel (:mod:`engine.records.units`), converted to MODEL.md's
+  units here, once.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from engine.constants import CHANNELS, SAMPLE_INTERVAL
+from engine.records.errors import RecordError
+from engine.records.event import locate_event
+from engine.records.record import Record
+from engine.records.units import UnitError, to_model_units
+
+__all__ = ["TIME_TOLERANCE", "interval_from_time", "record_from_data"]
+
+#: Largest deviation of a time column's steps from their mean, relative to the step, that still
+#: counts as a uniform grid (a time column printed with 6 significant digits passes).
+TIME_TOLERANCE: float = 1e-3
+
+
+def interval_from_time(t: Sequence[float] | np.ndarray) -> float:
+    """Sample interval [s] defined by a time column [s] (uniform, increasing).
+
+    Raises
+    ------
+    RecordError
+        Fewer than two values, a non-finite value, time not increasing, or steps that
+        differ by more than ``TIME_TOLERANCE`` of the step (the record would be misread
+        as uniformly sampled: resample it first).
+    """
+    try:
+        arr = np.asarray(t, dtype=float)
+    except (TypeError, ValueError):
+        raise RecordError("the time column 't' must be a list of numbers (seconds)") from None
+    if arr.ndim != 1 or arr.size < 2:
+        raise RecordError(f"the time column 't' needs at least 2 values, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise RecordError(
+            f"the time column 't' holds a non-finite value at sample {int(np.flatnonzero(~np.isfinite(arr))[0])}"
+        )
+    steps = np.diff(arr)
+    ts = float((arr[-1] - arr[0]) / (arr.size - 1))
+    if not ts > 0 or np.any(steps <= 0):
+        bad = int(np.flatnonzero(steps <= 0)[0]) + 1 if np.any(steps <= 0) else 1
+        raise RecordError(f"the time column 't' must increase from sample to sample; it does not at sample {bad}")
+    dev = np.abs(steps - ts) / ts
+    if np.max(dev) > TIME_TOLERANCE:
+        bad = int(np.argmax(dev)) + 1
+        raise RecordError(
+            f"the time column 't' is not uniform: the step to sample {bad} is {steps[bad - 1]:.6g} s against a mean "
+            f"of {ts:.6g} s; resample the record onto a uniform grid first"
+        )
+    return ts
+
+
+def _arrays(channels: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    if not isinstance(channels, Mapping) or not channels:
+        raise RecordError("a record needs at least one channel; known channels: " + ", ".join(CHANNELS))
+    out = {}
+    for name, values in channels.items():
+        if name not in CHANNELS:
+            raise RecordError(f"unknown channel {name!r}; known channels: {', '.join(CHANNELS)}")
+        try:
+            arr = np.asarray(values, dtype=float)
+        except (TypeError, ValueError):
+            raise RecordError(f"channel {name!r} must be a list of numbers") from None
+        if arr.ndim != 1:
+            raise RecordError(f"channel {name!r} has shape {arr.shape}; it must be a list of samples")
+        if not np.all(np.isfinite(arr)):
+            bad = int(np.flatnonzero(~np.isfinite(arr))[0])
+            raise RecordError(f"channel {name!r} holds a non-finite value (NaN or inf) at sample {bad}")
+        out[name] = arr
+    lengths = {n: a.size for n, a in out.items()}
+    if len(set(lengths.values())) > 1:
+        raise RecordError(
+            "every channel needs the same number of samples; got " + ", ".join(f"{n}: {k}" for n, k in lengths.items())
+        )
+    return out
+
+
+def record_from_data(
+    channels: Mapping[str, Any],
+    sample_interval: float | None = None,
+    event_index: int | None = None,
+    conditions: Mapping[str, float] | None = None,
+    units: Mapping[str, str] | None = None,
+    time: Sequence[float] | np.ndarray | None = None,
+    event_time: float | None = None,
+) -> Record:
+    """Read a record as a bench gives it (see the module notes).
+
+    Parameters
+    ----------
+    channels : mapping of str to sequence of float
+        Non-empty subset of ``a1, m_el, omega1, a2, v2``, in the units ``units`` says.
+    sample_interval : float, optional
+        Ts [s]; from ``time`` when omitted, else MODEL.md's 0.1 ms.
+    event_index : int, optional
+        Index of the sample at the event; located from m_el or a1 when omitted.
+    conditions : mapping of str to float, optional
+        Known operating point (``K``, ``J1``, ``c``, ``c1``; ``base_torque`` [N*m] for m_el in N*m).
+    units : mapping of str to str, optional
+        Unit per channel (see :data:`engine.records.units.UNITS`); MODEL.md's by default.
+    time : sequence of float, optional
+        Sample times [s] (a CSV's ``t`` column); defines the interval.
+    event_time : float, optional
+        t_e since switch-on [s], when known.
+
+    Returns
+    -------
+    Record
+        In MODEL.md's units, remembering ``units``.
+
+    Raises
+    ------
+    RecordError
+        Malformed channels, unknown units (the message names the accepted ones), a bad
+        time column, or an interval that contradicts it.
+    ProtocolError
+        Interval outside 10 us - 1 ms, too little time around the event, or an event that
+        cannot be located (give ``event_index``).
+    """
+    arrays = _arrays(channels)
+    conditions = {k: float(v) for k, v in dict(conditions or {}).items()}
+    units = {str(k): str(v) for k, v in dict(units or {}).items()}
+    n = next(iter(arrays.values())).size
+    if time is not None:
+        ts_t = interval_from_time(time)
+        if len(time) != n:
+            raise RecordError(f"the time column 't' has {len(time)} values and the channels {n} samples")
+        if sample_interval is not None and not math.isclose(float(sample_interval), ts_t, rel_tol=TIME_TOLERANCE):
+            raise RecordError(
+                f"sample_interval {float(sample_interval):g} s contradicts the time column 't' (step {ts_t:.6g} s); "
+                f"give one of them"
+            )
+        ts = ts_t
+    else:
+        ts = SAMPLE_INTERVAL if sample_interval is None else float(sample_interval)
+    if not (math.isfinite(ts) and ts > 0):
+        raise RecordError(f"sample_interval must be a positive number of seconds, got {ts}")
+    try:
+        model = to_model_units(arrays, units, conditions)
+    except UnitError as exc:
+        raise RecordError(str(exc)) from None
+    location = None
+    if event_index is None:
+        location = locate_event(model, ts)
+        index = location.index
+    else:
+        if float(event_index) != int(event_index):
+            raise RecordError(f"event_index must be a whole sample index, got {event_index}")
+        index = int(event_index)
+    return Record(
+        channels=model,
+        sample_interval=ts,
+        event_index=index,
+        conditions=conditions,
+        event_time=None if event_time is None else float(event_time),
+        units=units,
+        event_location=location,
+    )
