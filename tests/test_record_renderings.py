@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -25,6 +26,8 @@ import pytest
 
 from app.records_io import record_from_csv, record_to_csv
 from engine.diagnosis import diagnose
+from engine.diagnosis.plots import plot_overlays, plot_residual_map
+from engine.features.wavelet import level_for_interval
 from engine.diagnosis.identification import identify_before_after
 from engine.identification.width import estimate_width
 from engine.records import Record, SampleGrid, record_from_data
@@ -171,7 +174,7 @@ def test_clean_rendering_is_no_gap(clean: dict[str, Record], name: str) -> None:
 
 
 @pytest.mark.parametrize("name", _params(NAMES))
-def test_effect_is_named_on_every_rendering(with_effect: dict[str, Record], name: str) -> None:
+def test_effect_is_named_on_every_rendering(with_effect: dict[str, Record], name: str, tmp_path: Path) -> None:
     rec = with_effect[name]
     res = diagnose(rec)
     assert res.verdict.status == "explained", (name, res.verdict.reason)
@@ -183,6 +186,15 @@ def test_effect_is_named_on_every_rendering(with_effect: dict[str, Record], name
     assert len(next(iter(out["channels"].values()))) == rec.n_samples
     for c, unit in rec.units.items():
         assert out["units"][c] == unit
+    # the plots read the record's own bands and units
+    level = level_for_interval(rec.sample_interval, rec.test_window()[0].n_samples)
+    assert {c.level for c in res.cells} == {f"A{level}", *(f"D{j}" for j in range(1, level + 1))}
+    for png in (
+        plot_residual_map(res, tmp_path / "map.png"),
+        plot_residual_map(res, tmp_path / "after.png", after=True),
+        plot_overlays(rec, res, tmp_path / "overlays.png"),
+    ):
+        assert png.stat().st_size > 10_000
 
 
 # -- alignment -----------------------------------------------------------------------------------------

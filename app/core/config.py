@@ -6,7 +6,7 @@ environment variable        meaning                                default
 ``BACKLASH_DB_PATH``        pattern-store SQLite file              ``./data/patterns.sqlite3``
 ``BACKLASH_API_KEY``        if set, every request but ``/healthz``  unset (no key needed)
                             needs the header ``X-API-Key``
-``BACKLASH_MAX_BODY_BYTES`` largest request body [bytes] (413)     8 MiB
+``BACKLASH_MAX_BODY_BYTES`` largest request body [bytes] (413)    32 MiB
 ``BACKLASH_MAX_BATCH_CASES`` most cases in one batch simulation    64
 ``BACKLASH_WORKERS``        background training threads            1
 ``BACKLASH_MAX_PENDING_JOBS`` queued + running jobs before 429     16
@@ -52,7 +52,9 @@ class Settings(BaseSettings):
         description="If set, every request but /healthz must send it in the X-API-Key header.",
     )
     max_body_bytes: Annotated[int, Field(ge=1024, le=1 << 30)] = Field(
-        default=8 << 20, description="Largest accepted request body [bytes]; larger bodies get 413."
+        default=32 << 20,
+        description="Largest accepted request body [bytes]; larger bodies get 413. The default holds a 100 kHz "
+        "record of 0.8 s with five channels as JSON (about 9 MB) with room to spare.",
     )
     max_batch_cases: Annotated[int, Field(ge=1, le=10_000)] = Field(
         default=64, description="Most cases in one POST /v1/simulate/batch request."

@@ -11,16 +11,22 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from engine.constants import CHANNEL_UNITS, CHANNELS, WAVELET_LEVEL
+from engine.constants import CHANNELS, WAVELET_LEVEL
 from engine.diagnosis.diagnose import DiagnosisResult
 from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, level_band
 from engine.records import Record
+from engine.records.units import factor
 
 __all__ = ["plot_overlays", "plot_residual_map"]
 
 
 def _level_names(level: int = WAVELET_LEVEL) -> list[str]:
     return [f"A{level}"] + [f"D{j}" for j in range(level, 0, -1)]
+
+
+def _map_level(cells: list) -> int:
+    """Decomposition level of a residual map (its approximation ``A<level>``; it follows the record's interval)."""
+    return max((int(c.level[1:]) for c in cells if c.level.startswith("A")), default=WAVELET_LEVEL)
 
 
 def plot_residual_map(result: DiagnosisResult, path: str | Path, after: bool = False) -> Path:
@@ -43,7 +49,7 @@ def plot_residual_map(result: DiagnosisResult, path: str | Path, after: bool = F
     cells = result.cells_after if after and result.cells_after else result.cells
     present = {c.channel for c in cells}
     channels = [c for c in CHANNELS if c in present]
-    levels = _level_names()
+    levels = _level_names(_map_level(cells))
     windows = [w[0] for w in DEFAULT_WINDOWS_MS if any(c.window == w[0] for c in cells)]
     fig = Figure(figsize=(3.2 * len(channels) + 1.5, 5.5), constrained_layout=True)
     axes = fig.subplots(1, len(channels), squeeze=False)[0]
@@ -84,8 +90,8 @@ def plot_residual_map(result: DiagnosisResult, path: str | Path, after: bool = F
 def plot_overlays(record: Record, result: DiagnosisResult, path: str | Path) -> Path:
     """Record versus the calibrated simulation before and after adding the named effect.
 
-    One row per channel of the record: the record (grey), the nominal
-    calibration (blue), the fit with the named effect (red, when there is one),
+    One row per channel of the record, in the record's own units: the record (grey), the
+    nominal calibration (blue), the fit with the named effect (red, when there is one),
     and below each, the residuals in noise standard deviations.
 
     Returns
@@ -100,13 +106,15 @@ def plot_overlays(record: Record, result: DiagnosisResult, path: str | Path) -> 
     sig = result.calibration.sigma
     for i, ch in enumerate(channels):
         ax, axr = axes[2 * i], axes[2 * i + 1]
-        ax.plot(t, record[ch], color="0.6", lw=0.8, label="record")
-        ax.plot(t, result.before[ch], color="tab:blue", lw=0.9, label="calibrated nominal")
+        unit = record.unit(ch)
+        f = factor(ch, unit, record.conditions)  # model unit per record unit
+        ax.plot(t, record[ch] / f, color="0.6", lw=0.8, label="record")
+        ax.plot(t, result.before[ch] / f, color="tab:blue", lw=0.9, label="calibrated nominal")
         axr.plot(t, (record[ch] - result.before[ch]) / sig[ch], color="tab:blue", lw=0.6)
         if result.after is not None:
-            ax.plot(t, result.after[ch], color="tab:red", lw=0.9, ls="--", label=f"with {result.verdict.effect}")
+            ax.plot(t, result.after[ch] / f, color="tab:red", lw=0.9, ls="--", label=f"with {result.verdict.effect}")
             axr.plot(t, (record[ch] - result.after[ch]) / sig[ch], color="tab:red", lw=0.6)
-        ax.set_ylabel(f"{ch} [{CHANNEL_UNITS[ch]}]")
+        ax.set_ylabel(f"{ch} [{unit}]")
         axr.set_ylabel("res/sigma", fontsize=7)
         if i == 0:
             ax.legend(fontsize=7, loc="upper right")

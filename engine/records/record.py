@@ -55,8 +55,8 @@ class WindowUse:
             "samples_used": self.stop - self.first,
             "samples_ignored_before": self.first,
             "samples_ignored_after": self.n_samples - self.stop,
-            "t_start": self.t_start,
-            "t_end": self.t_end,
+            "t_start": round(self.t_start, 12),
+            "t_end": round(self.t_end, 12),
         }
 
 
