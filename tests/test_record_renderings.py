@@ -26,9 +26,9 @@ import pytest
 
 from app.records_io import record_from_csv, record_to_csv
 from engine.diagnosis import diagnose
+from engine.diagnosis.identification import identify_before_after
 from engine.diagnosis.plots import plot_overlays, plot_residual_map
 from engine.features.wavelet import level_for_interval
-from engine.diagnosis.identification import identify_before_after
 from engine.identification.width import estimate_width
 from engine.records import Record, SampleGrid, record_from_data
 from engine.records.units import from_model_units
