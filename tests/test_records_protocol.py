@@ -181,6 +181,13 @@ def test_event_is_located_from_m_el_or_a1(rendered: dict, ts: float, channel: st
     assert loc.channel == channel and loc.sigma == pytest.approx(ts / math.sqrt(12))
 
 
+@pytest.mark.parametrize("offset", [-0.05, 0.08])
+def test_event_is_located_from_m_el_with_an_offset(rendered: dict, offset: float) -> None:
+    rec = rendered[2.5e-5]
+    loc = locate_event({"m_el": rec["m_el"] + offset}, 2.5e-5)
+    assert loc.index == rec.event_index and loc.channel == "m_el"
+
+
 def test_record_without_event_index_carries_its_location(rendered: dict) -> None:
     rec = rendered[5e-4]
     data = rec.to_dict()
@@ -189,6 +196,12 @@ def test_record_without_event_index_carries_its_location(rendered: dict) -> None
     assert again.event_index == rec.event_index
     assert again.event_location is not None and again.event_location.channel == "m_el"
     assert again.to_dict()["event_location"]["index"] == rec.event_index
+    # a located record written and read back is still a located one
+    assert Record.from_dict(again.to_dict()).event_location == again.event_location
+    bad = again.to_dict()
+    bad["event_location"]["index"] += 1
+    with pytest.raises(RecordError, match="contradicts event_index"):
+        Record.from_dict(bad)
 
 
 def test_event_cannot_be_located_without_m_el_or_a1(rendered: dict) -> None:

@@ -8,8 +8,10 @@ first millisecond. Both are sharp in every sampled record, whatever the
 interval; a2 and v2 are smooth at t_e and omega1 only bends, so a record with
 none of m_el and a1 needs its ``event_index``.
 
-* **m_el** (preferred): the event is the first sample after the last one whose
-  magnitude exceeds ``max(6 sigma, 2 % of the record's peak)``.
+* **m_el** (preferred): the event is the first sample after the last one that
+  departs from the post-event level (the median of the record's last 100 ms,
+  which always follow the event; zero unless the sensor has an offset) by more
+  than ``max(6 sigma, 2 % of the record's largest departure)``.
 * **a1**: the event is the first sample that ends a jump (a first difference
   beyond ``max(8 sigma, 5 % of the largest one)``) and starts a quiet stretch
   of 1 ms (every sample within ``4 sigma + 10 %`` of the jump of the stretch's mean).
@@ -39,6 +41,8 @@ __all__ = ["LOCATING_CHANNELS", "EventLocation", "locate_event"]
 LOCATING_CHANNELS: tuple[str, ...] = ("m_el", "a1")
 #: Length of the quiet stretch that follows the event in a1 [s].
 QUIET_TIME: float = 1e-3
+#: Stretch at the end of a record whose median is m_el's post-event level [s] (records cover 200 ms after the event).
+LEVEL_TIME: float = 0.1
 #: Median absolute deviation of a unit normal.
 _MAD_NORMAL = 0.6744897501960817
 
@@ -84,10 +88,11 @@ def _noise(x: np.ndarray) -> float:
     return float(np.median(np.abs(d2)) / _MAD_NORMAL / math.sqrt(6.0)) if d2.size else 0.0
 
 
-def _from_m_el(x: np.ndarray) -> int | None:
+def _from_m_el(x: np.ndarray, tail: int) -> int | None:
     sigma = _noise(x)
-    thr = max(6.0 * sigma, 0.02 * float(np.max(np.abs(x))))
-    above = np.flatnonzero(np.abs(x) > thr)
+    dev = np.abs(x - float(np.median(x[-tail:])))
+    thr = max(6.0 * sigma, 0.02 * float(np.max(dev)))
+    above = np.flatnonzero(dev > thr)
     if above.size == 0 or above[-1] + 1 >= x.size:
         return None
     return int(above[-1] + 1)
@@ -136,8 +141,11 @@ def locate_event(channels: Mapping[str, np.ndarray], sample_interval: float) -> 
             continue
         x = np.asarray(channels[name], dtype=float)
         if name == "m_el":
-            k = _from_m_el(x)
-            how = "m_el drops to zero (first sample after the last one above 2 % of its peak or 6 noise sigma)"
+            k = _from_m_el(x, max(3, min(x.size // 2, math.ceil(LEVEL_TIME / ts - 1e-9))))
+            how = (
+                "m_el drops to its post-event level (first sample after the last one beyond 2 % of its largest "
+                "departure from that level or 6 noise sigma)"
+            )
         else:
             k = _from_a1(x, quiet)
             how = "a1 jumps and then stays quiet for 1 ms (the motor torque switched off)"

@@ -240,7 +240,8 @@ class Record:
         if "channels" not in data:
             raise RecordError("a record needs a 'channels' object mapping channel names to sample lists")
         index = data.get("event_index")
-        return record_from_data(
+        located = data.get("event_location")
+        record = record_from_data(
             channels=dict(data["channels"]),
             sample_interval=data.get("sample_interval"),
             event_index=None if index is None else index,
@@ -249,3 +250,23 @@ class Record:
             time=data.get("t"),
             event_time=data.get("event_time"),
         )
+        if located is not None and index is not None:  # written by to_dict: the event was located, keep saying so
+            try:
+                loc = EventLocation(
+                    int(located["index"]),
+                    (float(located["interval"][0]), float(located["interval"][1])),
+                    float(located["sigma"]),
+                    str(located["channel"]),
+                    str(located["method"]),
+                )
+            except (KeyError, TypeError, ValueError, IndexError):
+                raise RecordError(
+                    "event_location must be as a record's to_dict writes it: index, interval [2 numbers], sigma, "
+                    "channel, method"
+                ) from None
+            if loc.index != record.event_index:
+                raise RecordError(
+                    f"event_location.index {loc.index} contradicts event_index {record.event_index}; drop one of them"
+                )
+            record = dataclasses.replace(record, event_location=loc)
+        return record

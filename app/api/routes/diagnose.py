@@ -27,7 +27,14 @@ router = APIRouter(prefix="/diagnose", tags=["diagnose"])
 )
 async def diagnose(request: Request, csv_params: CSVRecordDep) -> Any:
     """Where the record differs from the calibrated simulation, which unmodelled effect explains it and how far
-    the gap shrinks with it. The body is ``{"record": ..., "effects": [...]}`` as JSON, or the record's CSV form.
+    the gap shrinks with it. The body is ``{"record": ..., "effects": [...]}`` as JSON, or the record's CSV form
+    (optionally with a ``t`` column; ``sample_interval``, ``event_index``, ``units``, ``base_torque`` and the
+    known conditions as query parameters).
+
+    The record may be on any grid (10 us to 1 ms, any length covering the test window, the event given or
+    located, any accepted units); it is fitted on its own instants, ``record`` in the answer says how it was
+    read (event, window of samples used), and ``records.before`` / ``records.after`` come back on its grid and
+    in its units.
     """
     if body_kind(request) == "csv":
         record, effects = await csv_record(request, csv_params), None

@@ -45,10 +45,15 @@ async def identify(
     With ``continuous`` the answer also carries the calibrated K as a continuous width with
     its standard deviation (the simulator fitted to the channel; a few seconds).
 
+    The record may be on any grid (10 us to 1 ms, any length covering the test window, the event
+    given or located, any accepted units): the pattern set reads its test window resampled to
+    0.1 ms, the continuous width fits it on its own instants; ``record`` in the answer says how.
+
     The body is ``{"record": ..., "channel": ..., "pattern_set": ..., "continuous": ...}`` as JSON,
-    or the record's CSV form (``Content-Type: text/csv``) with ``channel``, ``pattern_set``,
-    ``continuous``, ``sample_interval``, ``event_index`` and the known conditions (``c``, ``J1``,
-    ...) as query parameters.
+    or the record's CSV form (``Content-Type: text/csv``, optionally with a ``t`` column) with
+    ``channel``, ``pattern_set``, ``continuous``, ``sample_interval``, ``event_index``, ``units``
+    (e.g. ``omega1:rpm,a1:g``), ``base_torque`` and the known conditions (``c``, ``J1``, ...) as
+    query parameters.
     """
     if body_kind(request) == "csv":
         if channel is None:
