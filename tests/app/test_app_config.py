@@ -22,7 +22,7 @@ def test_defaults() -> None:
     s = Settings()
     assert s.db_path == Path("data") / "patterns.sqlite3"
     assert s.api_key is None
-    assert (s.max_body_bytes, s.max_batch_cases, s.workers, s.log_level) == (8 << 20, 64, 1, "INFO")
+    assert (s.max_body_bytes, s.max_batch_cases, s.workers, s.log_level) == (32 << 20, 64, 1, "INFO")
 
 
 def test_environment_variables_are_read(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:

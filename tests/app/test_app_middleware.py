@@ -81,5 +81,5 @@ def test_oversize_chunked_body_is_413(keyed_server: Server) -> None:
 
 
 def test_default_limit_refuses_a_large_body(client: httpx.Client) -> None:
-    r = client.post("/v1/identify", content=b"0" * (9 << 20), headers={"Content-Type": "text/csv"})
-    assert r.status_code == 413 and "8388608 bytes" in r.json()["detail"]
+    r = client.post("/v1/identify", content=b"0" * (33 << 20), headers={"Content-Type": "text/csv"})
+    assert r.status_code == 413 and "33554432 bytes" in r.json()["detail"]
