@@ -211,9 +211,10 @@ def test_small_blind_validation(tmp_path):
         assert sorted(acc[split]) == sorted([*CHANNELS, "mean"])
         assert all(v * n[split] == pytest.approx(round(v * n[split])) for v in per_channel)  # k of n records
         assert acc[split]["mean"] == pytest.approx(np.mean(per_channel))
-    # measured (deterministic): 6 of the 10 channel identifications of the clean twins are right, 7 before the
-    # fix and 6 after it; the clean case (37.7 dB) is identified on a1, m_el and v2 only
-    assert (acc["twin"]["mean"], acc["before"]["mean"], acc["after"]["mean"]) == pytest.approx((0.6, 0.7, 0.6))
+    # measured (deterministic): 6 of the 10 channel identifications of the clean twins are right, 5 before the
+    # fix and 6 after it (7 before it with the search box of issue 9: the calibrated c, which picks the nominal
+    # patterns, moved in the wider box of issue 10); the clean case (37.7 dB) is identified on a1, m_el and v2 only
+    assert (acc["twin"]["mean"], acc["before"]["mean"], acc["after"]["mean"]) == pytest.approx((0.6, 0.5, 0.6))
     assert acc["clean"] == pytest.approx({"a1": 1.0, "m_el": 1.0, "omega1": 0.0, "a2": 0.0, "v2": 1.0, "mean": 0.6})
     # the paired difference is the difference of the channel means (same cases in both splits)
     assert ident["paired"]["after_minus_twin"] == pytest.approx(100 * (acc["after"]["mean"] - acc["twin"]["mean"]))
@@ -338,7 +339,8 @@ def _cal(chi2_per_channel: dict[str, float], n_params: int):
     [
         # significant but weak residue nobody fits: not clearly beyond the noise; sure, since the
         # candidate's strength 1.2 is 6 scatters below 3
-        (2.3, 2.2, 1.2, "no_gap", expit((3.0 - 1.2) / 0.3)),
+        # (weak_gap since issue 10: real, beyond the noise statistically, too weak to attribute)
+        (2.3, 2.2, 1.2, "weak_gap", expit((3.0 - 1.2) / 0.3)),
         # the best candidate moves the record clearly: a real gap nobody explains; the best fit's
         # worst channel (2.2) is 25 scatters above 1.2
         (2.3, 2.2, 4.0, "unexplained", 1.0 - expit((1.2 - 2.2) / 0.04)),
@@ -347,7 +349,7 @@ def _cal(chi2_per_channel: dict[str, float], n_params: int):
         (12.0, 1.0, 5.0, "explained", expit((1.05 - 1.0) / 0.02) * expit((5.0 - 3.0) / 0.3)),
         # the same with an effect barely beyond the noise: explained, but with low confidence
         (12.0, 1.0, 3.1, "explained", expit((1.05 - 1.0) / 0.02) * expit((3.1 - 3.0) / 0.3)),
-        (2.0, 1.0, 2.0, "no_gap", 1.0 - expit((2.0 - 3.0) / 0.3)),  # a candidate fits, but the effect is weak
+        (2.0, 1.0, 2.0, "weak_gap", 1.0 - expit((2.0 - 3.0) / 0.3)),  # a candidate fits, but the effect is weak
     ],
 )
 def test_decision_rule_uses_the_three_noise_rms_rule_in_every_branch(

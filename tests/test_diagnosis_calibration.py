@@ -85,26 +85,26 @@ def test_calibration_raises_when_nothing_can_be_simulated(clean):
         calibrate(rec, settings=CalibrationSettings(n_global=16))
 
 
-def test_search_box_is_the_operating_range_widened_by_its_margin():
-    from engine.constants import OPERATING_RANGE
-    from engine.diagnosis.space import DEFAULT_BOUNDS, SEARCH_MARGIN
+def test_search_box_is_the_plausible_box():
+    from engine.constants import OPERATING_RANGE, PLAUSIBLE_RANGE
+    from engine.diagnosis.space import DEFAULT_BOUNDS
     from engine.diagnosis.validation import C_RANGE, J1_RANGE, K_RANGE
 
-    # the values the calibration and the blind validation have always used, exactly
     assert DEFAULT_BOUNDS == {
-        "K": (0.0022, 0.0105, "m"),
-        "J1": (0.72, 0.96, "kg m^2"),
-        "c": (0.75, 1.6, "pu"),
+        "K": (0.001, 0.015, "m"),
+        "J1": (0.6, 1.2, "kg m^2"),
+        "c": (0.5, 2.0, "pu"),
         "c1": (0.0, 0.6, "pu"),
     }
+    # the v1 validation still draws from the old operating range, which lies inside the box
     assert (K_RANGE, J1_RANGE, C_RANGE) == ((0.0025, 0.01), (0.75, 0.93), (0.8, 1.5))
     for name, (lo, hi, unit) in OPERATING_RANGE.items():
-        b_lo, b_hi, b_unit = DEFAULT_BOUNDS[name]
-        assert b_unit == unit and b_lo < lo < hi < b_hi  # optima at the edge of the range stay interior
-        assert (lo - b_lo, b_hi - hi) == pytest.approx(SEARCH_MARGIN[name], rel=1e-9)
-    # the search box of a record without conditions is the default box
+        b_lo, b_hi, b_unit = PLAUSIBLE_RANGE[name]
+        assert b_unit == unit and b_lo < lo < hi < b_hi
+    # the search box of a record without conditions is the default box, K on a log scale
     space = default_space(Record({"a1": np.zeros(2048)}))
     assert {p.name: (p.lo, p.hi, p.unit) for p in space.params} == DEFAULT_BOUNDS
+    assert [p.name for p in space.params if p.log] == ["K"]
 
 
 def test_level_bands():

@@ -85,6 +85,13 @@ def test_defaults_are_model_md_constants():
         "f": const.F_SUPPLY,
         "tau_C1": 0.0,
         "b_1": 0.0,
+        # model 1.1 extensions (docs/model-changes.md), neutral by default
+        "tau_ripple3": 0.0,
+        "clutch_offset": 0.0,
+        "tau_cog": 0.0,
+        "tau_C2": 0.0,
+        "m_off": 0.0,
+        "disturbance": None,
     }
     assert PlantParameters().as_dict() == expected
     assert SolverSettings().max_step == SAMPLE_INTERVAL / 3

@@ -24,6 +24,7 @@ from app.services.errors import (
     QueueFullError,
 )
 from engine.diagnosis import CalibrationError
+from engine.diagnosis.space import BoundsError
 from engine.records import RecordError
 from engine.simulation import ParameterError, SimulationError, UnknownEffectError
 from engine.storage import (
@@ -44,6 +45,7 @@ USER_ERRORS: dict[type[Exception], int] = {
     ParameterError: 422,
     SimulationError: 422,
     CalibrationError: 422,
+    BoundsError: 422,
     InvalidPatternSet: 422,
     InvalidInputError: 422,
     IncompatibleError: 422,

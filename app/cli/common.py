@@ -179,6 +179,7 @@ def user_errors() -> tuple[type[BaseException], ...]:
     """Exceptions whose message tells the user what to fix: printed, exit status 2."""
     from app.records_io import RecordFormatError
     from app.services.errors import ServiceError
+    from engine.diagnosis.space import BoundsError
     from engine.records import RecordError
     from engine.simulation import ParameterError, SimulationError
     from engine.storage import InvalidPatternSet, PatternStoreError
@@ -187,6 +188,7 @@ def user_errors() -> tuple[type[BaseException], ...]:
         CommandError,
         RecordFormatError,
         RecordError,
+        BoundsError,
         ParameterError,
         SimulationError,
         InvalidPatternSet,

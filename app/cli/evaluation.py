@@ -27,14 +27,35 @@ def cmd_run(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def cmd_validate(args: argparse.Namespace) -> int:
-    """Blind validation of the diagnosis, then the identification accuracy before/after the fix; reports to ``--out``."""
+#: Defaults of ``backlash validate`` per protocol: number of cases and seed (protocol 1: the README's
+#: blind run of its code; protocol 2: 300 cases, the mix of docs/validation-v2.md).
+VALIDATE_DEFAULTS: dict[int, tuple[int, int]] = {1: (200, 53), 2: (300, 97)}
+
+
+def _parse_mix(text: str | None) -> dict[str, float] | None:
+    """``single=0.25,pair=0.15,...`` -> shares per case kind (None: the protocol's default mix)."""
+    if not text:
+        return None
+    mix: dict[str, float] = {}
+    for part in text.split(","):
+        name, sep, value = part.partition("=")
+        try:
+            if not sep:
+                raise ValueError
+            mix[name.strip()] = float(value)
+        except ValueError:
+            raise CommandError(f"--mix: {part!r} is not KIND=SHARE (e.g. single=0.25,pair=0.15)") from None
+    return mix
+
+
+def _validate_v1(args: argparse.Namespace, n_cases: int, seed: int) -> None:
+    """Protocol 1: blind validation, then identification accuracy before/after the fix."""
     from engine.diagnosis import validation
     from engine.evaluation import identification as scoring
 
     out = Path(args.out)
     try:
-        report = validation.run_validation(n_cases=args.cases, seed=args.seed, out_dir=out, workers=args.workers)
+        report = validation.run_validation(n_cases=n_cases, seed=seed, out_dir=out, workers=args.workers)
     except FileExistsError as exc:
         raise CommandError(str(exc)) from None
     output.write(report.table())
@@ -44,6 +65,35 @@ def cmd_validate(args: argparse.Namespace) -> int:
     (out / "identification.md").write_text(ident)
     (out / "identification.json").write_text(json.dumps(scored, indent=1))
     output.write("\n## Identification accuracy before/after the fix\n\n" + ident)
+
+
+def _validate_v2(args: argparse.Namespace, n_cases: int, seed: int) -> None:
+    """Protocol 2: the open world (one library for all; compound, held-back and clean cases); resumable."""
+    from engine.validation import run
+    from engine.validation.report import summary_markdown
+
+    try:
+        doc = run.run_validation(
+            n_cases=n_cases, seed=seed, out_dir=Path(args.out), workers=args.workers, mix=_parse_mix(args.mix)
+        )
+    except (FileExistsError, ValueError) as exc:
+        raise CommandError(str(exc)) from None
+    output.write(summary_markdown(doc))
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    """Blind validation of the diagnosis (protocol 2 by default, 1 on request); reports to ``--out``."""
+    n_default, seed_default = VALIDATE_DEFAULTS[args.protocol]
+    n_cases = n_default if args.cases is None else args.cases
+    seed = seed_default if args.seed is None else args.seed
+    if n_cases < 1:
+        raise CommandError(f"--cases must be at least 1, got {n_cases}")
+    if args.protocol == 1:
+        if args.mix:
+            raise CommandError("--mix applies to protocol 2 only")
+        _validate_v1(args, n_cases, seed)
+    else:
+        _validate_v2(args, n_cases, seed)
     output.info(f"wrote the validation report to {args.out}")
     return EXIT_OK
 
@@ -91,14 +141,36 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     p.set_defaults(func=cmd_bench, passthrough=True)
 
-    p = sub.add_parser("validate", help="blind validation of the gap diagnosis")
+    p = sub.add_parser(
+        "validate",
+        help="blind validation of the gap diagnosis (protocol 2, the open world; resumable)",
+        description="Blind validation of the gap diagnosis. Protocol 2 (default; docs/validation-v2.md): every "
+        "case gets the whole catalogue; single, pair, triple, held-back and clean cases across the plausible "
+        "box, white or coloured noise, some with a drive's own sensors only. Run again on the same --out with "
+        "the same settings to resume an interrupted run. Protocol 1: the issue-4 protocol (README).",
+    )
+    p.add_argument(
+        "--protocol", type=int, choices=sorted(VALIDATE_DEFAULTS), default=2, help="validation protocol (default 2)"
+    )
     p.add_argument("--out", default="out/validation", help="working and report directory (default out/validation)")
-    p.add_argument("--cases", type=int, default=200, help="number of blind cases (default 200)")
+    p.add_argument(
+        "--cases",
+        type=int,
+        default=None,
+        help=f"number of blind cases (default {VALIDATE_DEFAULTS[2][0]}; protocol 1: {VALIDATE_DEFAULTS[1][0]})",
+    )
     p.add_argument(
         "--seed",
         type=int,
-        default=53,
-        help="seed of the case generator (default 53, the README's blind run of the current code)",
+        default=None,
+        help=f"seed of the case generator (default {VALIDATE_DEFAULTS[2][1]}; protocol 1: {VALIDATE_DEFAULTS[1][1]}, "
+        "the README's blind run of its code)",
     )
     p.add_argument("--workers", type=int, default=2, help="parallel diagnosis processes (default 2)")
+    p.add_argument(
+        "--mix",
+        default=None,
+        help="protocol 2: shares of the case kinds, e.g. single=0.25,pair=0.15,triple=0.1,held_back=0.2,clean=0.3 "
+        "(the default)",
+    )
     p.set_defaults(func=cmd_validate)

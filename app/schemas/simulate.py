@@ -22,7 +22,8 @@ from engine.constants import (
 
 _EFFECTS_DOC = (
     'Unmodelled effects by catalogue name and value, e.g. {"motor_coulomb_friction": 0.02}; see the '
-    "effects catalogue (engine.simulation.CATALOGUE) for names, meanings and ranges."
+    "effects catalogue (engine.simulation.CATALOGUE) and the held-back family (engine.simulation.HELD_BACK: "
+    "effects outside the diagnosis's catalogue) for names, meanings and ranges."
 )
 
 

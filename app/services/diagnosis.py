@@ -9,24 +9,29 @@ from typing import Any
 from engine.diagnosis import DiagnosisResult
 from engine.diagnosis import diagnose as engine_diagnose
 from engine.diagnosis.identification import identification_hook
-from engine.diagnosis.plots import plot_overlays, plot_residual_map
+from engine.diagnosis.plots import plot_missing_term, plot_overlays, plot_residual_map
+from engine.diagnosis.space import Bounds
 from engine.records import Record
 from engine.simulation import CATALOGUE, EffectLibrary
 
 
-def run(record: Record, effects: Sequence[str] | None = None) -> DiagnosisResult:
-    """Diagnose ``record`` against the catalogue (or the named subset of it), with identification before/after."""
+def run(record: Record, effects: Sequence[str] | None = None, bounds: Bounds | None = None) -> DiagnosisResult:
+    """Diagnose ``record`` against the catalogue (or the named subset of it), with identification before/after.
+
+    ``bounds`` narrows or moves the calibration's search box (:func:`engine.diagnosis.space.check_bounds`).
+    """
     library = CATALOGUE if not effects else EffectLibrary([CATALOGUE[name] for name in effects])
-    return engine_diagnose(record, library=library, identify=identification_hook())
+    return engine_diagnose(record, library=library, identify=identification_hook(), bounds=bounds)
 
 
-def diagnose(record: Record, effects: Sequence[str] | None = None) -> dict[str, Any]:
-    """JSON-ready diagnosis in the response shape of issue 4."""
-    return run(record, effects).to_dict()
+def diagnose(record: Record, effects: Sequence[str] | None = None, bounds: Bounds | None = None) -> dict[str, Any]:
+    """JSON-ready diagnosis in the response shape of issues 4 and 10."""
+    return run(record, effects, bounds).to_dict()
 
 
 def write_plots(record: Record, result: DiagnosisResult, out_dir: Path) -> list[Path]:
-    """Residual maps (before, and after when an effect is named) and record-vs-simulation overlays, as PNG."""
+    """Residual maps (before, and after when an effect is named), record-vs-simulation overlays and, for a gap
+    outside the catalogue, the missing term, as PNG."""
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = [
         plot_residual_map(result, out_dir / "residual_map_before.png"),
@@ -34,4 +39,6 @@ def write_plots(record: Record, result: DiagnosisResult, out_dir: Path) -> list[
     ]
     if result.verdict.status == "explained":
         paths.append(plot_residual_map(result, out_dir / "residual_map_after.png", after=True))
+    if result.locus and result.locus.get("term"):
+        paths.append(plot_missing_term(result, out_dir / "missing_term.png"))
     return paths

@@ -21,7 +21,15 @@ from app.services.errors import InvalidInputError
 from engine.constants import POST_EVENT_TIME, PRE_EVENT_TIME, SAMPLE_INTERVAL
 from engine.records import PROTOCOL_GRID, GridError, ProtocolError, Record, SampleGrid
 from engine.records.units import BASE_TORQUE
-from engine.simulation import Case, SimulationResult, add_white_noise, apply_effects, simulate_batch
+from engine.simulation import (
+    CATALOGUE,
+    HELD_BACK,
+    Case,
+    SimulationResult,
+    add_white_noise,
+    apply_effects,
+    simulate_batch,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -93,15 +101,22 @@ def make_case(K: float, J1: float | None = None, c: float | None = None, c1: flo
     return Case.from_overrides({k: v for k, v in given.items() if v is not None})
 
 
+#: Effects a simulation request may name: the catalogue and the held-back family of model 1.1.
+SIMULATED_EFFECTS = CATALOGUE + HELD_BACK
+
+
 def prepare(cases: Sequence[Case], effects: Sequence[Mapping[str, float] | None]) -> list[Case]:
     """Apply each case's effects and validate it, without simulating.
 
-    Raises ``ParameterError`` / ``UnknownEffectError`` (with the engine's message) on
-    out-of-range values or unknown effect names.
+    Effects are those of the catalogue and the held-back family (:data:`SIMULATED_EFFECTS`), so users
+    can render records with effects the diagnosis does not know. Raises ``ParameterError`` /
+    ``UnknownEffectError`` (with the engine's message) on out-of-range values or unknown effect names.
     """
     if len(cases) != len(effects):
         raise ValueError(f"got {len(effects)} effect mappings for {len(cases)} cases")
-    return [apply_effects(case, eff or {}).validate() for case, eff in zip(cases, effects, strict=True)]
+    return [
+        apply_effects(case, eff or {}, SIMULATED_EFFECTS).validate() for case, eff in zip(cases, effects, strict=True)
+    ]
 
 
 def run(cases: Sequence[Case], grid: SampleGrid = PROTOCOL_GRID) -> SimulationResult:

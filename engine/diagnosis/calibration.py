@@ -11,7 +11,9 @@ sum of squared residuals (:class:`~engine.diagnosis.objective.Objective`)::
 
 over the channels j present in the record and the samples k, where sigma_j
 is the channel's white-noise level estimated from the record (see
-:func:`engine.diagnosis.noise.estimate_noise`).
+:func:`engine.diagnosis.noise.estimate_noise`); when the record's noise is
+coloured (low-passed), the same sum over the residual's whitened wavelet
+coefficients (:mod:`engine.diagnosis.noise`).
 
 Why not plain least squares
 ---------------------------
@@ -23,9 +25,13 @@ points towards the optimum. The fit therefore proceeds in two stages:
 1. **Global search**: a scrambled Sobol sample of the parameter box is
    simulated in one batch (coarse integrator step) and scored on the *early*
    window of the record only (pre-event samples and the first 20 ms after the
-   event), where the cost is smooth because no impact has happened yet.
-2. **Continuation over the time horizon**: from the best few, mutually
-   distinct, Sobol points, ``scipy.optimize.least_squares`` refines the fit
+   event), where the cost is smooth because no impact has happened yet. The
+   best few distinct points (8 by default, ``n_screen``) are each refined
+   briefly on that window and the best of those refined points (``n_starts``)
+   continue: in the wide plausible box (issue 10) the lowest sampled points are
+   often not the ones that lead into the deepest valley.
+2. **Continuation over the time horizon**: from those starts,
+   ``scipy.optimize.least_squares`` refines the fit
    on a horizon that grows (20, 50, 100, 200 ms after the event); each stage
    starts from the previous stage's optimum, which keeps it inside the
    narrowing basin. The best full-horizon fit is polished with a finer
@@ -44,8 +50,8 @@ from typing import Any, TypedDict
 import numpy as np
 from scipy.stats import qmc
 
-from engine.constants import CHANNEL_WAVELETS, CHANNELS
-from engine.diagnosis.noise import estimate_noise, lowfreq_ratio, noise_weights
+from engine.constants import CHANNELS
+from engine.diagnosis.noise import NoiseModel, estimate_noise, noise_weights
 from engine.diagnosis.objective import Objective
 from engine.diagnosis.space import CALIBRATED, ModelSpace, default_space
 from engine.features.wavelet import level_for_interval
@@ -116,6 +122,14 @@ class CalibrationSettings:
         Smallest unit-box distance between two starting points.
     seed : int
         Seed of the Sobol scrambling.
+    n_screen : int
+        When larger than ``n_starts``: this many of the best distinct Sobol points are
+        first refined on the first horizon (at most ``screen_nfev`` evaluations each), and
+        the ``n_starts`` best of those refined points (still distinct) are continued. The
+        early window's cost is smooth, so a short refinement tells a point that leads into
+        a deep valley from one that only happened to be sampled low.
+    screen_nfev : int
+        Cap on residual evaluations of each screening refinement.
     """
 
     n_global: int = 512
@@ -129,6 +143,8 @@ class CalibrationSettings:
     fd_step_uncertainty: float = 1e-4
     min_separation: float = 0.08
     seed: int = 0
+    n_screen: int = 8
+    screen_nfev: int = 6
 
     def horizons(self, record: Record) -> list[int]:
         """Horizons as sample counts from the start of the record (on its own interval)."""
@@ -158,13 +174,15 @@ class CalibrationResult:
         The same per channel.
     n_data : int
         Number of residuals (channels x samples).
-    noise : dict of str to float
-        Estimated white-noise standard deviation per channel (channel unit).
-    sigma : dict of str to float
+    noise : NoiseModel or mapping of str to float
+        Noise per channel: as a mapping, its standard deviation per sample (channel unit);
+        a :class:`~engine.diagnosis.noise.NoiseModel` also holds its colour
+        (:func:`engine.diagnosis.noise.estimate_noise`).
+    sigma : NoiseModel or mapping of str to float
         Normalisation actually used (noise with a floor, see
         :func:`engine.diagnosis.noise.noise_weights`), channel unit.
     effect : str or None
-        Effect fitted together with the calibration, if any.
+        Effect fitted together with the calibration, if any (a set: names joined by "+").
     n_simulations : int
         Simulations run.
     seconds : float
@@ -188,7 +206,8 @@ class CalibrationResult:
         levels D1-D2 (fs / 8 to fs / 2): about 1 for a white
         residual whatever the noise estimate's error; a structured (mostly
         low-frequency) gap raises it. Reported as a diagnostic
-        (:func:`engine.diagnosis.noise.lowfreq_ratio`).
+        (:func:`engine.diagnosis.noise.lowfreq_ratio`; for coloured noise on the whitened
+        coefficients, :meth:`engine.diagnosis.noise.ChannelNoise.lowfreq_ratio`).
     """
 
     values: dict[str, float]
@@ -197,8 +216,8 @@ class CalibrationResult:
     chi2: float
     chi2_per_channel: dict[str, float]
     n_data: int
-    noise: dict[str, float]
-    sigma: dict[str, float]
+    noise: Mapping[str, float]
+    sigma: Mapping[str, float]
     effect: str | None
     n_simulations: int
     seconds: float
@@ -238,6 +257,7 @@ class CalibrationResult:
             "n_data": self.n_data,
             "bic": self.bic,
             "noise": dict(self.noise),
+            "noise_model": NoiseModel.of(self.noise).describe(),
             "lowfreq_ratio": dict(self.lowfreq_ratio),
             "n_simulations": self.n_simulations,
             "seconds": self.seconds,
@@ -308,8 +328,9 @@ def calibrate(
         Search settings; ``n_global = 0`` skips the global search (then
         ``seeds`` must be given).
     noise : mapping of str to float, optional
-        Noise standard deviation per channel (channel unit); estimated with
-        :func:`~engine.diagnosis.noise.estimate_noise` when omitted.
+        Noise per channel: a :class:`~engine.diagnosis.noise.NoiseModel` (e.g. an earlier
+        calibration's ``noise``), or standard deviations (channel unit) of white noise;
+        estimated with :func:`~engine.diagnosis.noise.estimate_noise` when omitted.
     seeds : sequence of mappings
         Extra starting points (parameter name -> value, e.g. an earlier
         calibration). They are refined on the full horizon directly (no
@@ -348,7 +369,7 @@ def _calibrate(
 ) -> CalibrationResult:
     t0 = time.perf_counter()
     space = default_space(record) if space is None else space
-    noise = estimate_noise(record) if noise is None else dict(noise)
+    noise = estimate_noise(record) if noise is None else NoiseModel.of(noise)
     sigma = noise_weights(record, noise)
     obj = Objective(record, space, sigma)
     horizons = settings.horizons(record)
@@ -366,7 +387,18 @@ def _calibrate(
             m = 1 << max(3, math.ceil(math.log2(settings.n_global)))
             U = qmc.Sobol(d, scramble=True, seed=settings.seed).random(m)
             C = obj.chi2(U, horizons[:1], coarse)[:, 0]
-            starts += [(u, "global") for u in _pick_starts(U, C, settings.n_starts, settings.min_separation)]
+            picked = _pick_starts(U, C, max(settings.n_starts, settings.n_screen), settings.min_separation)
+            if len(picked) > settings.n_starts:  # screen: a short refinement on the first horizon each
+                refined = [
+                    obj.local_fit(u, horizons[0], coarse, settings.screen_nfev, settings.fd_step)[:2] for u in picked
+                ]
+                picked = _pick_starts(
+                    np.array([r[0] for r in refined]),
+                    np.array([r[1] for r in refined]),
+                    settings.n_starts,
+                    settings.min_separation,
+                )
+            starts += [(u, "global") for u in picked]
             logger.debug("global search: %d points, best early chi2 %.4g", len(U), np.min(C))
         # seeds (already close to a full-horizon optimum) skip the continuation
         starts += [(space.unit(s), "seed") for s in seeds]
@@ -403,12 +435,12 @@ def _calibrate(
     obj.n_simulations += 1
     if st[0] != 0:
         raise CalibrationError(f"the calibrated parameters cannot be simulated (kernel status {int(st[0])})")
-    r = (ch_all[0, obj.rows] - obj.data) / obj.sigma[:, None]
-    chi2_ch = {n: float(np.sum(r[j] ** 2)) for j, n in enumerate(obj.names)}
+    resid = ch_all[0, obj.rows] - obj.data
+    chi2_ch = {n: float(sigma.channel(n).chi2(resid[j])) for j, n in enumerate(obj.names)}
     chi2 = float(sum(chi2_ch.values()))
     level = level_for_interval(record.sample_interval, record.n_samples)
-    lowfreq = {n: lowfreq_ratio(r[j], CHANNEL_WAVELETS[n], level) for j, n in enumerate(obj.names)}
-    n_data = int(r.size)
+    lowfreq = {n: sigma.channel(n).lowfreq_ratio(resid[j], level) for j, n in enumerate(obj.names)}
+    n_data = int(resid.size)
     unc: dict[str, float] = {}
     if d > 0:
         J = obj.jacobian(u_best, record.n_samples, final, settings.fd_step_uncertainty, central=True)
@@ -421,8 +453,8 @@ def _calibrate(
         chi2_per_channel=chi2_ch,
         n_data=n_data,
         noise=noise,
-        sigma=dict(sigma),
-        effect=space.effect.name if space.effect else None,
+        sigma=sigma,
+        effect="+".join(space.effect_names) if space.effects else None,
         n_simulations=obj.n_simulations,
         seconds=time.perf_counter() - t0,
         stages=stages,

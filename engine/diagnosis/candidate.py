@@ -83,6 +83,8 @@ class Candidate:
         polished front runners only.
     note : str
         Why an effect was not fitted (e.g. degenerate with a calibrated parameter).
+    locus : str or None
+        Where in the plant the effect acts (:data:`engine.simulation.LOCI`).
     """
 
     effect: str
@@ -97,6 +99,7 @@ class Candidate:
     shrinkage: float = 1.0
     strength: float | None = None
     note: str = ""
+    locus: str | None = None
 
     @classmethod
     def from_fit(cls, effect: Effect, cal: CalibrationResult, nominal: CalibrationResult) -> Candidate:
@@ -110,6 +113,7 @@ class Candidate:
             bic=cal.bic,
             gap=gap_of(cal),
             shrinkage=shrinkage_ratio(nominal, cal),
+            locus=effect.locus,
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -125,6 +129,7 @@ class Candidate:
             "gap_after": self.gap.to_dict() if self.gap else None,
             "shrinkage": self.shrinkage,
             "strength": self.strength,
+            "locus": self.locus,
             "calibration": self.calibration.to_dict() if self.calibration else None,
             "note": self.note,
         }
@@ -132,8 +137,10 @@ class Candidate:
 
 #: Search settings of the seeded fits (no global search; seeds refined on the full record).
 SEEDED_FITS = CalibrationSettings(n_global=0, max_nfev=30)
-#: Search settings of the escalated fits (global search, continuation over 10-200 ms).
-ESCALATED_FITS = CalibrationSettings(n_global=256, n_starts=2, horizons_ms=(10.0, 20.0, 40.0, 80.0, 200.0))
+#: Search settings of the escalated fits (global search, 16 of its points screened on the first
+#: horizon, continuation of the best 2 over 10-200 ms; the screening was added for the plausible
+#: box of issue 10, docs/diagnosis.md section 8c).
+ESCALATED_FITS = CalibrationSettings(n_global=256, n_starts=2, n_screen=16, horizons_ms=(10.0, 20.0, 40.0, 80.0, 200.0))
 
 
 @dataclass(frozen=True)
@@ -269,7 +276,7 @@ def fit_candidate(
     """
     why = _identifiable(effect, space, record)
     if why:
-        return Candidate(effect.name, None, None, effect.unit, None, math.inf, note=why)
+        return Candidate(effect.name, None, None, effect.unit, None, math.inf, note=why, locus=effect.locus)
     if is_speed_quantum(effect):
         first = settings.escalated if global_search else settings.seeded
         cal = fit_quantisation(record, nominal, space, effect, settings.n_quantum, first, settings.seeded)

@@ -28,9 +28,38 @@ per cent around 1 even without a gap; the thresholds allow for that. A fit is
   most ``min_strength``): a statistically significant but weak residue, such
   as a fine speed quantum that no candidate models (added after the seed-31
   blind run, see docs/diagnosis.md section 4).
-* Without evidence: ``no_gap`` when the nominal model fits to the noise, or
-  when its misfit is weaker than the rule above (the nominal misfit at most
-  ``min_strength`` in every channel), else ``unexplained``.
+* Without evidence: ``no_gap`` when the nominal model fits to the noise;
+  ``weak_gap`` when its misfit is statistically beyond the noise but weaker
+  than the rule above (the nominal misfit at most ``min_strength`` in every
+  channel), else ``unexplained``.
+
+Several effects at once (issue 10)
+----------------------------------
+When no single candidate fits to the noise, sets of two and three effects are
+fitted (:mod:`engine.diagnosis.sets`). The model compared with the rules above
+is then the most parsimonious of the best single candidate, the best pair and
+the best triple: a larger set replaces a smaller model only when it lowers the
+BIC by at least ``min_delta_bic`` and every one of its effects is strong
+(moves the record by more than ``min_strength`` noise RMS on its own). The
+verdict lists the set's effects with their share of the gap (the gap budget,
+:func:`engine.diagnosis.sets.gap_budget`), largest first; ``effect`` and
+``value`` are the largest share's.
+
+Weak gaps
+---------
+``weak_gap`` replaces the former ``no_gap`` answers for gaps that are
+statistically real but too weak to attribute: the nominal misfit beyond the
+noise but at most ``min_strength`` noise RMS in every channel, or an effect
+with evidence whose fit moves the record by at most ``min_strength``.
+``no_gap`` is kept for records the nominal model fits to the noise.
+
+Locus
+-----
+Every verdict with a gap names the part of the plant where the missing physics
+acts (``verdict.locus``, one of :data:`engine.simulation.LOCI`): the locus of
+the named effect with the largest share; for ``unexplained`` and ``weak_gap``
+the locus the data point to (:func:`engine.diagnosis.locus.estimate_locus`,
+which also estimates the missing term: ``verdict.missing_term``).
 
 Confidence (0..1): for ``no_gap`` and ``unexplained`` a logistic function of
 how far the deciding statistic lies from its threshold (in units of the
@@ -45,18 +74,19 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from scipy.special import expit
 
 from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings, calibrate
-from engine.diagnosis.candidate import Candidate, CandidateSettings
+from engine.diagnosis.candidate import Candidate, CandidateSettings, posterior_weights
 from engine.diagnosis.candidates import fit_candidates
-from engine.diagnosis.gap import Gap, gap_of
+from engine.diagnosis.gap import Gap, closed_fraction, gap_of
 from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, localise
-from engine.diagnosis.space import ALIGNMENT, default_space
+from engine.diagnosis.sets import CandidateSet, SetSettings, search_sets
+from engine.diagnosis.space import ALIGNMENT, Bounds, default_space
 from engine.parallel import single_threaded_blas
 from engine.records import Record, WindowUse
 from engine.simulation import CATALOGUE, EffectLibrary
@@ -114,6 +144,10 @@ class DiagnosisSettings:
     n_cells : int or None
         Localisation cells kept in :meth:`DiagnosisResult.to_dict`, largest
         excess first (None: all 5 x 11 x 5 of a five-channel record; the object keeps all).
+    sets : SetSettings
+        Search settings of the sets of effects (``max_size = 1`` turns the set search off).
+    locate : bool
+        Estimate the locus and the missing term of an unexplained or weak gap.
     """
 
     calibration: CalibrationSettings = NOMINAL_CALIBRATION
@@ -125,6 +159,12 @@ class DiagnosisSettings:
     min_strength: float = 3.0
     strength_scatter: float = 0.3
     n_cells: int | None = None
+    sets: SetSettings = field(default_factory=SetSettings)
+    locate: bool = True
+
+
+#: Verdict statuses.
+STATUSES: tuple[str, ...] = ("explained", "unexplained", "weak_gap", "no_gap")
 
 
 @dataclass(frozen=True)
@@ -133,10 +173,10 @@ class Verdict:
 
     Attributes
     ----------
-    status : {"explained", "unexplained", "no_gap"}
+    status : {"explained", "unexplained", "weak_gap", "no_gap"}
         Outcome.
     effect : str or None
-        Named effect (``explained`` only).
+        Named effect with the largest share of the gap (``explained`` only).
     value : float or None
         Its fitted value, in ``unit``.
     uncertainty : float or None
@@ -147,6 +187,17 @@ class Verdict:
         0..1.
     reason : str
         One sentence on why.
+    effects : list of dict
+        Every named effect, ``{"effect", "value", "uncertainty", "unit", "locus", "share",
+        "strength"}``, largest share of the gap first (empty unless ``explained``).
+    locus : str or None
+        Where in the plant the missing physics acts (None for ``no_gap``).
+    missing_term : dict or None
+        For ``unexplained`` and ``weak_gap``: what the missing term looks like (kind, unit,
+        rms, dominant frequency, what it follows, a description); the time series is in
+        :attr:`DiagnosisResult.locus`.
+    left : float or None
+        Fraction of the nominal excess residual energy the named effects leave [-].
     """
 
     status: str
@@ -156,10 +207,14 @@ class Verdict:
     unit: str | None
     confidence: float
     reason: str
+    effects: tuple[dict[str, Any], ...] = ()
+    locus: str | None = None
+    missing_term: dict[str, Any] | None = None
+    left: float | None = None
 
     @classmethod
     def without_effect(cls, status: str, confidence: float, reason: str) -> Verdict:
-        """A verdict that names no effect (``no_gap`` or ``unexplained``)."""
+        """A verdict that names no effect (``no_gap``, ``weak_gap`` or ``unexplained``)."""
         return cls(status, None, None, None, None, confidence, reason)
 
     def to_dict(self) -> dict[str, Any]:
@@ -172,6 +227,10 @@ class Verdict:
             "unit": self.unit,
             "confidence": self.confidence,
             "reason": self.reason,
+            "effects": [dict(e) for e in self.effects],
+            "locus": self.locus,
+            "missing_term": self.missing_term,
+            "left": self.left,
         }
 
 
@@ -187,12 +246,14 @@ class DiagnosisResult:
         Localisation of the nominal residual, largest excess first.
     candidates : list of Candidate
         Candidate effects, best (lowest BIC) first.
+    sets : list of CandidateSet
+        The best sets of two or three effects (empty when one effect fits to the noise).
     verdict : Verdict
         The answer.
     gap_before, gap_after : Gap, Gap or None
-        Gap of the nominal calibration and of the named effect's fit.
+        Gap of the nominal calibration and of the named effects' fit.
     before, after : Record, Record or None
-        Calibrated simulations without and with the named effect, on the record's own
+        Calibrated simulations without and with the named effects, on the record's own
         grid (all its samples) and in its units, to overlay on it directly.
     cells_after : list of Cell
         Localisation of the residual left by the named effect's fit (empty if none).
@@ -206,6 +267,11 @@ class DiagnosisResult:
         Which of the record's samples were analysed (the test window).
     record : Record or None
         The diagnosed record (for its grid, units and event location in :meth:`to_dict`).
+    locus : dict or None
+        The locus estimate of an unexplained or weak gap (scores per locus, the missing
+        term's time series on the record's grid), JSON-ready.
+    shrinkage : float or None
+        Excess energy before over after the named effects' fit.
     """
 
     calibration: CalibrationResult
@@ -223,6 +289,9 @@ class DiagnosisResult:
     n_cells: int | None = None
     window: WindowUse | None = None
     record: Record | None = None
+    sets: list[CandidateSet] = field(default_factory=list)
+    locus: dict[str, Any] | None = None
+    shrinkage: float | None = None
 
     def record_summary(self) -> dict[str, Any] | None:
         """How the record was read: its grid, units, the samples analysed and where the event is.
@@ -260,6 +329,17 @@ class DiagnosisResult:
             "window": self.window.to_dict() if self.window is not None else None,
         }
 
+    def _ranked_candidates(self) -> list[dict[str, Any]]:
+        """Single effects and sets in one list, best BIC first (``kind``: "single" or "set")."""
+        rows = [{"kind": "single", **c.to_dict()} for c in self.candidates] + [s.to_dict() for s in self.sets]
+        return sorted(rows, key=lambda r: r["bic"] if r["bic"] is not None else math.inf)
+
+    def _budget(self) -> dict[str, Any] | None:
+        """The gap budget of the named effects: each one's share of the gap, and what is left."""
+        if not self.verdict.effects:
+            return None
+        return {"shares": {e["effect"]: e["share"] for e in self.verdict.effects}, "left": self.verdict.left}
+
     def candidate(self, name: str) -> Candidate:
         """The candidate of one effect (KeyError when it was not in the library)."""
         for c in self.candidates:
@@ -280,13 +360,15 @@ class DiagnosisResult:
             "calibration": self.calibration.to_dict(),
             "cells": [c.to_dict() for c in self.cells[: self.n_cells]],
             "record": self.record_summary(),
-            "candidates": [c.to_dict() for c in self.candidates],
+            "candidates": self._ranked_candidates(),
             "verdict": self.verdict.to_dict(),
             "gap": {
                 "before": self.gap_before.to_dict(),
                 "after": self.gap_after.to_dict() if self.gap_after else None,
-                "shrinkage": self.candidate(self.verdict.effect).shrinkage if self.verdict.effect else None,
+                "shrinkage": self.shrinkage,
+                "budget": self._budget(),
             },
+            "locus": self.locus,
             "cells_after": [c.to_dict() for c in self.cells_after[: self.n_cells]],
             "identification": self.identification,
             "n_simulations": self.n_simulations,
@@ -320,16 +402,78 @@ def _fits_noise(cal: CalibrationResult, s: DiagnosisSettings) -> bool:
     return total <= s.max_reduced_chi2 and worst <= s.max_channel_chi2
 
 
-def decide(nominal: CalibrationResult, candidates: list[Candidate], settings: DiagnosisSettings) -> Verdict:
-    """The verdict from the nominal calibration and the ranked candidates (see the module notes)."""
-    best, best_cal = next(((c, c.calibration) for c in candidates if c.calibration is not None), (None, None))
+Model = Candidate | CandidateSet
+"""A fitted alternative to the nominal model: one effect, or a set of effects."""
+
+
+def _strength(m: Model) -> float:
+    """How far a model's (weakest) effect moves the record [noise RMS]; inf when unknown."""
+    st = m.strength
+    return float(st) if st is not None and math.isfinite(st) else math.inf
+
+
+def _all_strong(s: CandidateSet, settings: DiagnosisSettings) -> bool:
+    return bool(s.strengths) and all(math.isfinite(v) and v > settings.min_strength for v in s.strengths.values())
+
+
+def choose_model(
+    candidates: Sequence[Candidate], sets: Sequence[CandidateSet], settings: DiagnosisSettings
+) -> Model | None:
+    """The most parsimonious of the best single candidate, the best pair and the best triple.
+
+    A larger set replaces the smaller model only when it lowers the BIC by at least
+    ``min_delta_bic`` and every one of its effects is strong (moves the record by more
+    than ``min_strength`` noise RMS on its own).
+    """
+    chosen: Model | None = next((c for c in candidates if c.calibration is not None), None)
+    for size in (2, 3):
+        best = next((x for x in sets if len(x.effects) == size and x.calibration is not None), None)
+        if best is None or not _all_strong(best, settings):
+            continue
+        if chosen is None or best.bic <= chosen.bic - settings.min_delta_bic:
+            chosen = best
+    return chosen
+
+
+def _rows(m: Model, nominal: CalibrationResult) -> tuple[tuple[dict[str, Any], ...], float]:
+    """The verdict's effect rows (largest share first) and the fraction left."""
+    if isinstance(m, CandidateSet):
+        return tuple(m.effect_rows()), m.left
+    cal = m.calibration
+    share = closed_fraction(nominal, cal) if cal is not None else 0.0
+    row = {
+        "effect": m.effect,
+        "value": m.value,
+        "uncertainty": m.uncertainty,
+        "unit": m.unit,
+        "locus": m.locus,
+        "share": share,
+        "strength": m.strength,
+    }
+    return (row,), 1.0 - share
+
+
+def _named(rows: Sequence[Mapping[str, Any]]) -> str:
+    return " and ".join(f"{r['effect']} = {r['value']:.4g} {r['unit']}" for r in rows)
+
+
+def decide(
+    nominal: CalibrationResult,
+    candidates: list[Candidate],
+    settings: DiagnosisSettings,
+    sets: Sequence[CandidateSet] = (),
+) -> Verdict:
+    """The verdict from the nominal calibration, the ranked candidates and sets (see the module notes)."""
+    model = choose_model(candidates, sets, settings)
     total, worst = fit_statistic(nominal)
-    dbic = nominal.bic - best.bic if best is not None else -math.inf
-    if best is None or best_cal is None or dbic < settings.min_delta_bic:
+    gap_rms = math.sqrt(max(worst - 1.0, 0.0))
+    dbic = nominal.bic - model.bic if model is not None else -math.inf
+    if model is None or model.calibration is None or dbic < settings.min_delta_bic:
+        best_name = model.effect if isinstance(model, Candidate) else model.name if model is not None else None
         what = (
-            f"no candidate improves the fit significantly (best: {best.effect}, BIC lower by {dbic:.1f} < "
+            f"no candidate improves the fit significantly (best: {best_name}, BIC lower by {dbic:.1f} < "
             f"{settings.min_delta_bic:g})"
-            if best
+            if model is not None
             else "no candidate could be fitted"
         )
         if _fits_noise(nominal, settings):
@@ -339,61 +483,87 @@ def decide(nominal: CalibrationResult, candidates: list[Candidate], settings: Di
                 f"the calibrated nominal model fits to the noise (chi2/n = {total:.3f}, worst channel "
                 f"{worst:.3f}) and {what}",
             )
-        gap_rms = math.sqrt(max(worst - 1.0, 0.0))
         if gap_rms <= settings.min_strength:
             return Verdict.without_effect(
-                "no_gap",
+                "weak_gap",
                 float(expit((settings.min_strength - gap_rms) / settings.strength_scatter)),
-                f"the nominal model leaves a small misfit (chi2/n = {total:.3g}, worst channel {worst:.3g}: "
-                f"{gap_rms:.2f} noise RMS beyond the noise, <= {settings.min_strength:g}) and {what}: "
-                f"no gap clearly beyond the noise",
+                f"the nominal model leaves a misfit beyond the noise (chi2/n = {total:.3g}, worst channel "
+                f"{worst:.3g}) but a weak one ({gap_rms:.2f} noise RMS, <= {settings.min_strength:g}), and {what}",
             )
         return Verdict.without_effect(
             "unexplained",
             1.0 - _adequacy(nominal, settings),
             f"the nominal model leaves a gap (chi2/n = {total:.3g}, worst channel {worst:.3g}) and {what}",
         )
-    b_total, b_worst = fit_statistic(best_cal)
-    if _fits_noise(best_cal, settings):
-        strength = best.strength if best.strength is not None and math.isfinite(best.strength) else math.inf
-        sure = float(expit((strength - settings.min_strength) / settings.strength_scatter))
+    m_cal = model.calibration
+    b_total, b_worst = fit_statistic(m_cal)
+    rows, left = _rows(model, nominal)
+    strength = _strength(model)
+    sure = float(expit((strength - settings.min_strength) / settings.strength_scatter))
+    if _fits_noise(m_cal, settings):
         if strength <= settings.min_strength:
             return Verdict.without_effect(
-                "no_gap",
+                "weak_gap",
                 1.0 - sure,
-                f"the best candidate, {best.effect} = {best.value:.4g} {best.unit}, fits the record but "
-                f"moves it by only {strength:.2f} noise RMS (<= {settings.min_strength:g}): no gap clearly "
-                f"beyond the noise",
+                f"{_named(rows)} fits the record but moves it by only {strength:.2f} noise RMS "
+                f"(<= {settings.min_strength:g}): a gap beyond the noise, too weak to attribute",
             )
+        top = rows[0]
+        shares = ", ".join(f"{r['effect']} {100 * (r['share'] or 0):.0f} %" for r in rows)
         return Verdict(
             "explained",
-            best.effect,
-            best.value,
-            best.uncertainty,
-            best.unit,
-            _adequacy(best_cal, settings) * best.weight * sure,
-            f"adding {best.effect} = {best.value:.4g} {best.unit} brings the fit to the noise "
-            f"(chi2/n {total:.3g} -> {b_total:.3f}, worst channel {b_worst:.3f}); the effect moves the "
-            f"record by {strength:.3g} noise RMS",
+            top["effect"],
+            top["value"],
+            top["uncertainty"],
+            top["unit"],
+            _adequacy(m_cal, settings) * model.weight * sure,
+            f"adding {_named(rows)} brings the fit to the noise (chi2/n {total:.3g} -> {b_total:.3f}, worst "
+            f"channel {b_worst:.3f}); gap budget: {shares}, {100 * left:.1f} % left",
+            effects=rows,
+            locus=top["locus"],
+            left=left,
         )
-    gap_rms = math.sqrt(max(worst - 1.0, 0.0))
-    strength = best.strength if best.strength is not None and math.isfinite(best.strength) else math.inf
     weakest = max(gap_rms, strength)
     if weakest <= settings.min_strength:
         return Verdict.without_effect(
-            "no_gap",
+            "weak_gap",
             float(expit((settings.min_strength - weakest) / settings.strength_scatter)),
-            f"no candidate brings the fit to the noise (the best, {best.effect} = {best.value:.4g} "
-            f"{best.unit}, leaves chi2/n = {b_total:.3g}), but the gap is weak: the nominal misfit is "
-            f"{gap_rms:.2f} noise RMS beyond the noise and the best candidate moves the record by "
-            f"{strength:.2f} noise RMS (both <= {settings.min_strength:g}): no gap clearly beyond the noise",
+            f"no candidate brings the fit to the noise (the best, {_named(rows)}, leaves chi2/n = "
+            f"{b_total:.3g}), and the gap is weak: the nominal misfit is {gap_rms:.2f} noise RMS beyond the "
+            f"noise and the best candidate moves the record by {strength:.2f} noise RMS (both <= "
+            f"{settings.min_strength:g})",
         )
     return Verdict.without_effect(
         "unexplained",
-        1.0 - _adequacy(best_cal, settings),
-        f"no candidate brings the fit to the noise: the best, {best.effect} = {best.value:.4g} "
-        f"{best.unit}, leaves chi2/n = {b_total:.3g} (worst channel {b_worst:.3g})",
+        1.0 - _adequacy(m_cal, settings),
+        f"no candidate or set of candidates brings the fit to the noise: the best, {_named(rows)}, leaves "
+        f"chi2/n = {b_total:.3g} (worst channel {b_worst:.3g})",
     )
+
+
+def _reweight(nominal: CalibrationResult, cands: Sequence[Candidate], sets: Sequence[CandidateSet]) -> None:
+    """Posterior weights and delta BIC over every model fitted: the nominal one, single effects and sets."""
+    models: list[Model] = [*cands, *sets]
+    names = [m.effect if isinstance(m, Candidate) else m.name for m in models]
+    w = posterior_weights({"<nominal>": nominal.bic, **dict(zip(names, (m.bic for m in models), strict=True))})
+    best = min((m.bic for m in models), default=math.inf)
+    for name, m in zip(names, models, strict=True):
+        m.weight = w[name]
+        m.delta_bic = m.bic - best
+
+
+def _locate(record: Record, nominal: CalibrationResult, verdict: Verdict) -> tuple[Verdict, dict[str, Any] | None]:
+    """The verdict with the locus and missing term the data point to (see :mod:`engine.diagnosis.locus`)."""
+    from engine.diagnosis.locus import estimate_locus
+
+    try:
+        report = estimate_locus(record, nominal)
+    except (ValueError, RuntimeError) as exc:  # the diagnosis stands without it; say why
+        logger.warning("locus estimate failed: %s", exc)
+        return replace(verdict, reason=f"{verdict.reason}; the locus could not be estimated ({exc})"), None
+    out = report.to_dict()
+    term = {k: v for k, v in out.get("term", {}).items() if k not in ("series", "t")} if out.get("term") else None
+    return replace(verdict, locus=report.locus, missing_term=term), out
 
 
 def diagnose(
@@ -402,6 +572,7 @@ def diagnose(
     settings: DiagnosisSettings = DiagnosisSettings(),
     identify: IdentificationHook | None = None,
     noise: Mapping[str, float] | None = None,
+    bounds: Bounds | None = None,
 ) -> DiagnosisResult:
     """Diagnose the sim-to-real gap of one record.
 
@@ -418,6 +589,11 @@ def diagnose(
         Identification before/after the fix (stored under ``identification``).
     noise : mapping of str to float, optional
         Known noise standard deviation per channel (channel unit); estimated when omitted.
+    bounds : mapping, optional
+        Search box of the calibrated parameters, ``name -> (low, high)`` in the parameter's
+        unit (K [m], J1 [kg m^2], c [pu], c1 [pu]); parameters not given keep
+        :data:`~engine.diagnosis.space.DEFAULT_BOUNDS`, the plausible box (see
+        :func:`~engine.diagnosis.space.check_bounds`).
 
     Returns
     -------
@@ -427,6 +603,8 @@ def diagnose(
     ------
     CalibrationError
         When the record cannot be fitted at all (no simulable parameter set).
+    BoundsError
+        When ``bounds`` is invalid (unknown name, low >= high, outside the physical limits).
 
     Notes
     -----
@@ -437,7 +615,7 @@ def diagnose(
     diagnosed (their candidates say so).
     """
     with single_threaded_blas():
-        return _diagnose(record, library, settings, identify, noise)
+        return _diagnose(record, library, settings, identify, noise, bounds)
 
 
 def _diagnose(
@@ -446,11 +624,12 @@ def _diagnose(
     settings: DiagnosisSettings,
     identify: IdentificationHook | None,
     noise: Mapping[str, float] | None,
+    bounds: Bounds | None = None,
 ) -> DiagnosisResult:
     t0 = time.perf_counter()
     whole = record
     record, window = whole.test_window()
-    space = default_space(record)
+    space = default_space(record, bounds)
     nominal = calibrate(record, space, settings.calibration, noise=noise)
     cells = localise(record, nominal.simulated_record(record), nominal.sigma, DEFAULT_WINDOWS_MS)
     gap_before = gap_of(nominal)
@@ -458,18 +637,37 @@ def _diagnose(
 
     cands = fit_candidates(record, nominal, space, library, settings.candidates)
     n_sim += sum(c.calibration.n_simulations for c in cands if c.calibration)
-    verdict = decide(nominal, cands, settings)
+    sets: list[CandidateSet] = []
+    best = next((c for c in cands if c.calibration is not None), None)
+    if (
+        settings.sets.max_size >= 2
+        and best is not None
+        and best.calibration is not None
+        and not _fits_noise(nominal, settings)
+        and not _fits_noise(best.calibration, settings)
+    ):
+        set_settings = replace(settings.sets, min_strength=settings.min_strength)
+        sets = search_sets(record, nominal, space, library, cands, settings.candidates, set_settings)
+        n_sim += sum(s.calibration.n_simulations for s in sets if s.calibration)
+        _reweight(nominal, cands, sets)
+    verdict = decide(nominal, cands, settings, sets)
 
     after = None
     gap_after = None
+    shrinkage = None
     cells_after: list[Cell] = []
+    locus: dict[str, Any] | None = None
     if verdict.status == "explained":
-        best_cal = cands[0].calibration
-        if best_cal is None:  # an explained verdict names the best candidate, which is fitted
+        model = choose_model(cands, sets, settings)
+        best_cal = model.calibration if model is not None else None
+        if model is None or best_cal is None:  # an explained verdict names a fitted model
             raise RuntimeError(f"the named effect {verdict.effect} has no fit")
         after = best_cal.simulated_record(whole)
         gap_after = gap_of(best_cal)
+        shrinkage = model.shrinkage
         cells_after = localise(record, best_cal.simulated_record(record), nominal.sigma, DEFAULT_WINDOWS_MS)
+    elif verdict.status in ("unexplained", "weak_gap") and settings.locate:
+        verdict, locus = _locate(record, nominal, verdict)
     result = DiagnosisResult(
         calibration=nominal,
         cells=cells,
@@ -484,6 +682,9 @@ def _diagnose(
         n_cells=settings.n_cells,
         window=window,
         record=whole,
+        sets=sets,
+        locus=locus,
+        shrinkage=shrinkage,
     )
     if identify is not None:
         result.identification = identify(whole, result)

@@ -14,7 +14,7 @@ from typing import Any
 
 from engine.diagnosis.calibration import CalibrationResult
 
-__all__ = ["Gap", "gap_of", "shrinkage_ratio"]
+__all__ = ["Gap", "closed_fraction", "gap_of", "shrinkage_ratio"]
 
 
 @dataclass(frozen=True)
@@ -96,3 +96,24 @@ def shrinkage_ratio(before: CalibrationResult, after: CalibrationResult) -> floa
     ex_before = max(before.chi2 - before.n_data, floor)
     ex_after = max(after.chi2 - after.n_data, floor)
     return ex_before / ex_after
+
+
+def closed_fraction(before: CalibrationResult, after: CalibrationResult) -> float:
+    """Fraction of ``before``'s excess residual energy (``chi2 - n``) that ``after`` removes, in [0, 1].
+
+    Parameters
+    ----------
+    before, after : CalibrationResult
+        The fits compared (e.g. the nominal calibration and a candidate's).
+
+    Returns
+    -------
+    float
+        ``(E_before - E_after) / E_before`` with ``E = max(chi2 - n, 0)``, clipped to [0, 1]
+        (0 when ``before`` leaves no excess) [-].
+    """
+    e0 = max(before.chi2 - before.n_data, 0.0)
+    if e0 <= 0.0:
+        return 0.0
+    e1 = max(after.chi2 - after.n_data, 0.0)
+    return min(max((e0 - e1) / e0, 0.0), 1.0)

@@ -72,8 +72,9 @@ def identify_before_after(
     c: float,
     kind: str = DEFAULT_KIND,
     at_groups: bool = True,
+    effects: Mapping[str, float] | None = None,
 ) -> dict[str, Any]:
-    """Identify ``record``'s width with nominal patterns and with patterns retrained with ``effect``.
+    """Identify ``record``'s width with nominal patterns and with patterns retrained with the named effects.
 
     Parameters
     ----------
@@ -90,6 +91,9 @@ def identify_before_after(
         True (default): train both sets at the paper's c group nearest to ``c``, as
         stored pattern sets are; False: at ``c`` itself. On the 200-case blind
         validation (seed 2024) both gave the same accuracy after the fix (83.3 %).
+    effects : mapping of str to float, optional
+        Several named effects and their values (a set of the diagnosis), used instead of
+        ``effect``/``value``.
 
     Returns
     -------
@@ -101,14 +105,17 @@ def identify_before_after(
     group = nearest_c_group(c) if at_groups else float(c)
     before = _identify_all(lambda ch: _nominal_identifier(group, ch, kind), record)
     after: Mapping[str, dict[str, Any]] = {}
-    if effect is not None and value is not None:
-        grid = simulate_training_grid(group, effects={effect: value})
+    if effects is None and effect is not None and value is not None:
+        effects = {effect: value}
+    if effects:
+        grid = simulate_training_grid(group, effects=dict(effects))
         after = _identify_all(lambda ch: _fit(grid, ch, kind), record)
     return {
         "kind": kind,
         "c_group": group,
         "effect": effect,
         "value": value,
+        "effects": dict(effects) if effects else {},
         "channels": {ch: {"before": before[ch], "after": after.get(ch)} for ch in before},
     }
 
@@ -122,6 +129,7 @@ def identification_hook(kind: str = DEFAULT_KIND) -> IdentificationHook:
     def hook(record: Record, result: DiagnosisResult) -> dict[str, Any]:
         v = result.verdict
         c = result.calibration.values.get("c", result.calibration.fixed.get("c", C_NOMINAL))
-        return identify_before_after(record, v.effect, v.value, c, kind)
+        named = {row["effect"]: row["value"] for row in v.effects if row.get("value") is not None}
+        return identify_before_after(record, v.effect, v.value, c, kind, effects=named or None)
 
     return hook

@@ -1,10 +1,15 @@
 """The cost a calibration minimises: noise-normalised residuals of a record against simulations.
 
-For the channels j present in the record and the samples k::
+For the channels j present in the record and the samples k, with white noise::
 
     chi2(theta) = sum_j sum_k ((sim_j[k](theta) - rec_j[k]) / sigma_j)^2
 
 where sigma_j is the channel's noise level (:func:`engine.diagnosis.noise.noise_weights`).
+With coloured noise (a :class:`~engine.diagnosis.noise.NoiseModel` whose channels have
+per-level noise levels) the residual of each channel is whitened instead: its orthogonal
+DWT coefficients, each divided by its level's noise standard deviation
+(:meth:`engine.diagnosis.noise.ChannelNoise.normalise`); the residual of the first samples
+only is zero-padded to the record's length first.
 :class:`Objective` evaluates it on points of a
 :class:`~engine.diagnosis.space.ModelSpace`'s unit box, over the first samples
 of the record only if asked (the calibration's continuation over the time
@@ -22,6 +27,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from engine.constants import CHANNELS
+from engine.diagnosis.noise import NoiseModel
 from engine.diagnosis.space import ModelSpace
 from engine.parallel import raise_if_cancelled
 from engine.records import Record
@@ -45,8 +51,9 @@ class Objective:
     space : ModelSpace
         What is fitted.
     sigma : mapping of str to float
-        Residual normalisation per channel, in the channel's unit (see
-        :func:`engine.diagnosis.noise.noise_weights`).
+        Residual normalisation per channel: a :class:`~engine.diagnosis.noise.NoiseModel`
+        (see :func:`engine.diagnosis.noise.noise_weights`), or standard deviations of white
+        noise in the channel's unit.
 
     Attributes
     ----------
@@ -62,6 +69,10 @@ class Objective:
         self.rows = [CHANNELS.index(n) for n in self.names]
         self.data = np.stack([record.channels[n] for n in self.names])
         self.sigma = np.array([sigma[n] for n in self.names])
+        self.noise = NoiseModel.of(sigma)
+        #: per channel, its noise model when the residual is whitened per level (None: white, r / sigma)
+        self._coloured = [None if self.noise.channel(n).white else self.noise.channel(n) for n in self.names]
+        self.white = all(c is None for c in self._coloured)
         self.n_simulations = 0
         #: simulated channels per (integrator step, unit-box point); None where the simulation failed
         self._cache: dict[tuple[float, tuple[float, ...]], np.ndarray | None] = {}
@@ -110,21 +121,44 @@ class Objective:
         return out, ok
 
     def residuals(self, U: np.ndarray, horizon: int, solver: SolverSettings) -> np.ndarray:
-        """Normalised residuals (m, n_ch * horizon) [noise sigmas] of the first ``horizon`` samples.
+        """Normalised residuals (m, n_res) [noise sigmas] of the first ``horizon`` samples.
 
-        A failed simulation gives :data:`FAILED_RESIDUAL` at every sample.
+        White noise: n_res = n_ch * horizon, the residuals over sigma. Coloured noise: the
+        whitened DWT coefficients of the residuals zero-padded to the record's length
+        (n_res fixed, whatever the horizon). A failed simulation gives
+        :data:`FAILED_RESIDUAL` at every residual.
         """
         sims, ok = self.simulate(U, solver)
-        r = (sims[:, :, :horizon] - self.data[None, :, :horizon]) / self.sigma[None, :, None]
+        if self.white:
+            r = (sims[:, :, :horizon] - self.data[None, :, :horizon]) / self.sigma[None, :, None]
+            r[~ok] = FAILED_RESIDUAL
+            return r.reshape(r.shape[0], -1)
+        return self._whitened(sims, ok, horizon)
+
+    def _whitened(self, sims: np.ndarray, ok: np.ndarray, horizon: int) -> np.ndarray:
+        """Whitened residuals (m, n_res) of the first ``horizon`` samples (zero-padded to the record)."""
+        d = sims[:, :, :horizon] - self.data[None, :, :horizon]
+        d[~ok] = 0.0
+        n = self.data.shape[1]
+        parts = [
+            d[:, j] / self.sigma[j] if ch is None else ch.normalise(d[:, j], n) for j, ch in enumerate(self._coloured)
+        ]
+        r = np.concatenate(parts, axis=1)
         r[~ok] = FAILED_RESIDUAL
-        return r.reshape(r.shape[0], -1)
+        return r
 
     def chi2(self, U: np.ndarray, horizons: Sequence[int], solver: SolverSettings) -> np.ndarray:
         """chi2 (m, len(horizons)) [noise variances] of points U on each horizon (inf where the simulation failed).
 
-        ``horizons`` are sample counts from the start of the record.
+        ``horizons`` are sample counts from the start of the record. With coloured noise, the
+        chi2 of the whitened residual of the first samples, without the levels left out of it
+        (a constant).
         """
         sims, ok = self.simulate(U, solver)
+        if not self.white:
+            out = np.stack([np.sum(self._whitened(sims, ok, h) ** 2, axis=1) for h in horizons], axis=1)
+            out[~ok] = np.inf
+            return out
         r2 = np.square((sims - self.data[None]) / self.sigma[None, :, None]).sum(axis=1)  # (m, n_samples)
         cum = np.cumsum(r2, axis=1)
         out = np.stack([cum[:, h - 1] for h in horizons], axis=1)

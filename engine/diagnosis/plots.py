@@ -17,7 +17,7 @@ from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, level_band
 from engine.records import Record
 from engine.records.units import factor
 
-__all__ = ["plot_overlays", "plot_residual_map"]
+__all__ = ["plot_missing_term", "plot_overlays", "plot_residual_map"]
 
 
 def _level_names(level: int = WAVELET_LEVEL) -> list[str]:
@@ -80,8 +80,9 @@ def plot_residual_map(result: DiagnosisResult, path: str | Path, after: bool = F
         ax.set_yticklabels(labels if ax is axes[0] else [], fontsize=7)
     if im is not None:
         fig.colorbar(im, ax=list(axes), label="log10(residual energy / noise energy)")
-    what = f"after adding {result.verdict.effect}" if after and result.cells_after else "nominal calibration"
-    fig.suptitle(f"Residual map ({what}); verdict: {result.verdict.status} {result.verdict.effect or ''}")
+    named = " + ".join(e["effect"] for e in result.verdict.effects) or (result.verdict.effect or "")
+    what = f"after adding {named}" if after and result.cells_after else "nominal calibration"
+    fig.suptitle(f"Residual map ({what}); verdict: {result.verdict.status} {named}")
     path = Path(path)
     fig.savefig(path, dpi=110)
     return path
@@ -112,7 +113,14 @@ def plot_overlays(record: Record, result: DiagnosisResult, path: str | Path) -> 
         ax.plot(t, result.before[ch] / f, color="tab:blue", lw=0.9, label="calibrated nominal")
         axr.plot(t, (record[ch] - result.before[ch]) / sig[ch], color="tab:blue", lw=0.6)
         if result.after is not None:
-            ax.plot(t, result.after[ch] / f, color="tab:red", lw=0.9, ls="--", label=f"with {result.verdict.effect}")
+            ax.plot(
+                t,
+                result.after[ch] / f,
+                color="tab:red",
+                lw=0.9,
+                ls="--",
+                label="with " + (" + ".join(e["effect"] for e in result.verdict.effects) or str(result.verdict.effect)),
+            )
             axr.plot(t, (record[ch] - result.after[ch]) / sig[ch], color="tab:red", lw=0.6)
         ax.set_ylabel(f"{ch} [{unit}]")
         axr.set_ylabel("res/sigma", fontsize=7)
@@ -120,8 +128,47 @@ def plot_overlays(record: Record, result: DiagnosisResult, path: str | Path) -> 
             ax.legend(fontsize=7, loc="upper right")
     axes[-1].set_xlabel("time from the event [ms]")
     fig.suptitle(
-        f"Verdict: {result.verdict.status} {result.verdict.effect or ''} (confidence {result.verdict.confidence:.2f})"
+        f"Verdict: {result.verdict.status} {' + '.join(e['effect'] for e in result.verdict.effects)} (confidence {result.verdict.confidence:.2f})"
     )
     path = Path(path)
     fig.savefig(path, dpi=100)
+    return path
+
+
+def plot_missing_term(result: DiagnosisResult, path: str | Path) -> Path:
+    """The missing term of an unexplained (or weak) gap: its time series, and how well each locus explains it.
+
+    Left: the estimated unknown input at the best locus against time from the event [ms], in its
+    unit (pu torque, rad angle, relative voltage), with the one-sentence description as title.
+    Right: per locus, the fraction of the residual energy its input explains.
+
+    Raises
+    ------
+    ValueError
+        When the result carries no locus estimate (an explained or no-gap verdict).
+    """
+    loc = result.locus
+    if not loc or not loc.get("term"):
+        raise ValueError("this diagnosis has no missing-term estimate (only unexplained and weak gaps have one)")
+    term = loc["term"]
+    fig = Figure(figsize=(10, 3.6), layout="constrained")
+    ax, bx = fig.subplots(1, 2, width_ratios=(3, 1.3))
+    t_ms = np.asarray(term["t"], dtype=float) * 1e3
+    ax.plot(t_ms, np.asarray(term["series"], dtype=float), color="tab:purple", lw=1.0)
+    ax.axvline(0.0, color="0.6", lw=0.7, ls=":")
+    ax.set_xlabel("time from the event [ms]")
+    ax.set_ylabel(f"{term['kind']} [{term['unit']}]")
+    ax.set_title(term["description"], fontsize=9)
+    scores = loc.get("scores", {})
+    names = list(scores)
+    vals = [float(scores[n].get("explained") or 0.0) for n in names]
+    colours = ["tab:purple" if n == loc.get("locus") else "0.7" for n in names]
+    bx.barh(names, vals, color=colours)
+    bx.set_xlim(0.0, 1.0)
+    bx.set_xlabel("residual energy explained [-]")
+    bx.tick_params(axis="y", labelsize=8)
+    bx.invert_yaxis()
+    fig.suptitle(f"Missing term, locus {loc.get('locus')} (confidence {loc.get('confidence', float('nan')):.2f})")
+    path = Path(path)
+    fig.savefig(path, dpi=110)
     return path

@@ -3,11 +3,16 @@
 The plant parameters that are uncertain in practice are the backlash width K,
 the motor-side inertia J1, the absorber viscosity c and the absorber
 discontinuity c1 (:data:`CALIBRATED`); a record's conditions may fix any of
-them. Their plausible operating range is defined once, in
-:data:`engine.constants.OPERATING_RANGE` (the range the held-out evaluation, the
-blind validation and the benchmarks draw from); the calibration's search box (:data:`DEFAULT_BOUNDS`) is that range widened by a
-margin per parameter (:data:`SEARCH_MARGIN`), so that optima near an edge of
-the operating range stay interior to the box.
+them. The calibration's default search box (:data:`DEFAULT_BOUNDS`) is the
+plausible box of :data:`engine.constants.PLAUSIBLE_RANGE` (K 1-15 mm, J1
+0.6-1.2 kg m^2, c 0.5-2.0 pu) plus c1 in [0, 0.6] pu, far wider than the
+operating range the v1 validation draws from
+(:data:`engine.constants.OPERATING_RANGE`). A caller may pass its own box
+(:func:`default_space`'s ``bounds``, checked by :func:`check_bounds`), e.g. a
+narrower one when the drive is better known. K is searched on a logarithmic
+scale (:data:`LOG_SCALED_PARAMETERS`): its cost basin is a fixed fraction of K
+wide (about +-3 %), so on a log scale it has the same width in the unit box
+wherever K lies.
 
 A :class:`ModelSpace` maps points of the unit box ``[0, 1]^d`` to simulation
 cases: every free parameter (:class:`FreeParameter`) on a linear or
@@ -24,56 +29,37 @@ simulations sampled at its own instants however coarse its interval.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from engine.constants import OPERATING_RANGE
+from engine.constants import PLAUSIBLE_RANGE
 from engine.records import Record
-from engine.simulation import Case, Effect, PlantParameters, SensorParameters
+from engine.simulation import Case, Effect, ParameterError, PlantParameters, SensorParameters
 
 __all__ = [
     "ALIGNMENT",
     "CALIBRATED",
     "DEFAULT_BOUNDS",
     "LOG_SCALED_EFFECTS",
-    "SEARCH_MARGIN",
+    "LOG_SCALED_PARAMETERS",
+    "Bounds",
+    "BoundsError",
     "FreeParameter",
     "ModelSpace",
+    "check_bounds",
     "default_space",
 ]
 
-#: Margin of the search box beyond the operating range, ``name -> (below, above)``, in the
-#: parameter's unit: K 0.3 mm below and 0.5 mm above, J1 0.03 kg m^2 either side, c 0.05 pu
-#: below and 0.1 pu above.
-SEARCH_MARGIN: dict[str, tuple[float, float]] = {
-    "K": (0.0003, 0.0005),
-    "J1": (0.03, 0.03),
-    "c": (0.05, 0.1),
-}
 #: Search interval of c1 [pu]: it has no operating range (records usually give it).
 C1_BOUNDS: tuple[float, float, str] = (0.0, 0.6, "pu")
-
-
-def _widened(name: str) -> tuple[float, float, str]:
-    """The operating range of ``name`` widened by its search margin.
-
-    The edges are rounded to 1e-12 of the unit, which removes the binary
-    representation error of the decimal sums (0.93 + 0.03 gives 0.96, not
-    0.9600000000000001).
-    """
-    lo, hi, unit = OPERATING_RANGE[name]
-    below, above = SEARCH_MARGIN[name]
-    return round(lo - below, 12), round(hi + above, 12), unit
-
-
 #: Default search box of the calibrated plant parameters: ``name -> (low, high, unit)``
-#: (K 0.0022-0.0105 m, J1 0.72-0.96 kg m^2, c 0.75-1.6 pu, c1 0-0.6 pu).
-DEFAULT_BOUNDS: dict[str, tuple[float, float, str]] = {
-    **{name: _widened(name) for name in OPERATING_RANGE},
-    "c1": C1_BOUNDS,
-}
+#: (K 0.001-0.015 m, J1 0.6-1.2 kg m^2, c 0.5-2.0 pu: :data:`engine.constants.PLAUSIBLE_RANGE`;
+#: c1 0-0.6 pu).
+DEFAULT_BOUNDS: dict[str, tuple[float, float, str]] = {**PLAUSIBLE_RANGE, "c1": C1_BOUNDS}
+#: Calibrated plant parameters searched on a logarithmic scale.
+LOG_SCALED_PARAMETERS: frozenset[str] = frozenset({"K"})
 #: Plant parameters a record's conditions may fix (MODEL.md; others are nominal).
 CALIBRATED: tuple[str, ...] = ("K", "J1", "c", "c1")
 #: The free parameter that places a located event within its sample interval: the sensor
@@ -137,14 +123,25 @@ class ModelSpace:
     base : Case
         The plant with every known condition applied (fixed parameters).
     params : tuple of FreeParameter
-        Free plant parameters, then (optionally) the effect's value last.
-    effect : Effect or None
-        The unmodelled effect whose value is the last free parameter.
+        Free plant parameters, then (optionally) the effects' values last, in the order of ``effects``.
+    effects : tuple of Effect
+        The unmodelled effects whose values are the last free parameters (none for the nominal
+        model, one for a candidate effect, up to three for a candidate set).
     """
 
     base: Case
     params: tuple[FreeParameter, ...]
-    effect: Effect | None = None
+    effects: tuple[Effect, ...] = ()
+
+    @property
+    def effect(self) -> Effect | None:
+        """The last effect added (the only one of a single-effect space); None for the nominal model."""
+        return self.effects[-1] if self.effects else None
+
+    @property
+    def effect_names(self) -> list[str]:
+        """Names of the effects, in order."""
+        return [e.name for e in self.effects]
 
     @property
     def dim(self) -> int:
@@ -170,24 +167,95 @@ class ModelSpace:
         return np.array([p.unit_coord(values[p.name]) if p.name in values else 0.5 for p in self.params])
 
     def case(self, u: np.ndarray) -> Case:
-        """The simulation case at unit-box point u."""
+        """The simulation case at unit-box point u (the effects applied in order)."""
         vals = self.values(u)
-        own = {k: v for k, v in vals.items() if self.effect is None or k != self.effect.name}
+        mine = set(self.effect_names)
+        own = {k: v for k, v in vals.items() if k not in mine}
         sensor_changes = {k: v for k, v in own.items() if k in _SENSOR_FIELDS}
         plant_changes = {k: v for k, v in own.items() if k not in _SENSOR_FIELDS}
         case = Case(self.base.plant.replace(**plant_changes), self.base.sensors.replace(**sensor_changes))
-        if self.effect is not None:
-            case = self.effect.apply(case, vals[self.effect.name])
+        for e in self.effects:
+            case = e.apply(case, vals[e.name])
         return case
 
     def with_effect(self, effect: Effect) -> ModelSpace:
         """This space plus one effect's value as an extra free parameter (searched over the effect's bounds)."""
+        if effect.name in self.effect_names:
+            raise ValueError(f"effect {effect.name!r} is already in this space")
         lo, hi = effect.bounds
         log = effect.name in LOG_SCALED_EFFECTS and lo > 0
-        return ModelSpace(self.base, (*self.params, FreeParameter(effect.name, lo, hi, effect.unit, log)), effect)
+        return ModelSpace(
+            self.base, (*self.params, FreeParameter(effect.name, lo, hi, effect.unit, log)), (*self.effects, effect)
+        )
+
+    def with_effects(self, effects: Sequence[Effect]) -> ModelSpace:
+        """This space plus several effects' values (see :meth:`with_effect`)."""
+        space = self
+        for e in effects:
+            space = space.with_effect(e)
+        return space
 
 
-def default_space(record: Record, bounds: Mapping[str, tuple[float, float, str]] | None = None) -> ModelSpace:
+class BoundsError(ValueError):
+    """Raised for a search box that cannot be searched; the message says what to fix."""
+
+
+Bounds = Mapping[str, tuple[float, float] | tuple[float, float, str]]
+
+
+def check_bounds(bounds: Bounds | None) -> dict[str, tuple[float, float, str]]:
+    """The complete search box: :data:`DEFAULT_BOUNDS` overridden by ``bounds``, checked.
+
+    Parameters
+    ----------
+    bounds : mapping or None
+        Search interval per calibrated parameter, ``name -> (low, high)`` or
+        ``(low, high, unit)`` in the parameter's unit (K [m], J1 [kg m^2], c [pu],
+        c1 [pu]); parameters not given keep their default interval. A unit, when
+        given, must be the parameter's.
+
+    Returns
+    -------
+    dict of str to (float, float, str)
+        Every parameter of :data:`CALIBRATED`.
+
+    Raises
+    ------
+    BoundsError
+        For an unknown name, a wrong unit, a non-finite bound, ``low >= high``, or a
+        bound outside the physical limits of :meth:`engine.simulation.PlantParameters.validate`.
+    """
+    out = dict(DEFAULT_BOUNDS)
+    for name, interval in (bounds or {}).items():
+        if name not in DEFAULT_BOUNDS:
+            raise BoundsError(
+                f"unknown calibrated parameter {name!r} in the bounds; expected one of {list(CALIBRATED)}"
+            )
+        unit = DEFAULT_BOUNDS[name][2]
+        if len(interval) not in (2, 3):
+            raise BoundsError(f"bounds of {name} must be (low, high) or (low, high, unit), got {interval!r}")
+        if len(interval) == 3 and interval[2] != unit:
+            raise BoundsError(f"bounds of {name} must be in {unit!r}, got {interval[2]!r}")
+        try:
+            lo, hi = float(interval[0]), float(interval[1])
+        except (TypeError, ValueError):
+            raise BoundsError(f"bounds of {name} must be numbers, got {interval!r}") from None
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            raise BoundsError(f"bounds of {name} must be finite, got ({lo}, {hi})")
+        if lo >= hi:
+            raise BoundsError(f"lower bound of {name} must be below its upper bound, got ({lo:g}, {hi:g}) {unit}")
+        for v in (lo, hi):
+            try:
+                PlantParameters().replace(**{name: v}).validate()
+            except ParameterError as err:
+                raise BoundsError(f"bounds of {name} outside the physical limits: {err}") from None
+        if name in LOG_SCALED_PARAMETERS and lo <= 0:
+            raise BoundsError(f"lower bound of {name} must be positive (it is searched on a log scale), got {lo:g}")
+        out[name] = (lo, hi, unit)
+    return out
+
+
+def default_space(record: Record, bounds: Bounds | None = None) -> ModelSpace:
     """Parameter space of a record: K, J1, c, c1 are free unless its conditions fix them.
 
     Parameters
@@ -198,20 +266,27 @@ def default_space(record: Record, bounds: Mapping[str, tuple[float, float, str]]
         When its event was located from the data, the event instant within the
         located interval is free too (:data:`ALIGNMENT`, last).
     bounds : mapping, optional
-        Search box per free parameter, ``name -> (low, high, unit)``;
-        defaults to :data:`DEFAULT_BOUNDS`.
+        Search interval per calibrated parameter, ``name -> (low, high)`` or ``(low, high,
+        unit)``, in the parameter's unit; parameters not given keep :data:`DEFAULT_BOUNDS`
+        (see :func:`check_bounds`). Bounds of a parameter the conditions fix are checked
+        but unused.
 
     Returns
     -------
     ModelSpace
         Without an effect.
+
+    Raises
+    ------
+    BoundsError
+        When the bounds are invalid (:func:`check_bounds`).
     """
-    bounds = dict(DEFAULT_BOUNDS if bounds is None else bounds)
+    box = check_bounds(bounds)
     plant_fields = set(PlantParameters.__dataclass_fields__)
     known = {k: v for k, v in record.conditions.items() if k in plant_fields}
-    base = Case(PlantParameters(**known))
+    base = Case(PlantParameters().replace(**known))
     free = tuple(
-        FreeParameter(name, bounds[name][0], bounds[name][1], bounds[name][2])
+        FreeParameter(name, box[name][0], box[name][1], box[name][2], name in LOG_SCALED_PARAMETERS)
         for name in CALIBRATED
         if name not in known
     )

@@ -1,9 +1,12 @@
 """Simulator of the reference plant (MODEL.md) and its backlash test."""
 
-from engine.simulation.effects import CATALOGUE, Effect, EffectLibrary, UnknownEffectError, apply_effects
+from engine.simulation.effects import CATALOGUE, LOCI, Effect, EffectLibrary, Locus, UnknownEffectError, apply_effects
+from engine.simulation.held_back import HELD_BACK
 from engine.simulation.noise import add_white_noise, noise_std
 from engine.simulation.parameters import (
+    DISTURBANCE_LOCI,
     Case,
+    Disturbance,
     ParameterError,
     PlantParameters,
     SensorParameters,
@@ -22,9 +25,14 @@ from engine.simulation.simulator import (
 
 __all__ = [
     "CATALOGUE",
+    "DISTURBANCE_LOCI",
+    "HELD_BACK",
+    "LOCI",
     "Case",
+    "Disturbance",
     "Effect",
     "EffectLibrary",
+    "Locus",
     "ParameterError",
     "PlantParameters",
     "SensorParameters",

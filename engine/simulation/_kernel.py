@@ -12,6 +12,14 @@ State vector ``y`` (15 entries)::
     7..9   theta_1, theta_2, theta_3                          [mechanical rad]
     10..14 low-pass sensor states of the five channels       [channel units]
 
+Model 1.1 (``docs/model-changes.md``) adds terms that are all neutral at zero:
+five parametric ones (load torque ripple, clutch offset, motor cogging, wheel
+Coulomb friction, and a share of the torque that decays after the switch-off) and an additive
+*unknown input* d(t) at one locus of the plant, a piecewise-linear schedule of up
+to ``N_DIST_MAX`` knots (:func:`disturbance`). With every new entry zero the
+kernel performs the same floating-point operations as model 1.0, so its records
+are bit for bit the same.
+
 The parameter vector layout is given by the ``P_*`` indices below and built by
 :func:`engine.simulation.simulator.parameter_vector`; it carries the record's
 sample grid too (``P_TS``, ``P_EVENT_INDEX``), and the number of samples is the
@@ -25,7 +33,16 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from engine.constants import CHANNELS, OMEGA_B, W_B, W_SMOOTH
+from engine.constants import (
+    CHANNELS,
+    COGGING_ORDER,
+    DISTURBANCE_MAX_KNOTS,
+    LOAD_RIPPLE_HZ,
+    OMEGA_B,
+    SWITCH_OFF_DECAY_TIME,
+    W_B,
+    W_SMOOTH,
+)
 
 # parameter vector layout
 P_R_S, P_R_R, P_X_S, P_X_R, P_X_M, P_U, P_F = 0, 1, 2, 3, 4, 5, 6
@@ -34,7 +51,31 @@ P_B, P_K12, P_D12, P_K2, P_D2, P_C, P_C1 = 10, 11, 12, 13, 14, 15, 16
 P_TAU_C1, P_B_1, P_RADIUS = 17, 18, 19
 P_DELAY, P_LOWPASS, P_STEP, P_T_MAX = 20, 21, 22, 23
 P_TS, P_EVENT_INDEX, P_TRIGGER_OFFSET = 24, 25, 26
-N_PARAMS = 27
+# model 1.1: 1.0 when any of its terms below is active, else 0.0 (then the kernel runs model 1.0's
+# operations only, as fast as before); set by engine.simulation.simulator.parameter_vector
+P_EXTENDED = 27
+# model 1.1: parametric terms of the held-back effects (engine.simulation.held_back)
+P_TAU_RIPPLE3, P_CLUTCH_OFFSET, P_TAU_COG, P_TAU_C2, P_M_OFF = 28, 29, 30, 31, 32
+# model 1.1: additive unknown input d(t) (see disturbance): locus code, first knot [s since
+# switch-on], knot spacing [s], number of knots, a step added from the switch-off on, then the
+# knot values
+P_DIST_LOCUS, P_DIST_T0, P_DIST_DT, P_DIST_N, P_DIST_STEP = 33, 34, 35, 36, 37
+P_DIST_VALUES = 38
+#: Most knots of the unknown input's schedule.
+N_DIST_MAX = DISTURBANCE_MAX_KNOTS
+#: Switch-off instant t_e [s]: not an input; :func:`simulate_one` writes it into its working copy
+#: of the parameter vector for the torque's decay after the switch-off (``P_M_OFF``).
+P_T_SWITCH_OFF = P_DIST_VALUES + N_DIST_MAX
+N_PARAMS = P_T_SWITCH_OFF + 1
+
+# locus codes of the unknown input (P_DIST_LOCUS): what d(t) is and where it enters
+DIST_NONE = 0
+DIST_SUPPLY = 1  # relative deviation of the supply voltage amplitude: u -> u (1 + d)
+DIST_MOTOR_ELECTRICAL = 2  # additive electromagnetic torque [pu]: in m_el and on J1
+DIST_MOTOR_SHAFT = 3  # torque on J1 [pu] (not in m_el)
+DIST_CLUTCH = 4  # angle offset of the backlash zone [rad]: d = theta_1 - theta_2 - offset
+DIST_DRIVE_TRAIN = 5  # torque on the wheel J2 [pu]
+DIST_LOAD = 6  # torque on the load (mass m2, T_3) [pu]
 
 N_CHANNELS = len(CHANNELS)
 N_STATES = 10 + N_CHANNELS
@@ -80,6 +121,68 @@ def smooth_sign(w):
 
 
 @njit(cache=True, fastmath=False)
+def disturbance(t, P):
+    """The unknown input d(t) of the schedule in P (unit of its locus, see ``DIST_*``).
+
+    Knot j (0 <= j < n) lies at ``P[P_DIST_T0] + j * P[P_DIST_DT]`` [s since switch-on] and holds
+    ``P[P_DIST_VALUES + j]``; d is zero one spacing before the first knot and one after the last,
+    and linear in between: continuous, and a schedule with one non-zero knot is a hat function
+    of half-width one spacing. The integrator cuts its steps at the knots (:func:`step_to_knot`).
+    From the switch-off on, the callers add the step ``P[P_DIST_STEP]`` (a jump of d at the
+    event, where the motor's torque jumps too).
+    """
+    n = int(P[P_DIST_N])
+    x = (t - P[P_DIST_T0]) / P[P_DIST_DT]
+    if n < 1 or x <= -1.0 or x >= n:
+        return 0.0
+    j = math.floor(x)
+    frac = x - j
+    left = P[P_DIST_VALUES + j] if j >= 0 else 0.0
+    right = P[P_DIST_VALUES + j + 1] if j + 1 < n else 0.0
+    return (1.0 - frac) * left + frac * right
+
+
+@njit(cache=True, fastmath=False)
+def step_to_knot(t, h, P):
+    """The step h [s] from t, shortened to end at the next kink of the unknown input if it lies within.
+
+    The kinks are the knots and the two zero points one spacing outside them. A kink closer to t
+    than 1e-7 spacings counts as passed (so a step never shrinks to nothing).
+    """
+    if P[P_EXTENDED] == 0.0 or P[P_DIST_LOCUS] == DIST_NONE:
+        return h
+    dt = P[P_DIST_DT]
+    n = int(P[P_DIST_N])
+    j = math.floor((t - P[P_DIST_T0]) / dt + 1e-7) + 1
+    j = max(j, -1)
+    if j > n:
+        return h
+    t_knot = P[P_DIST_T0] + j * dt
+    return min(h, t_knot - t)
+
+
+@njit(cache=True, fastmath=False)
+def clutch_deflection(t, y, P, motor_on):
+    """theta_1 - theta_2 less the offset of the backlash zone [rad] (model 1.1: fixed plus unknown input)."""
+    d = y[7] - y[8] - P[P_CLUTCH_OFFSET]
+    if P[P_DIST_LOCUS] == DIST_CLUTCH:
+        d -= disturbance(t, P) if motor_on else disturbance(t, P) + P[P_DIST_STEP]
+    return d
+
+
+@njit(cache=True, fastmath=False)
+def electromagnetic_torque(y, P):
+    """m_el = psi_s_alpha i_s_beta - psi_s_beta i_s_alpha [pu] of the fluxes in y."""
+    xs = P[P_X_S]
+    xr = P[P_X_R]
+    xm = P[P_X_M]
+    det = xs * xr - xm * xm
+    isa = (xr * y[0] - xm * y[2]) / det
+    isb = (xr * y[1] - xm * y[3]) / det
+    return y[0] * isb - y[1] * isa
+
+
+@njit(cache=True, fastmath=False)
 def rhs(t, y, P, motor_on, dy, ch):
     """Right-hand side dy/dt and the five channel values at (t, y).
 
@@ -94,6 +197,11 @@ def rhs(t, y, P, motor_on, dy, ch):
     w1 = y[4]
     w2 = y[5]
     w3 = y[6]
+    ext = P[P_EXTENDED] != 0.0
+    locus = P[P_DIST_LOCUS] if ext else DIST_NONE
+    dd = 0.0
+    if locus != DIST_NONE:
+        dd = disturbance(t, P) if motor_on else disturbance(t, P) + P[P_DIST_STEP]
     if motor_on:
         xs = P[P_X_S]
         xr = P[P_X_R]
@@ -104,8 +212,11 @@ def rhs(t, y, P, motor_on, dy, ch):
         ira = (xs * pra - xm * psa) / det
         irb = (xs * prb - xm * psb) / det
         ang = P[P_F] * W_B * t
-        usa = P[P_U] * math.cos(ang)
-        usb = P[P_U] * math.sin(ang)
+        u = P[P_U]
+        if locus == DIST_SUPPLY:
+            u = u * (1.0 + dd)
+        usa = u * math.cos(ang)
+        usb = u * math.sin(ang)
         dy[0] = W_B * (usa - P[P_R_S] * isa)
         dy[1] = W_B * (usb - P[P_R_S] * isb)
         dy[2] = W_B * (-P[P_R_R] * ira - w1 * prb)
@@ -117,8 +228,13 @@ def rhs(t, y, P, motor_on, dy, ch):
         dy[2] = 0.0
         dy[3] = 0.0
         m_el = 0.0
+        if ext and P[P_M_OFF] != 0.0:  # a share of the torque at the switch-off decays (the fluxes are frozen since)
+            decay = math.exp(-(t - P[P_T_SWITCH_OFF]) / SWITCH_OFF_DECAY_TIME)
+            m_el = P[P_M_OFF] * electromagnetic_torque(y, P) * decay
+    if locus == DIST_MOTOR_ELECTRICAL:
+        m_el += dd
     # clutch with backlash: a contact can push, never pull
-    d = y[7] - y[8]
+    d = clutch_deflection(t, y, P, motor_on) if ext else y[7] - y[8]
     dw = w1 - w2
     b = P[P_B]
     if d > b:
@@ -132,9 +248,23 @@ def rhs(t, y, P, motor_on, dy, ch):
     m_f = P[P_B_1] * w1
     if P[P_TAU_C1] != 0.0:
         m_f += P[P_TAU_C1] * smooth_sign(w1)
-    dw1 = (m_el - m_c - m_f) / P[P_T1]
-    dw2 = (m_c - m_s) / P[P_T2]
-    dw3 = (m_s - m_a) / P[P_T3]
+    m_1 = m_el - m_c - m_f
+    m_2 = m_c - m_s
+    m_3 = m_s - m_a
+    if ext:
+        # cogging: periodic in the motor angle, COGGING_ORDER periods per revolution
+        m_1 -= P[P_TAU_COG] * math.sin(COGGING_ORDER * y[7])
+        m_2 -= P[P_TAU_C2] * smooth_sign(w2)  # Coulomb friction of the wheel
+        m_3 += P[P_TAU_RIPPLE3] * math.sin(2.0 * math.pi * LOAD_RIPPLE_HZ * t)  # load torque ripple
+        if locus == DIST_MOTOR_SHAFT:
+            m_1 += dd
+        elif locus == DIST_DRIVE_TRAIN:
+            m_2 += dd
+        elif locus == DIST_LOAD:
+            m_3 += dd
+    dw1 = m_1 / P[P_T1]
+    dw2 = m_2 / P[P_T2]
+    dw3 = m_3 / P[P_T3]
     dy[4] = dw1
     dy[5] = dw2
     dy[6] = dw3
@@ -176,8 +306,8 @@ def rk4_step(t, y, h, P, motor_on, out, k1, k2, k3, k4, tmp, ch):
 
 
 @njit(cache=True, fastmath=False)
-def zone(y, P):
-    """Clutch mode of state y.
+def zone(t, y, P, motor_on):
+    """Clutch mode of state y at time t [s] (the zone's offset may depend on t and on ``motor_on``).
 
     0 inside the backlash (|d| <= b); +1 / -1 in contact and pushing;
     +2 / -2 penetrated but with the contact force clipped to zero (the contact
@@ -185,7 +315,7 @@ def zone(y, P):
     discontinuous (contact entry) or kinked (clipping).
     """
     b = P[P_B]
-    d = y[7] - y[8]
+    d = clutch_deflection(t, y, P, motor_on) if P[P_EXTENDED] != 0.0 else y[7] - y[8]
     if -b <= d <= b:
         return 0
     dw = y[4] - y[5]
@@ -211,10 +341,10 @@ def hybrid_step(t, y, h, P, motor_on, work):
     crossed : bool
         Whether the step ended at a zone change.
     """
-    z0 = zone(y, P)
+    z0 = zone(t, y, P, motor_on)
     out = work[0]
     rk4_step(t, y, h, P, motor_on, out, work[1], work[2], work[3], work[4], work[5], work[6])
-    if zone(out, P) == z0:
+    if zone(t + h, out, P, motor_on) == z0:
         return h, False
     lo = 0.0
     hi = h
@@ -222,7 +352,7 @@ def hybrid_step(t, y, h, P, motor_on, work):
     while hi - lo > 1e-12:
         mid = 0.5 * (lo + hi)
         rk4_step(t, y, mid, P, motor_on, trial, work[1], work[2], work[3], work[4], work[5], work[6])
-        if zone(trial, P) == z0:
+        if zone(t + mid, trial, P, motor_on) == z0:
             lo = mid
         else:
             hi = mid
@@ -238,10 +368,12 @@ def advance(t, y, t_end, P, motor_on, work):
         span = t_end - t
         n = math.ceil(span / P[P_STEP] - 1e-9)
         h = span / max(n, 1)
-        taken, crossed = hybrid_step(t, y, h, P, motor_on, work)
+        h_knot = step_to_knot(t, h, P)
+        short = h_knot < h
+        taken, crossed = hybrid_step(t, y, h_knot, P, motor_on, work)
         for i in range(y.shape[0]):
             y[i] = work[0][i]
-        t = t_end if (not crossed and n <= 1) else t + taken
+        t = t_end if (not crossed and not short and n <= 1) else t + taken
         if not (abs(y[4]) < 1e6):
             n_bad += 1
             break
@@ -271,6 +403,8 @@ def simulate_one(P, out):
     t_e : float
         Event time [s] (NaN unless OK).
     """
+    P = P.copy()  # working copy: the switch-off instant is written into it
+    P[P_T_SWITCH_OFF] = math.inf
     h = P[P_STEP]
     y = np.zeros(N_STATES)
     work = (
@@ -300,13 +434,13 @@ def simulate_one(P, out):
                 ring_y[slot, i] = y[i]
             n_ck += 1
             next_ck += ck_dt
-        taken, crossed = hybrid_step(t, y, h, P, True, work)
+        taken, crossed = hybrid_step(t, y, step_to_knot(t, h, P), P, True, work)
         for i in range(N_STATES):
             y[i] = work[0][i]
         t += taken
         if not (abs(y[4]) < 1e6 and abs(y[7] - y[8]) < 1e6):
             return NON_FINITE, math.nan
-        z = zone(y, P)
+        z = zone(t, y, P, True)
         if z != 0:
             armed = True
         elif armed and crossed:
@@ -314,6 +448,7 @@ def simulate_one(P, out):
             break
     if math.isnan(t_e):
         return NO_EVENT, math.nan
+    P[P_T_SWITCH_OFF] = t_e
 
     # re-integrate from the newest checkpoint before the first sample instant
     ts = P[P_TS]

@@ -15,10 +15,17 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
 from engine.constants import W_SMOOTH
 from engine.simulation.parameters import Case, ParameterError
+
+#: The parts of the plant where an effect (or a missing term) acts: the supply; the stator and
+#: rotor circuits; torques on the motor shaft J1; the backlash contact of the clutch; the wheel J2
+#: and the resilient element; the mass m2 with the absorber and any external load torque; the
+#: measurement chain.
+Locus = Literal["supply", "motor_electrical", "motor_shaft", "clutch", "drive_train", "load", "sensors"]
+LOCI: tuple[str, ...] = get_args(Locus)
 
 
 class UnknownEffectError(ParameterError):
@@ -47,6 +54,8 @@ class Effect:
         Value that leaves the model unchanged (the "no effect" point).
     unit : str
         Unit of the value.
+    locus : str
+        The part of the plant where it acts (one of :data:`LOCI`).
     """
 
     name: str
@@ -57,6 +66,11 @@ class Effect:
     bounds: tuple[float, float]
     neutral: float
     unit: str
+    locus: Locus
+
+    def __post_init__(self) -> None:
+        if self.locus not in LOCI:
+            raise ValueError(f"effect {self.name!r}: locus {self.locus!r} is not one of {', '.join(LOCI)}")
 
     def check(self, value: float) -> float:
         value = float(value)
@@ -95,6 +109,10 @@ class EffectLibrary(Mapping[str, Effect]):
     def __iter__(self) -> Iterator[str]:
         return iter(self._effects)
 
+    def __contains__(self, name: object) -> bool:
+        # Mapping's default relies on __getitem__ raising KeyError; ours raises UnknownEffectError
+        return name in self._effects
+
     def __len__(self) -> int:
         return len(self._effects)
 
@@ -114,42 +132,42 @@ class EffectLibrary(Mapping[str, Effect]):
         return case
 
 
-# One row per effect: name, description, target, field, mode, bounds, neutral value, unit.
+# One row per effect: name, description, target, field, mode, bounds, neutral value, unit, locus.
 # fmt: off
 CATALOGUE = EffectLibrary(
     [
         Effect("motor_coulomb_friction", f"Coulomb friction on the motor shaft: value * tanh(w_1 / {W_SMOOTH:g})",
-               "plant", "tau_C1", "set", (0.0, 0.1), 0.0, "pu"),
+               "plant", "tau_C1", "set", (0.0, 0.1), 0.0, "pu", "motor_shaft"),
         Effect("motor_viscous_friction", "viscous friction on the motor shaft: value * w_1",
-               "plant", "b_1", "set", (0.0, 0.1), 0.0, "pu"),
+               "plant", "b_1", "set", (0.0, 0.1), 0.0, "pu", "motor_shaft"),
         Effect("rotor_resistance_drift", "rotor resistance r_r multiplied by value",
-               "plant", "r_r", "multiply", (0.6, 1.6), 1.0, "x"),
+               "plant", "r_r", "multiply", (0.6, 1.6), 1.0, "x", "motor_electrical"),
         Effect("stator_resistance_drift", "stator resistance r_s multiplied by value",
-               "plant", "r_s", "multiply", (0.6, 1.6), 1.0, "x"),
+               "plant", "r_s", "multiply", (0.6, 1.6), 1.0, "x", "motor_electrical"),
         Effect("contact_stiffness", "clutch contact stiffness k_12 multiplied by value",
-               "plant", "k12", "multiply", (0.1, 10.0), 1.0, "x"),
+               "plant", "k12", "multiply", (0.1, 10.0), 1.0, "x", "clutch"),
         Effect("contact_damping", "clutch contact damping d_12 multiplied by value",
-               "plant", "d12", "multiply", (0.1, 20.0), 1.0, "x"),
+               "plant", "d12", "multiply", (0.1, 20.0), 1.0, "x", "clutch"),
         Effect("resilient_stiffness", "resilient-element stiffness k_2 multiplied by value",
-               "plant", "k2", "multiply", (0.5, 2.0), 1.0, "x"),
+               "plant", "k2", "multiply", (0.5, 2.0), 1.0, "x", "drive_train"),
         Effect("load_inertia", "drive-wheel inertia J2 multiplied by value",
-               "plant", "J2", "multiply", (0.5, 2.0), 1.0, "x"),
+               "plant", "J2", "multiply", (0.5, 2.0), 1.0, "x", "drive_train"),
         Effect("absorber_discontinuity", "absorber discontinuity c_1 multiplied by value",
-               "plant", "c1", "multiply", (0.0, 3.0), 1.0, "x"),
+               "plant", "c1", "multiply", (0.0, 3.0), 1.0, "x", "load"),
         Effect("supply_voltage", "supply voltage u multiplied by value",
-               "plant", "u", "multiply", (0.8, 1.1), 1.0, "x"),
+               "plant", "u", "multiply", (0.8, 1.1), 1.0, "x", "supply"),
         Effect("speed_quantization", "omega1 rounded to multiples of value",
-               "sensors", "speed_quantum", "set", (0.0, 0.5), 0.0, "rad/s"),
+               "sensors", "speed_quantum", "set", (0.0, 0.5), 0.0, "rad/s", "sensors"),
         Effect("measurement_delay", "every channel delayed by value",
-               "sensors", "delay", "set", (0.0, 0.001), 0.0, "s"),
+               "sensors", "delay", "set", (0.0, 0.001), 0.0, "s", "sensors"),
         Effect("sensor_lowpass", "first-order low-pass of cut-off value on every channel",
-               "sensors", "lowpass_hz", "set", (200.0, 5000.0), 0.0, "Hz"),
+               "sensors", "lowpass_hz", "set", (200.0, 5000.0), 0.0, "Hz", "sensors"),
         Effect("trigger_offset", "the record's alignment is off by value: the true event lies value after the labelled one",
-               "sensors", "trigger_offset", "set", (-0.002, 0.002), 0.0, "s"),
+               "sensors", "trigger_offset", "set", (-0.002, 0.002), 0.0, "s", "sensors"),
         Effect("sensor_gain", "every channel scaled by value",
-               "sensors", "gain", "multiply", (0.8, 1.2), 1.0, "x"),
+               "sensors", "gain", "multiply", (0.8, 1.2), 1.0, "x", "sensors"),
         Effect("sensor_offset", "constant offset of value times the channel's RMS over the test window on every channel",
-               "sensors", "offset_rms", "set", (-0.2, 0.2), 0.0, "x RMS"),
+               "sensors", "offset_rms", "set", (-0.2, 0.2), 0.0, "x RMS", "sensors"),
     ]
 )
 # fmt: on

@@ -1,11 +1,14 @@
 """Parameters of the reference plant, its sensors and the solver.
 
 Names follow the maths of MODEL.md; units are in each field's docstring.
-Two fields are *extensions* of MODEL.md with a neutral default (zero), so the
+Some fields are *extensions* of MODEL.md with a neutral default (zero), so the
 reference plant is unchanged unless an effect sets them: ``tau_C1`` and
-``b_1`` (motor-shaft friction). The sensor chain (delay, trigger offset,
-low-pass, gain, offset, quantisation) is also an extension with neutral
-defaults. See ``docs/model-changes.md``.
+``b_1`` (motor-shaft friction); since model 1.1 the terms of the held-back
+effects (``tau_ripple3``, ``clutch_offset``, ``tau_cog``, ``tau_C2``,
+``m_off``) and an additive unknown input at one locus of the plant
+(:class:`Disturbance`). The sensor chain (delay, trigger offset, low-pass,
+gain, offset, quantisation) is also an extension with neutral defaults. See
+``docs/model-changes.md``.
 """
 
 from __future__ import annotations
@@ -15,12 +18,104 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
+import numpy as np
+
 from engine import constants as const
-from engine.constants import C_GROUPS, J1_GRID, K_GRID, SAMPLE_INTERVAL, T_EVENT_MAX, TM_PER_J
+from engine.constants import (
+    C_GROUPS,
+    DISTURBANCE_MAX_KNOTS,
+    J1_GRID,
+    K_GRID,
+    SAMPLE_INTERVAL,
+    T_EVENT_MAX,
+    TM_PER_J,
+)
+
+#: Loci of the plant where an unknown input can enter (:class:`Disturbance`), in the kernel's
+#: order; every locus of :data:`engine.simulation.LOCI` but the measurement chain.
+DISTURBANCE_LOCI: tuple[str, ...] = ("supply", "motor_electrical", "motor_shaft", "clutch", "drive_train", "load")
+#: What the unknown input is at each locus, and its unit.
+DISTURBANCE_MEANING: dict[str, tuple[str, str]] = {
+    "supply": ("relative deviation of the supply voltage amplitude, u -> u (1 + d)", "x u"),
+    "motor_electrical": ("additive electromagnetic torque (in m_el and on J1)", "pu"),
+    "motor_shaft": ("torque on the motor shaft J1 (not in m_el)", "pu"),
+    "clutch": ("angle offset of the backlash zone, theta_1 - theta_2 - d", "rad"),
+    "drive_train": ("torque on the drive wheel J2", "pu"),
+    "load": ("torque on the load (mass m2)", "pu"),
+}
 
 
 class ParameterError(ValueError):
     """Raised for a physically absurd or non-finite parameter; the message says what to fix."""
+
+
+@dataclass(frozen=True)
+class Disturbance:
+    """An additive unknown input d(t) at one locus of the plant (model 1.1).
+
+    A piecewise-linear schedule: knot j lies at ``t0 + j * dt`` [s since switch-on] and holds
+    ``values[j]``; d is zero one spacing before the first knot and one spacing after the last,
+    and linear in between (so it is continuous). A schedule with a single non-zero knot is a
+    hat function of half-width ``dt``, the basis an estimator uses. The integrator cuts its
+    steps at the knots, so the kinks cost no accuracy.
+
+    Parameters
+    ----------
+    locus : str
+        Where it enters, one of :data:`DISTURBANCE_LOCI` (meaning and unit:
+        :data:`DISTURBANCE_MEANING`): ``supply`` relative voltage deviation [x u],
+        ``motor_electrical`` additive electromagnetic torque [pu], ``motor_shaft`` torque on
+        J1 [pu], ``clutch`` angle offset of the backlash zone [rad], ``drive_train`` torque on
+        J2 [pu], ``load`` torque on the mass m2 [pu].
+    t0 : float
+        Time of the first knot [s since switch-on], >= 0.
+    dt : float
+        Knot spacing [s], > 0.
+    values : tuple of float
+        Knot values in the locus's unit, 1 to ``DISTURBANCE_MAX_KNOTS`` of them.
+    step : float
+        Added to d from the switch-off (the event t_e) on, in the locus's unit: a jump at the
+        instant the motor's torque jumps too (e.g. a torque left at the switch-off).
+    """
+
+    locus: str
+    t0: float
+    dt: float
+    values: tuple[float, ...]
+    step: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "values", tuple(float(v) for v in self.values))
+
+    @property
+    def unit(self) -> str:
+        """Unit of the values."""
+        return DISTURBANCE_MEANING[self.locus][1]
+
+    def validate(self) -> Disturbance:
+        """Raise :class:`ParameterError` on an unknown locus or a malformed schedule."""
+        if self.locus not in DISTURBANCE_LOCI:
+            raise ParameterError(f"disturbance locus {self.locus!r} is not one of {', '.join(DISTURBANCE_LOCI)}")
+        if not (math.isfinite(self.t0) and self.t0 >= 0.0):
+            raise ParameterError(f"disturbance t0 = {self.t0} s must be a finite time since switch-on (>= 0)")
+        if not (math.isfinite(self.dt) and self.dt > 0.0):
+            raise ParameterError(f"disturbance knot spacing dt = {self.dt} s must be positive")
+        if not (1 <= len(self.values) <= DISTURBANCE_MAX_KNOTS):
+            raise ParameterError(
+                f"a disturbance needs 1 to {DISTURBANCE_MAX_KNOTS} knot values, got {len(self.values)}"
+            )
+        if not all(math.isfinite(v) for v in (*self.values, self.step)):
+            raise ParameterError("disturbance knot values and step must be finite")
+        if self.locus == "supply" and min(self.values) <= -1.0:
+            raise ParameterError("a supply disturbance must keep the voltage positive (values > -1)")
+        return self
+
+    def at(self, t: np.ndarray, t_event: float = math.inf) -> np.ndarray:
+        """d at times ``t`` [s since switch-on], in :attr:`unit`, with the step from ``t_event`` [s] on."""
+        t = np.asarray(t, dtype=float)
+        knots = self.t0 + self.dt * np.arange(-1, len(self.values) + 1)
+        d = np.interp(t, knots, np.concatenate([[0.0], self.values, [0.0]]))
+        return d + np.where(t >= t_event, self.step, 0.0)
 
 
 @dataclass(frozen=True)
@@ -60,6 +155,21 @@ class PlantParameters:
         Extension: Coulomb friction torque on the motor shaft, tau_C1 * tanh(w_1 / W_SMOOTH) [pu].
     b_1 : float
         Extension: viscous friction on the motor shaft, b_1 * w_1 [pu torque / pu speed].
+    tau_ripple3 : float
+        Extension (1.1): torque ripple on the load, tau_ripple3 * sin(2 pi LOAD_RIPPLE_HZ t) [pu],
+        t since switch-on.
+    clutch_offset : float
+        Extension (1.1): offset of the backlash zone [rad]: contact at theta_1 - theta_2 - offset
+        = +-b; |offset| < b (the clutch starts inside the zone).
+    tau_cog : float
+        Extension (1.1): cogging torque on the motor shaft, -tau_cog * sin(COGGING_ORDER theta_1) [pu].
+    tau_C2 : float
+        Extension (1.1): Coulomb friction of the drive wheel, tau_C2 * tanh(w_2 / W_SMOOTH) [pu].
+    m_off : float
+        Extension (1.1): share of the electromagnetic torque at the switch-off that remains and
+        decays as exp(-(t - t_e) / SWITCH_OFF_DECAY_TIME) [x]; 0 means it vanishes at once (MODEL.md).
+    disturbance : Disturbance or None
+        Extension (1.1): an additive unknown input at one locus; None means none.
     """
 
     K: float = const.K_NOMINAL
@@ -82,6 +192,12 @@ class PlantParameters:
     f: float = const.F_SUPPLY
     tau_C1: float = 0.0
     b_1: float = 0.0
+    tau_ripple3: float = 0.0
+    clutch_offset: float = 0.0
+    tau_cog: float = 0.0
+    tau_C2: float = 0.0
+    m_off: float = 0.0
+    disturbance: Disturbance | None = None
 
     @property
     def T1(self) -> float:
@@ -101,16 +217,30 @@ class PlantParameters:
     def validate(self) -> PlantParameters:
         """Raise :class:`ParameterError` on a non-finite or physically absurd value."""
         for f in fields(self):
+            if f.name == "disturbance":
+                continue
             v = getattr(self, f.name)
             if not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ParameterError(f"plant parameter {f.name} must be a finite number, got {v!r}")
+        if self.disturbance is not None:
+            if not isinstance(self.disturbance, Disturbance):
+                raise ParameterError(
+                    f"disturbance must be a Disturbance or None, got {type(self.disturbance).__name__}"
+                )
+            self.disturbance.validate()
         _check_range("K", self.K, 1e-5, 0.05, "m")
         for name in ("J1", "J2"):
             _check_range(name, getattr(self, name), 0.05, 20.0, "kg m^2")
         _check_range("T3", self.T3, 1e-3, 20.0, "s")
         _check_range("r", self.r, 1e-3, 10.0, "m")
-        for name in ("c", "c1", "d12", "d2", "tau_C1", "b_1"):
+        for name in ("c", "c1", "d12", "d2", "tau_C1", "b_1", "tau_ripple3", "tau_cog", "tau_C2"):
             _check_range(name, getattr(self, name), 0.0, 100.0, "pu")
+        if not abs(self.clutch_offset) < self.b:
+            raise ParameterError(
+                f"clutch_offset = {self.clutch_offset} rad must be smaller in magnitude than the zone's "
+                f"half-width b = K / r = {self.b:.4g} rad (the clutch starts inside the zone)"
+            )
+        _check_range("m_off", self.m_off, -1.0, 1.0, "x")
         for name in ("k12", "k2"):
             _check_range(name, getattr(self, name), 1e-3, 1e5, "pu/rad")
         for name in ("r_s", "r_r"):
@@ -128,7 +258,8 @@ class PlantParameters:
         _check_names(self, changes)
         return replace(self, **changes)
 
-    def as_dict(self) -> dict[str, float]:
+    def as_dict(self) -> dict[str, Any]:
+        """Every field by name; the disturbance (if any) as a dict of its own."""
         return asdict(self)
 
 
@@ -237,7 +368,7 @@ class Case:
     def from_overrides(cls, overrides: Mapping[str, float] | None = None) -> Case:
         """Build a case from flat overrides of plant or sensor fields (e.g. ``{"K": 0.005, "delay": 1e-4}``)."""
         overrides = dict(overrides or {})
-        plant_names = {f.name for f in fields(PlantParameters)}
+        plant_names = {f.name for f in fields(PlantParameters) if f.name != "disturbance"}  # scalars only
         sensor_names = {f.name for f in fields(SensorParameters)}
         unknown = set(overrides) - plant_names - sensor_names
         if unknown:
@@ -245,7 +376,7 @@ class Case:
                 f"unknown parameter(s) {sorted(unknown)}; plant parameters: {sorted(plant_names)}, "
                 f"sensor parameters: {sorted(sensor_names)}"
             )
-        plant = PlantParameters(**{k: float(v) for k, v in overrides.items() if k in plant_names})
+        plant = PlantParameters().replace(**{k: float(v) for k, v in overrides.items() if k in plant_names})
         sensors = SensorParameters(**{k: float(v) for k, v in overrides.items() if k in sensor_names})
         return cls(plant, sensors)
 

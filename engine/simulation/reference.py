@@ -1,6 +1,7 @@
 """Reference solution of the backlash test with scipy's ``solve_ivp``.
 
-A second, independent transcription of MODEL.md and of the effect catalogue,
+A second, independent transcription of MODEL.md, of the effect catalogue, of the
+held-back effects and of the additive unknown input of model 1.1,
 used as the yardstick of the numba kernel (MODEL.md section 4, relative
 tolerance 1e-9; ``tests/test_simulation_accuracy.py``) and as the baseline of
 ``bench/bench_simulator.py``. It is slow on purpose: plain numpy, complex
@@ -16,6 +17,18 @@ effects by catalogue name, and it writes every effect's physics out again
 from the effect's documented meaning (:data:`EFFECT_NEUTRAL`). The only thing
 shared are the *numbers* of the spec, read from :mod:`engine.constants`, and the record's grid (only its three numbers:
 interval, length, event index).
+
+Model 1.1 (``docs/model-changes.md``)
+-------------------------------------
+The held-back effects (:data:`engine.simulation.HELD_BACK`) are effects by name here
+too: a load torque ripple ``v sin(2 pi LOAD_RIPPLE_HZ t)`` on the mass, the backlash
+zone centred on ``v`` instead of 0, a cogging torque ``-v sin(COGGING_ORDER theta_1)`` on
+the motor shaft, a Coulomb friction ``v tanh(w_2 / W_SMOOTH)`` of the wheel, and an
+share v of the electromagnetic torque at the switch-off that decays as
+``v m_el(t_e) exp(-(t - t_e) / SWITCH_OFF_DECAY_TIME)`` after the
+switch-off (written in closed form here; the kernel integrates it as a state). The
+unknown input is a plain mapping ``{"locus", "t0", "dt", "values"}`` (see
+:func:`reference_simulate`), interpolated with ``numpy.interp``.
 
 Sensor chain
 ------------
@@ -51,9 +64,12 @@ from scipy.integrate import solve_ivp
 from engine import constants as const
 from engine.constants import (
     CHANNELS,
+    COGGING_ORDER,
+    LOAD_RIPPLE_HZ,
     OMEGA_B,
     POST_EVENT_TIME,
     PRE_EVENT_TIME,
+    SWITCH_OFF_DECAY_TIME,
     T_EVENT_MAX,
     TM_PER_J,
     W_B,
@@ -111,6 +127,20 @@ EFFECT_NEUTRAL: Mapping[str, float] = {
     "sensor_offset": 0.0,  # every channel plus value * its RMS over the test window
 }
 
+#: The held-back effects (model 1.1), at their "no effect" value.
+HELD_BACK_NEUTRAL: Mapping[str, float] = {
+    "load_torque_ripple": 0.0,  # pu: + value * sin(2 pi LOAD_RIPPLE_HZ t) on the mass m2
+    "clutch_offset": 0.0,  # rad: contact where theta_1 - theta_2 - value = +-b
+    "motor_cogging": 0.0,  # pu: - value * sin(COGGING_ORDER theta_1) on the motor shaft
+    "wheel_coulomb_friction": 0.0,  # pu: - value * tanh(w_2 / W_SMOOTH) on the wheel
+    "switch_off_decay": 0.0,  # after t_e, m_el = value m_el(t_e) exp(-(t - t_e) / SWITCH_OFF_DECAY_TIME)
+}
+
+#: Loci of the unknown input, what it is there (see the kernel): the supply voltage is scaled
+#: by (1 + d); an electromagnetic torque d is added (channel and shaft); a torque d acts on
+#: the motor shaft, the wheel or the mass; the backlash zone is moved by d [rad].
+DISTURBANCE_LOCI: tuple[str, ...] = ("supply", "motor_electrical", "motor_shaft", "clutch", "drive_train", "load")
+
 _N_PLANT = 10  # psi_s (2), psi_r (2), w_1..3, theta_1..3
 _N_CHANNELS = len(CHANNELS)
 _OMEGA1 = CHANNELS.index("omega1")
@@ -146,11 +176,36 @@ def _resolve(parameters: Mapping[str, float] | None, effects: Mapping[str, float
         if name not in MODEL_DEFAULTS:
             raise ValueError(f"unknown MODEL.md parameter {name!r}; known: {', '.join(MODEL_DEFAULTS)}")
         values[name] = float(value)
+    neutral_values = {**EFFECT_NEUTRAL, **HELD_BACK_NEUTRAL}
     for name in effects or {}:
-        if name not in EFFECT_NEUTRAL:
-            raise ValueError(f"the reference does not implement effect {name!r}; known: {', '.join(EFFECT_NEUTRAL)}")
-    values.update({name: float((effects or {}).get(name, neutral)) for name, neutral in EFFECT_NEUTRAL.items()})
+        if name not in neutral_values:
+            raise ValueError(f"the reference does not implement effect {name!r}; known: {', '.join(neutral_values)}")
+    values.update({name: float((effects or {}).get(name, neutral)) for name, neutral in neutral_values.items()})
     return values
+
+
+class _Input:
+    """The unknown input d(t) of a ``{"locus", "t0", "dt", "values"}`` mapping (zero one spacing outside its knots)."""
+
+    def __init__(self, spec: Mapping[str, Any] | None):
+        self.locus = None if spec is None else str(spec["locus"])
+        if self.locus is not None and self.locus not in DISTURBANCE_LOCI:
+            raise ValueError(f"unknown disturbance locus {self.locus!r}; known: {', '.join(DISTURBANCE_LOCI)}")
+        self.step = 0.0 if spec is None else float(spec.get("step", 0.0))
+        self.values: np.ndarray
+        self.knots: np.ndarray
+        if spec is None:
+            self.knots = self.values = np.zeros(1)
+        else:
+            # zero one spacing outside the knots, linear in between
+            self.values = np.concatenate([[0.0], np.asarray(spec["values"], dtype=float), [0.0]])
+            self.knots = float(spec["t0"]) + float(spec["dt"]) * np.arange(-1, self.values.size - 1)
+
+    def at(self, locus: str, t: float, motor_on: bool = True) -> float:
+        """d(t) if the input acts at ``locus``, else 0 (the step is added once the motor is off)."""
+        if locus != self.locus:
+            return 0.0
+        return float(np.interp(t, self.knots, self.values)) + (0.0 if motor_on else self.step)
 
 
 class ReferenceModel:
@@ -162,12 +217,25 @@ class ReferenceModel:
     Parameters
     ----------
     values : mapping
-        Every MODEL.md name and every effect name of :data:`EFFECT_NEUTRAL`
-        (see :func:`reference_simulate`).
+        Every MODEL.md name and every effect name of :data:`EFFECT_NEUTRAL` and
+        :data:`HELD_BACK_NEUTRAL` (see :func:`reference_simulate`).
+    disturbance : mapping, optional
+        The unknown input ``{"locus", "t0", "dt", "values"}``.
+
+    Attributes
+    ----------
+    switch_off : tuple of float
+        (t_e [s], m_el at t_e [pu]), set by the caller at the switch-off; the torque's decay
+        after it (``switch_off_decay``) starts from there.
     """
 
-    def __init__(self, values: Mapping[str, float]):
+    def __init__(self, values: Mapping[str, float], disturbance: Mapping[str, Any] | None = None):
         v = values
+        self.input = _Input(disturbance)
+        self.ripple, self.offset = v["load_torque_ripple"], v["clutch_offset"]
+        self.cogging, self.wheel_friction = v["motor_cogging"], v["wheel_coulomb_friction"]
+        self.decay = v["switch_off_decay"]
+        self.switch_off = (math.inf, 0.0)
         self.u = v["u"] * v["supply_voltage"]
         self.f = v["f"]
         self.r_s = v["r_s"] * v["stator_resistance_drift"]
@@ -198,11 +266,15 @@ class ReferenceModel:
         m_el = 0.0
         if motor_on:
             i_s, i_r = self.Linv @ psi
-            u_s = self.u * np.exp(1j * self.f * W_B * t)
+            u_s = self.u * (1.0 + self.input.at("supply", t)) * np.exp(1j * self.f * W_B * t)
             dpsi[0] = W_B * (u_s - self.r_s * i_s)
             dpsi[1] = W_B * (-self.r_r * i_r + 1j * w[0] * psi[1])
             m_el = float(np.imag(np.conj(psi[0]) * i_s))
-        d, dw, b = th[0] - th[1], w[0] - w[1], self.half_gap
+        elif self.decay != 0:
+            t_e, m_e = self.switch_off
+            m_el = self.decay * m_e * math.exp(-(t - t_e) / SWITCH_OFF_DECAY_TIME)
+        m_el += self.input.at("motor_electrical", t, motor_on)
+        d, dw, b = self.deflection(t, y, motor_on), w[0] - w[1], self.half_gap
         if d > b:
             m_c = max(0.0, self.k12 * (d - b) + self.d12 * dw)
         elif d < -b:
@@ -212,7 +284,21 @@ class ReferenceModel:
         m_s = self.k2 * (th[1] - th[2]) + self.d2 * (w[1] - w[2])
         m_a = self.c * w[2] + self.c1 * np.tanh(w[2] / W_SMOOTH)
         m_f = self.coulomb * np.tanh(w[0] / W_SMOOTH) + self.viscous * w[0]
-        dw_dt = np.array([m_el - m_c - m_f, m_c - m_s, m_s - m_a]) / self.T
+        m_f += self.cogging * math.sin(COGGING_ORDER * th[0])
+        torques = np.array(
+            [
+                m_el - m_c - m_f + self.input.at("motor_shaft", t, motor_on),
+                m_c
+                - m_s
+                - self.wheel_friction * math.tanh(w[1] / W_SMOOTH)
+                + self.input.at("drive_train", t, motor_on),
+                m_s
+                - m_a
+                + self.ripple * math.sin(2.0 * math.pi * LOAD_RIPPLE_HZ * t)
+                + self.input.at("load", t, motor_on),
+            ]
+        )
+        dw_dt = torques / self.T
         raw = np.array(
             [self.r * OMEGA_B * dw_dt[0], m_el, OMEGA_B * w[0], self.r * OMEGA_B * dw_dt[2], self.r * OMEGA_B * w[2]]
         )
@@ -220,6 +306,10 @@ class ReferenceModel:
         if self.filter_rate:
             parts.append(self.filter_rate * (raw - y[_N_PLANT:]))
         return np.concatenate(parts), raw
+
+    def deflection(self, t: float, y: np.ndarray, motor_on: bool = True) -> float:
+        """theta_1 - theta_2 measured from the centre of the backlash zone [rad]."""
+        return float(y[7] - y[8] - self.offset - self.input.at("clutch", t, motor_on))
 
     def channels(self, t: float, y: np.ndarray, motor_on: bool) -> np.ndarray:
         """Channels a1, m_el, omega1, a2, v2 as the sensors read them at (t, y), before quantisation."""
@@ -235,6 +325,7 @@ def reference_simulate(
     rtol: float = 1e-9,
     atol: float = 1e-12,
     grid: SampleGrid | None = None,
+    disturbance: Mapping[str, Any] | None = None,
 ) -> ReferenceResult:
     """Solve the backlash test with ``solve_ivp`` (see the module docstring).
 
@@ -244,12 +335,18 @@ def reference_simulate(
         MODEL.md parameters that differ from :data:`MODEL_DEFAULTS`, by their
         MODEL.md names (e.g. ``{"K": 0.005, "J1": 0.87, "c": 1.0}``).
     effects : mapping, optional
-        Catalogued effects by name and value (keys of :data:`EFFECT_NEUTRAL`).
+        Catalogued and held-back effects by name and value (keys of :data:`EFFECT_NEUTRAL`
+        and :data:`HELD_BACK_NEUTRAL`).
     method, rtol, atol
         ``solve_ivp`` settings.
     grid : SampleGrid, optional
         The record's sample grid (its ``sample_interval`` [s], ``n_samples`` and
         ``event_index`` only); default MODEL.md's (0.1 ms, 2048 samples, event at 48).
+    disturbance : mapping, optional
+        An unknown input: ``locus`` (one of :data:`DISTURBANCE_LOCI`), ``t0`` (first knot [s
+        since switch-on]), ``dt`` (knot spacing [s]) and ``values`` (knot values in the locus's
+        unit); zero one spacing before the first knot and after the last, linear in between;
+        optionally ``step``, added from the switch-off (the event) on.
 
     Returns
     -------
@@ -263,7 +360,7 @@ def reference_simulate(
         No event within 1 s, or the solver failed.
     """
     values = _resolve(parameters, effects)
-    model = ReferenceModel(values)
+    model = ReferenceModel(values, disturbance)
     b = model.half_gap
 
     def f_on(t: float, y: np.ndarray) -> np.ndarray:
@@ -274,7 +371,7 @@ def reference_simulate(
 
     def event(direction: float) -> Callable[[float, np.ndarray], float]:
         def gap(t: float, y: np.ndarray) -> float:
-            return float(abs(y[7] - y[8]) - b)
+            return abs(model.deflection(t, y)) - b
 
         gap.terminal = True  # type: ignore[attr-defined]
         gap.direction = direction  # type: ignore[attr-defined]
@@ -291,6 +388,7 @@ def reference_simulate(
         raise RuntimeError(f"reference: no re-entry into the backlash zone within {T_EVENT_MAX} s ({s2.message})")
     t_e = float(s2.t_events[0][0])
     y_e = s2.y_events[0][0]
+    model.switch_off = (t_e, float(model.derivatives(t_e, y_e, True)[1][1] - model.input.at("motor_electrical", t_e)))
     ts, n, e = _grid_numbers(grid)
     t_k = t_e + (np.arange(n) - e) * ts - values["measurement_delay"] - values["trigger_offset"]
     s3 = solve_ivp(f_off, (t_e, max(t_k[-1], t_e) + 1e-9), y_e, **kw)
@@ -337,7 +435,8 @@ def reference_inputs(case: Case) -> tuple[dict[str, float], dict[str, float]]:
     extension fields and the sensor chain become their catalogue effects.
     Multiplicative effects are already folded into the case's values. The
     accuracy tests describe their cases to the reference directly, so that
-    :func:`~engine.simulation.effects.apply_effects` is checked too.
+    :func:`~engine.simulation.effects.apply_effects` is checked too. The case's unknown
+    input, if any, is :func:`reference_disturbance`.
     """
     p, s = case.plant, case.sensors
     parameters = {name: float(getattr(p, name)) for name in MODEL_DEFAULTS}
@@ -350,5 +449,18 @@ def reference_inputs(case: Case) -> tuple[dict[str, float], dict[str, float]]:
         "trigger_offset": s.trigger_offset,
         "sensor_gain": s.gain,
         "sensor_offset": s.offset_rms,
+        "load_torque_ripple": p.tau_ripple3,
+        "clutch_offset": p.clutch_offset,
+        "motor_cogging": p.tau_cog,
+        "wheel_coulomb_friction": p.tau_C2,
+        "switch_off_decay": p.m_off,
     }
     return parameters, effects
+
+
+def reference_disturbance(case: Case) -> dict[str, Any] | None:
+    """The reference's ``disturbance`` mapping of a simulator case's unknown input (None without one)."""
+    d = case.plant.disturbance
+    if d is None:
+        return None
+    return {"locus": d.locus, "t0": d.t0, "dt": d.dt, "values": list(d.values), "step": d.step}

@@ -27,10 +27,20 @@ import numpy as np
 from engine.constants import CHANNELS
 from engine.records import PROTOCOL_GRID, Record, SampleGrid
 from engine.simulation import _kernel as kern
-from engine.simulation.effects import apply_effects
+from engine.simulation.effects import CATALOGUE, EffectLibrary, apply_effects
 from engine.simulation.parameters import Case, ParameterError, PlantParameters, SolverSettings
 
 logger = logging.getLogger(__name__)
+
+#: Kernel code of each locus of an unknown input (``Disturbance.locus``).
+DISTURBANCE_CODES: Final[dict[str, int]] = {
+    "supply": kern.DIST_SUPPLY,
+    "motor_electrical": kern.DIST_MOTOR_ELECTRICAL,
+    "motor_shaft": kern.DIST_MOTOR_SHAFT,
+    "clutch": kern.DIST_CLUTCH,
+    "drive_train": kern.DIST_DRIVE_TRAIN,
+    "load": kern.DIST_LOAD,
+}
 
 #: Integrator settings used when a caller gives none (immutable, so one shared instance).
 DEFAULT_SOLVER: Final[SolverSettings] = SolverSettings()
@@ -147,8 +157,9 @@ def parameter_vector(
     Parameters
     ----------
     case : Case
-        Plant and measurement chain; only the chain's delay, trigger offset and low-pass
-        enter the kernel (gain, offset and quantisation act afterwards: :func:`apply_sensor_readout`).
+        Plant (with its model-1.1 terms and unknown input, if any) and measurement chain; only
+        the chain's delay, trigger offset and low-pass enter the kernel (gain, offset and
+        quantisation act afterwards: :func:`apply_sensor_readout`).
     solver : SolverSettings
         RK4 step [s] and the longest time to the event [s].
     grid : SampleGrid
@@ -171,6 +182,19 @@ def parameter_vector(
     P[kern.P_STEP], P[kern.P_T_MAX] = solver.max_step, solver.t_event_max
     P[kern.P_TS], P[kern.P_EVENT_INDEX] = grid.sample_interval, float(grid.event_index)
     P[kern.P_TRIGGER_OFFSET] = s.trigger_offset
+    P[kern.P_TAU_RIPPLE3], P[kern.P_CLUTCH_OFFSET], P[kern.P_TAU_COG] = p.tau_ripple3, p.clutch_offset, p.tau_cog
+    P[kern.P_TAU_C2], P[kern.P_M_OFF] = p.tau_C2, p.m_off
+    P[kern.P_DIST_LOCUS : kern.N_PARAMS] = 0.0  # no unknown input; the switch-off instant is the kernel's
+    P[kern.P_DIST_DT] = 1.0
+    dist = p.disturbance
+    if dist is not None:
+        n = len(dist.values)
+        P[kern.P_DIST_LOCUS] = DISTURBANCE_CODES[dist.locus]
+        P[kern.P_DIST_T0], P[kern.P_DIST_DT], P[kern.P_DIST_N] = dist.t0, dist.dt, n
+        P[kern.P_DIST_STEP] = dist.step
+        P[kern.P_DIST_VALUES : kern.P_DIST_VALUES + n] = dist.values
+    extended = dist is not None or any(P[kern.P_TAU_RIPPLE3 : kern.P_M_OFF + 1] != 0.0)
+    P[kern.P_EXTENDED] = 1.0 if extended else 0.0
     return P
 
 
@@ -299,6 +323,7 @@ def simulate_batch(
     effects: Mapping[str, float] | Sequence[Mapping[str, float]] | None = None,
     solver: SolverSettings = DEFAULT_SOLVER,
     grid: SampleGrid = PROTOCOL_GRID,
+    library: EffectLibrary = CATALOGUE,
 ) -> SimulationResult:
     """Simulate many cases of the backlash test in one call.
 
@@ -307,13 +332,16 @@ def simulate_batch(
     cases : sequence of Case or PlantParameters
         The cases; every MODEL.md parameter can differ per case.
     effects : mapping or sequence of mappings, optional
-        Unmodelled effects by catalogue name and value (see
+        Unmodelled effects by name (in ``library``) and value (see
         :mod:`engine.simulation.effects`), one mapping for all cases or one per case.
     solver : SolverSettings
         Integrator settings.
     grid : SampleGrid
         Sample instants of the records (default: MODEL.md's grid, 2048 samples of 0.1 ms,
         the event at sample 48); e.g. a measured record's ``grid`` to compare with it.
+    library : EffectLibrary
+        Where the names of ``effects`` are looked up: the catalogue by default;
+        e.g. :data:`~engine.simulation.held_back.HELD_BACK` for the held-back effects.
 
     Returns
     -------
@@ -333,7 +361,7 @@ def simulate_batch(
         per_case = [effects] * len(norm) if isinstance(effects, Mapping) else list(effects)
         if len(per_case) != len(norm):
             raise ValueError(f"got {len(per_case)} effect mappings for {len(norm)} cases")
-        norm = [apply_effects(c, e) for c, e in zip(norm, per_case, strict=True)]
+        norm = [apply_effects(c, e, library) for c, e in zip(norm, per_case, strict=True)]
     for c in norm:
         c.validate()
         check_step(c, solver)
@@ -352,6 +380,7 @@ def simulate(
     effects: Mapping[str, float] | None = None,
     solver: SolverSettings = DEFAULT_SOLVER,
     grid: SampleGrid = PROTOCOL_GRID,
+    library: EffectLibrary = CATALOGUE,
 ) -> Record:
     """Simulate one case and return its record on ``grid`` (see :func:`simulate_batch`)."""
-    return simulate_batch([case], effects, solver, grid).record(0)
+    return simulate_batch([case], effects, solver, grid, library).record(0)

@@ -185,6 +185,7 @@ class FakeLongJobs:
     def __init__(self) -> None:
         self.main_job: list[Path] = []
         self.validation: list[dict[str, Any]] = []
+        self.validation_v2: list[dict[str, Any]] = []
         self.scored: list[Path] = []
 
     def run(self, out_dir: Path) -> Any:
@@ -194,6 +195,10 @@ class FakeLongJobs:
     def run_validation(self, **kwargs: Any) -> Any:
         self.validation.append(kwargs)
         return types.SimpleNamespace(table=lambda: "| top-1 | 0.95 |")
+
+    def run_validation_v2(self, **kwargs: Any) -> dict[str, Any]:
+        self.validation_v2.append(kwargs)
+        return {"summary": "| v2 |"}
 
     def score_identification(self, out_dir: Path) -> dict[str, Any]:
         self.scored.append(out_dir)
@@ -206,8 +211,12 @@ def long_jobs(monkeypatch: pytest.MonkeyPatch) -> FakeLongJobs:
     from engine.diagnosis import validation
     from engine.evaluation import identification as scoring
     from engine.evaluation import main_job
+    from engine.validation import report as report_v2
+    from engine.validation import run as run_v2
 
     fake = FakeLongJobs()
+    monkeypatch.setattr(run_v2, "run_validation", fake.run_validation_v2)
+    monkeypatch.setattr(report_v2, "summary_markdown", lambda doc: doc["summary"])
     monkeypatch.setattr(main_job, "run", fake.run)
     monkeypatch.setattr(validation, "run_validation", fake.run_validation)
     monkeypatch.setattr(scoring, "score_identification", fake.score_identification)
@@ -233,7 +242,7 @@ def test_validate_calls_the_blind_validation(
 ) -> None:
     monkeypatch.chdir(tmp_path)
     Path("v").mkdir()
-    code, out, _ = run(capsys, "validate", "--cases", "12", "--seed", "3", "--out", "v")
+    code, out, _ = run(capsys, "validate", "--protocol", "1", "--cases", "12", "--seed", "3", "--out", "v")
     assert code == 0 and out.startswith("| top-1 | 0.95 |") and "| after | 0.9 |" in out
     assert long_jobs.validation == [{"n_cases": 12, "seed": 3, "out_dir": Path("v"), "workers": 2}]
     assert long_jobs.scored == [Path("v")] and Path("v/identification.md").read_text() == "| after | 0.9 |"
@@ -255,12 +264,23 @@ def test_validate_refuses_a_directory_that_holds_a_run(
 @pytest.mark.parametrize(
     ("argv", "expected"),
     [
-        (["run"], {"main_job": [Path("out")], "validation": []}),
+        (["run"], {"main_job": [Path("out")], "validation": [], "validation_v2": []}),
+        (
+            ["validate", "--protocol", "1"],
+            {
+                "main_job": [],
+                "validation": [{"n_cases": 200, "seed": 53, "out_dir": Path("out/validation"), "workers": 2}],
+                "validation_v2": [],
+            },
+        ),
         (
             ["validate"],
             {
                 "main_job": [],
-                "validation": [{"n_cases": 200, "seed": 53, "out_dir": Path("out/validation"), "workers": 2}],
+                "validation": [],
+                "validation_v2": [
+                    {"n_cases": 300, "seed": 97, "out_dir": Path("out/validation"), "workers": 2, "mix": None}
+                ],
             },
         ),
     ],
@@ -278,7 +298,11 @@ def test_long_jobs_take_their_documented_defaults(
     (tmp_path / "out" / "validation").mkdir(parents=True)
     code, _, err = run(capsys, *argv)
     assert code == 0, err
-    assert {"main_job": long_jobs.main_job, "validation": long_jobs.validation} == expected
+    assert {
+        "main_job": long_jobs.main_job,
+        "validation": long_jobs.validation,
+        "validation_v2": long_jobs.validation_v2,
+    } == expected
 
 
 @pytest.mark.parametrize("command", ["run", "validate"])
@@ -289,7 +313,7 @@ def test_long_jobs_refuse_unknown_arguments_before_starting(
         cli.main([command, "--bogus", "1"])
     assert exc.value.code == 2
     assert "unrecognized arguments: --bogus 1" in capsys.readouterr().err
-    assert long_jobs.main_job == long_jobs.validation == []  # nothing started
+    assert long_jobs.main_job == long_jobs.validation == long_jobs.validation_v2 == []  # nothing started
 
 
 def test_bench_runs_the_benchmark_script(

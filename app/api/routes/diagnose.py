@@ -12,6 +12,7 @@ from app.api.openapi import body_schema
 from app.schemas.common import ErrorPublic
 from app.schemas.diagnose import DiagnoseCreate
 from app.services import diagnosis
+from engine.diagnosis.space import check_bounds
 from engine.simulation import CATALOGUE
 
 router = APIRouter(prefix="/diagnose", tags=["diagnose"])
@@ -27,7 +28,8 @@ router = APIRouter(prefix="/diagnose", tags=["diagnose"])
 )
 async def diagnose(request: Request, csv_params: CSVRecordDep) -> Any:
     """Where the record differs from the calibrated simulation, which unmodelled effect explains it and how far
-    the gap shrinks with it. The body is ``{"record": ..., "effects": [...]}`` as JSON, or the record's CSV form
+    the gap shrinks with it. The body is ``{"record": ..., "effects": [...], "bounds": {...}}`` as JSON, or the
+    record's CSV form
     (optionally with a ``t`` column; ``sample_interval``, ``event_index``, ``units``, ``base_torque`` and the
     known conditions as query parameters).
 
@@ -36,12 +38,14 @@ async def diagnose(request: Request, csv_params: CSVRecordDep) -> Any:
     read (event, window of samples used), and ``records.before`` / ``records.after`` come back on its grid and
     in its units.
     """
+    bounds = None
     if body_kind(request) == "csv":
         record, effects = await csv_record(request, csv_params), None
     else:
         reject_query(request, CSV_QUERY)
         body = await json_body(request, DiagnoseCreate)
-        record, effects = body.record.to_record(), body.effects
+        record, effects, bounds = body.record.to_record(), body.effects, body.bounds
     for name in effects or ():
         CATALOGUE[name]  # UnknownEffectError (422) names the known effects
-    return await run_in_threadpool(diagnosis.diagnose, record, effects)
+    check_bounds(bounds)  # BoundsError (422) says what to fix before any work is done
+    return await run_in_threadpool(diagnosis.diagnose, record, effects, bounds)

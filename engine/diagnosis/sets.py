@@ -1,0 +1,531 @@
+"""Several effects at once: candidate sets of up to three effects, and the gap budget of a fit.
+
+When no single effect brings the residual to the noise, the record may carry
+two or three effects at once. :func:`search_sets` fits sets of effects
+together with the calibration (one more bounded parameter per effect,
+:meth:`engine.diagnosis.space.ModelSpace.with_effects`) by greedy forward
+selection:
+
+1. **Pairs**: every pair among the ``pool`` best single candidates (by BIC,
+   only those that lower the nominal BIC), less pairs that are the same physics
+   (two pure time shifts, or two effects on the same field). Each pair is fitted
+   from seeds built of its members' single fits (the better member's
+   calibration with the other effect at its single-fit value and at its neutral
+   value), by least squares at the search step.
+2. **Triples**: the ``n_extend`` best pairs, each extended by every other
+   pool member, seeded the same way from the pair's fit; only when no pair fits
+   to the noise.
+3. **Escalation**: when no set fits to the noise after the seeded fits, the best
+   set of each size gets the full global search in its joint space (strong
+   effects can drag every single fit out of the true basin).
+4. **Polish**: the best sets are refined at the final integrator step.
+5. **Backward elimination**: a polished set that fits to the noise but has a
+   weak member (one that moves the record by at most ``min_strength`` noise
+   RMS on its own) is refitted without it, seeded from its own fit: a spurious
+   third effect often lets the search reach the basin that the smaller set's
+   seeded fit missed.
+
+Evidence is the same BIC as for single effects (``chi2 + k ln n``): every
+added effect must lower chi2 by more than ln(n) (about 9 for five channels) to
+pay for its parameter, and the decision (:func:`engine.diagnosis.diagnose.decide`)
+asks a larger set to beat the best smaller model by ``min_delta_bic``.
+
+Gap budget (:func:`gap_budget`)
+-------------------------------
+How much of the nominal model's excess residual energy ``E0 = chi2_0 - n``
+[noise variances] each effect of a fit removes, and what is left: the fit
+closes ``E0 - E_S`` (``E_S = max(chi2_S - n, 0)``), and that is split among
+its effects in proportion to their Shapley values of the game
+``v(T) = chi2(fit with only the effects in T) - chi2(fit with all)``
+evaluated at the fit's operating point without refitting (``2^k``
+simulations): an order-free attribution that credits interacting effects
+fairly. Shares and ``left = E_S / E0`` sum to 1.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from engine.constants import CHANNELS
+from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings, calibrate
+from engine.diagnosis.candidate import Candidate, CandidateSettings
+from engine.diagnosis.gap import Gap, gap_of, shrinkage_ratio
+from engine.diagnosis.space import TIME_SHIFT_EFFECTS, ModelSpace
+from engine.parallel import Runner, single_threaded_blas
+from engine.records import Record
+from engine.simulation import Case, Effect, EffectLibrary, SolverSettings, run_cases, serial_kernel
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["CandidateSet", "SetSettings", "gap_budget", "same_physics", "search_sets"]
+
+
+@dataclass(frozen=True)
+class SetSettings:
+    """Settings of the search for sets of effects.
+
+    Parameters
+    ----------
+    max_size : int
+        Largest set (3).
+    pool : int
+        Best single candidates (by BIC) the sets are built from.
+    n_extend : int
+        Best pairs extended to triples.
+    escalate : bool
+        Global search for the best set of each size when no seeded set fits to the noise.
+    escalate_above : float
+        A set "fits to the noise" for the escalation rule when its search-step chi2/n is at most this.
+    n_polish : int
+        Best sets (by BIC) refined at the final integrator step.
+    n_report : int
+        Sets kept in the result (best BIC first).
+    min_strength : float
+        A member of a set that fits to the noise but moves the record by at most this many
+        noise RMS on its own is dropped and the rest refitted (backward elimination); the
+        diagnosis passes its own ``min_strength``.
+    """
+
+    max_size: int = 3
+    pool: int = 5
+    n_extend: int = 2
+    escalate: bool = True
+    escalate_above: float = 1.1
+    n_polish: int = 3
+    n_report: int = 5
+    min_strength: float = 3.0
+
+
+@dataclass
+class CandidateSet:
+    """A set of effects fitted together with the calibration.
+
+    Attributes
+    ----------
+    effects : tuple of str
+        Effect names, in the order fitted.
+    calibration : CalibrationResult or None
+        The joint fit.
+    units : dict of str to str
+        Unit of each effect's value.
+    loci : dict of str to str
+        Locus of each effect.
+    bic : float
+        Bayesian information criterion of the fit.
+    gap : Gap or None
+        The gap left by the fit.
+    shrinkage : float
+        Excess energy of the nominal fit over that of this fit.
+    strengths : dict of str to float
+        Per effect: the largest channel RMS change when that effect alone is set to neutral
+        at the fit's operating point [noise standard deviations].
+    shares : dict of str to float
+        Gap budget: fraction of the nominal excess energy each effect removes (see module notes).
+    left : float
+        Fraction of the nominal excess energy left by the fit.
+    delta_bic : float
+        BIC minus the best model's BIC.
+    weight : float
+        Posterior probability among every model fitted (nominal, singles, sets).
+    note : str
+        Remarks (e.g. why it was not refined).
+    """
+
+    effects: tuple[str, ...]
+    calibration: CalibrationResult | None
+    units: dict[str, str]
+    loci: dict[str, str]
+    bic: float
+    gap: Gap | None = None
+    shrinkage: float = 1.0
+    strengths: dict[str, float] = field(default_factory=dict)
+    shares: dict[str, float] = field(default_factory=dict)
+    left: float = math.nan
+    delta_bic: float = 0.0
+    weight: float = 0.0
+    note: str = ""
+
+    @property
+    def name(self) -> str:
+        """The effects joined by ``+``."""
+        return "+".join(self.effects)
+
+    @property
+    def values(self) -> dict[str, float]:
+        """Fitted value of every effect, in its unit."""
+        cal = self.calibration
+        return {e: cal.values[e] for e in self.effects} if cal is not None else {}
+
+    @property
+    def uncertainties(self) -> dict[str, float | None]:
+        """One standard deviation of every effect's value."""
+        cal = self.calibration
+        return {e: cal.uncertainties.get(e) for e in self.effects} if cal is not None else {}
+
+    @property
+    def strength(self) -> float:
+        """The weakest member's strength (a set is only as credible as its weakest effect)."""
+        return min(self.strengths.values()) if self.strengths else math.nan
+
+    @classmethod
+    def from_fit(cls, effects: Sequence[Effect], cal: CalibrationResult, nominal: CalibrationResult) -> CandidateSet:
+        """The set of a joint fit ``cal`` of ``effects``, compared with the ``nominal`` calibration."""
+        return cls(
+            effects=tuple(e.name for e in effects),
+            calibration=cal,
+            units={e.name: e.unit for e in effects},
+            loci={e.name: e.locus for e in effects},
+            bic=cal.bic,
+            gap=gap_of(cal),
+            shrinkage=shrinkage_ratio(nominal, cal),
+        )
+
+    def effect_rows(self) -> list[dict[str, Any]]:
+        """One row per effect, ``{"effect", "value", "uncertainty", "unit", "locus", "share", "strength"}``,
+        largest share first."""
+        rows = [
+            {
+                "effect": e,
+                "value": self.values.get(e),
+                "uncertainty": self.uncertainties.get(e),
+                "unit": self.units[e],
+                "locus": self.loci[e],
+                "share": self.shares.get(e),
+                "strength": self.strengths.get(e),
+            }
+            for e in self.effects
+        ]
+        return sorted(rows, key=lambda r: -(r["share"] if r["share"] is not None else -math.inf))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (the calibration without arrays)."""
+        return {
+            "kind": "set",
+            "effect": self.name,
+            "effects": self.effect_rows(),
+            "bic": self.bic if math.isfinite(self.bic) else None,
+            "delta_bic": self.delta_bic if math.isfinite(self.delta_bic) else None,
+            "weight": self.weight,
+            "gap_after": self.gap.to_dict() if self.gap else None,
+            "shrinkage": self.shrinkage,
+            "left": self.left if math.isfinite(self.left) else None,
+            "calibration": self.calibration.to_dict() if self.calibration else None,
+            "note": self.note,
+        }
+
+
+def same_physics(a: Effect, b: Effect) -> bool:
+    """Whether two effects cannot be told apart in one set (both pure time shifts, or the same field)."""
+    if a.name in TIME_SHIFT_EFFECTS and b.name in TIME_SHIFT_EFFECTS:
+        return True
+    return a.target == b.target and a.field == b.field
+
+
+def _case_with(space: ModelSpace, values: Mapping[str, float], effects: Sequence[Effect]) -> Case:
+    """The case of ``space``'s plant parameters at ``values`` with only ``effects`` applied."""
+    plain = {k: v for k, v in values.items() if k in space.names}
+    case = space.case(space.unit(plain))
+    for e in effects:
+        case = e.apply(case, values[e.name])
+    return case
+
+
+def _chi2_of_cases(record: Record, cases: Sequence[Case], sigma: Mapping[str, float], step: float) -> np.ndarray:
+    """chi2 [noise variances] of each case on the record (inf where it cannot be simulated)."""
+    rows = [CHANNELS.index(n) for n in record.channels]
+    data = np.stack([record.channels[n] for n in record.channels])
+    sig = np.array([sigma[n] for n in record.channels])
+    ch, _, status = run_cases(list(cases), SolverSettings(max_step=step), record.grid)
+    r = (ch[:, rows] - data[None]) / sig[None, :, None]
+    out = np.sum(r**2, axis=(1, 2))
+    out[status != 0] = np.inf
+    return out
+
+
+def _strengths(
+    record: Record, cal: CalibrationResult, space: ModelSpace, effects: Sequence[Effect], noise: Mapping[str, float]
+) -> dict[str, float]:
+    """Per effect: the largest channel RMS change (noise sigmas) when it alone is set back to none."""
+    if cal.simulation is None:
+        return {e.name: math.nan for e in effects}
+    cases = [_case_with(space, cal.values, [f for f in effects if f.name != e.name]) for e in effects]
+    ch, _, status = run_cases(cases, SolverSettings(max_step=cal.step), record.grid)
+    out = {}
+    for i, e in enumerate(effects):
+        if status[i] != 0:
+            out[e.name] = math.nan
+            continue
+        worst = 0.0
+        for name in record.channels:
+            j = CHANNELS.index(name)
+            rms = float(np.sqrt(np.mean((cal.simulation[j] - ch[i, j]) ** 2)))
+            worst = max(worst, rms / max(float(noise[name]), 1e-300))
+        out[e.name] = worst
+    return out
+
+
+def gap_budget(
+    record: Record,
+    cal: CalibrationResult,
+    space: ModelSpace,
+    effects: Sequence[Effect],
+    nominal: CalibrationResult,
+) -> tuple[dict[str, float], float]:
+    """Share of the nominal excess residual energy each effect of a fit removes, and what is left.
+
+    Parameters
+    ----------
+    record : Record
+        The record's test window (the grid calibrated on).
+    cal : CalibrationResult
+        The joint fit of ``effects``.
+    space : ModelSpace
+        The nominal model space (its plant parameters are read from ``cal``).
+    effects : sequence of Effect
+        The fitted effects.
+    nominal : CalibrationResult
+        The nominal calibration (its excess energy is the whole gap).
+
+    Returns
+    -------
+    shares : dict of str to float
+        Per effect, the fraction [-] of the nominal excess energy it removes.
+    left : float
+        The fraction left by the fit [-]; ``sum(shares) + left == 1``.
+
+    Notes
+    -----
+    See the module notes: the closed part ``E0 - E_S`` is split by the Shapley values of
+    ``v(T)``, evaluated with ``2^k`` simulations at the fit's operating point.
+    """
+    n = cal.n_data
+    e0 = max(nominal.chi2 - nominal.n_data, 0.0)
+    e_s = max(cal.chi2 - n, 0.0)
+    if e0 <= 0.0:
+        return {e.name: 0.0 for e in effects}, 1.0
+    closed = max(min(e0 - e_s, e0), 0.0)
+    left = 1.0 - closed / e0
+    k = len(effects)
+    if k == 1:
+        return {effects[0].name: closed / e0}, left
+    subsets = [s for r in range(k + 1) for s in itertools.combinations(range(k), r)]
+    cases = [_case_with(space, cal.values, [effects[i] for i in s]) for s in subsets]
+    chi2 = dict(zip(subsets, _chi2_of_cases(record, cases, cal.sigma, cal.step), strict=True))
+    full = chi2[tuple(range(k))]
+    # v(T): how much of the chi2 of "no effect" the effects in T remove (at the fit's operating point)
+    v = {s: chi2[()] - chi2[s] for s in subsets}
+    phi = np.zeros(k)
+    for i in range(k):
+        for s in subsets:
+            if i in s:
+                continue
+            with_i = tuple(sorted((*s, i)))
+            w = math.factorial(len(s)) * math.factorial(k - len(s) - 1) / math.factorial(k)
+            phi[i] += w * (v[with_i] - v[s])
+    if not np.all(np.isfinite(phi)) or not math.isfinite(full) or phi.clip(min=0).sum() <= 0:
+        logger.warning("gap budget: the effects' contributions could not be evaluated; split evenly")
+        phi = np.ones(k)
+    phi = phi.clip(min=0)
+    shares = phi / phi.sum() * (closed / e0)
+    return {e.name: float(s) for e, s in zip(effects, shares, strict=True)}, left
+
+
+def _seeds(
+    members: Sequence[Effect], fits: Mapping[tuple[str, ...], CalibrationResult], single_values: Mapping[str, float]
+) -> list[dict[str, float]]:
+    """Starting points of a set's joint fit from the fits of its subsets."""
+    names = tuple(e.name for e in members)
+    neutral = {e.name: e.neutral for e in members}
+    seeds: list[dict[str, float]] = []
+    subs = [s for s in fits if set(s) < set(names)]
+    subs.sort(key=lambda s: (-len(s), fits[s].chi2))
+    for s in subs[:3]:
+        base = dict(fits[s].values)
+        for fill in (single_values, neutral):
+            seed = dict(base)
+            for e in members:
+                if e.name not in s:
+                    lo, hi = e.bounds
+                    seed[e.name] = min(max(fill.get(e.name, e.neutral), lo), hi)
+            if seed not in seeds:
+                seeds.append(seed)
+    return seeds
+
+
+def _fit_set(
+    record: Record,
+    space: ModelSpace,
+    members: Sequence[Effect],
+    settings: CalibrationSettings,
+    noise: Mapping[str, float],
+    seeds: Sequence[Mapping[str, float]],
+    polish: bool,
+) -> CalibrationResult | None:
+    """Joint fit of a set, or None when nothing of it can be simulated."""
+    from engine.diagnosis.calibration import CalibrationError
+
+    try:
+        return calibrate(record, space.with_effects(members), settings, noise=noise, seeds=seeds, polish=polish)
+    except CalibrationError as exc:
+        logger.info("set %s could not be fitted: %s", "+".join(e.name for e in members), exc)
+        return None
+
+
+def search_sets(
+    record: Record,
+    nominal: CalibrationResult,
+    space: ModelSpace,
+    library: EffectLibrary,
+    singles: Sequence[Candidate],
+    candidate_settings: CandidateSettings | None = None,
+    settings: SetSettings | None = None,
+) -> list[CandidateSet]:
+    """Fit sets of two and three effects (see the module notes), best BIC first.
+
+    Parameters
+    ----------
+    record : Record
+        The record's test window.
+    nominal : CalibrationResult
+        The nominal calibration.
+    space : ModelSpace
+        The nominal model space.
+    library : EffectLibrary
+        The candidate effects.
+    singles : sequence of Candidate
+        The single-effect candidates, fitted (:func:`engine.diagnosis.candidates.fit_candidates`).
+    candidate_settings : CandidateSettings, optional
+        Search settings of the fits (seeded, escalated; threads).
+    settings : SetSettings, optional
+        Settings of the set search.
+
+    Returns
+    -------
+    list of CandidateSet
+        At most ``settings.n_report``, best BIC first, with strengths and gap budgets for
+        the polished ones; empty when fewer than two single candidates lower the nominal BIC.
+    """
+    cs = CandidateSettings() if candidate_settings is None else candidate_settings
+    ss = SetSettings() if settings is None else settings
+    runner = Runner(cs.jobs(), thread_context=serial_kernel, thread_name_prefix="set")
+    with single_threaded_blas(), runner:
+        return _search(record, nominal, space, library, singles, cs, ss, runner)
+
+
+def _search(
+    record: Record,
+    nominal: CalibrationResult,
+    space: ModelSpace,
+    library: EffectLibrary,
+    singles: Sequence[Candidate],
+    cs: CandidateSettings,
+    ss: SetSettings,
+    runner: Runner,
+) -> list[CandidateSet]:
+    t0 = time.perf_counter()
+    pool = [c for c in singles if c.calibration is not None and c.bic < nominal.bic][: ss.pool]
+    if len(pool) < 2 or ss.max_size < 2:
+        return []
+    fits: dict[tuple[str, ...], CalibrationResult] = {
+        (c.effect,): c.calibration for c in pool if c.calibration is not None
+    }
+    single_values = {c.effect: float(c.value) for c in pool if c.value is not None}
+    effects = {c.effect: library[c.effect] for c in pool}
+    sets: dict[tuple[str, ...], CandidateSet] = {}
+
+    def fit_all(
+        groups: list[tuple[str, ...]],
+        settings: CalibrationSettings,
+        polish: bool,
+        given: Mapping[tuple[str, ...], Mapping[str, float]] | None = None,
+    ) -> None:
+        tasks = {}
+        for g in groups:
+            members = [effects[n] for n in g]
+            if given is not None and g in given:
+                seeds = [dict(given[g])]
+            elif polish and g in fits:
+                seeds = [dict(fits[g].values)]
+            else:
+                seeds = _seeds(members, fits, single_values)
+                if g in fits:
+                    seeds.insert(0, dict(fits[g].values))
+            tasks[g] = runner.submit(_fit_set, record, space, members, settings, nominal.noise, seeds, polish)
+        for g, task in tasks.items():
+            cal = task.result()
+            if cal is None:
+                continue
+            old = fits.get(g)
+            if old is not None:
+                cal.n_simulations += old.n_simulations
+                cal.seconds += old.seconds
+            if old is None or cal.chi2 < old.chi2 or (polish and old.step != cs.seeded.final_step):
+                fits[g] = cal
+                sets[g] = CandidateSet.from_fit([effects[n] for n in g], cal, nominal)
+
+    def fits_noise(g: tuple[str, ...]) -> bool:
+        return g in fits and fits[g].reduced_chi2 <= ss.escalate_above
+
+    names = [c.effect for c in pool]
+    pairs = [tuple(p) for p in itertools.combinations(names, 2) if not same_physics(effects[p[0]], effects[p[1]])]
+    fit_all(pairs, cs.seeded, polish=False)
+    logger.info("set search: %d pairs fitted, %.1f s", len(pairs), time.perf_counter() - t0)
+
+    def best_of(size: int) -> list[tuple[str, ...]]:
+        return sorted((g for g in sets if len(g) == size), key=lambda g: sets[g].bic)
+
+    if ss.max_size >= 3 and not any(fits_noise(g) for g in best_of(2)):
+        triples: list[tuple[str, ...]] = []
+        for p in best_of(2)[: ss.n_extend]:
+            for n in names:
+                if n in p or any(same_physics(effects[n], effects[m]) for m in p):
+                    continue
+                g = tuple(sorted((*p, n), key=names.index))
+                if g not in triples:
+                    triples.append(g)
+        fit_all(triples, cs.seeded, polish=False)
+        logger.info("set search: %d triples fitted, %.1f s", len(triples), time.perf_counter() - t0)
+
+    if ss.escalate and sets and not any(fits_noise(g) for g in sets):
+        best = [b[0] for b in (best_of(2), best_of(3)) if b]
+        logger.info("no set fits to the noise; global search for %s", ", ".join("+".join(g) for g in best))
+        fit_all(best, cs.escalated, polish=False)
+
+    def finish(groups: list[tuple[str, ...]]) -> None:
+        """Refine at the final step, then the strengths and the gap budget."""
+        fit_all([g for g in groups if fits[g].step != cs.seeded.final_step], cs.seeded, polish=True)
+        for g in groups:
+            st, cal = sets[g], fits[g]
+            members = [effects[n] for n in g]
+            st.strengths = _strengths(record, cal, space, members, nominal.noise)
+            st.shares, st.left = gap_budget(record, cal, space, members, nominal)
+
+    finish(sorted(sets, key=lambda g: sets[g].bic)[: ss.n_polish])
+    # backward elimination: a set that fits to the noise with a weak member is refitted without it,
+    # from its own fit (its basin is that of the smaller set too)
+    for g in sorted(sets, key=lambda g: sets[g].bic)[: ss.n_polish]:
+        st = sets[g]
+        weak = [n for n, v in st.strengths.items() if not (math.isfinite(v) and v > ss.min_strength)]
+        sub = tuple(n for n in g if n not in weak)
+        if not weak or len(sub) < 2 or fits[g].reduced_chi2 > ss.escalate_above:
+            continue
+        if sub in fits and fits[sub].step == cs.seeded.final_step and fits[sub].chi2 <= fits[g].chi2 * 1.01:
+            continue
+        logger.info("set %s: %s weak; refitting %s from its fit", st.name, ", ".join(weak), "+".join(sub))
+        fit_all([sub], cs.seeded, polish=True, given={sub: fits[g].values})
+        finish([sub])
+    ranked = sorted(sets, key=lambda g: sets[g].bic)[: ss.n_report]
+    out = [sets[g] for g in ranked]
+    for s in out:
+        if not s.strengths:
+            s.note = s.note or "not refined at the final step (not among the best sets)"
+    logger.info("set search done in %.1f s (%d sets fitted)", time.perf_counter() - t0, len(sets))
+    return out

@@ -1,0 +1,202 @@
+"""A protocol-v2 validation run, end to end and resumable: generate, diagnose blind, then score.
+
+1. :func:`prepare_cases` draws the cases (:func:`engine.validation.cases.generate_cases`) and
+   writes ``cases/``, ``key/answer_key.json`` apart, and ``run.json`` last. Run again on the same
+   directory with the same settings, it keeps them (the generator is deterministic, so an
+   interrupted generation is simply redone); with other settings it refuses.
+2. :func:`engine.validation.blind.diagnose_cases` diagnoses, from ``cases/`` alone, every case
+   without a result.
+3. Only then is the key read: :func:`engine.validation.score.score_cases`, and the report is
+   written (:mod:`engine.validation.report`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from engine.diagnosis.diagnose import DiagnosisSettings
+from engine.simulation import CATALOGUE, HELD_BACK, EffectLibrary
+from engine.validation.blind import DiagnoseFn, diagnose_cases, library_of_run
+from engine.validation.cases import case_counts, generate_cases
+from engine.validation.layout import RunLayout
+from engine.validation.protocol import PROTOCOL_VERSION
+from engine.validation.provenance import code_version
+from engine.validation.report import build_report, metric_lines, write_report
+from engine.validation.score import score_cases
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["prepare_cases", "run_validation", "score_run"]
+
+
+def _fingerprint(
+    n_cases: int, seed: int, counts: Mapping[str, int], catalogue: EffectLibrary, held_back: EffectLibrary
+) -> str:
+    """Hash of everything the cases depend on (the held-back family enters only through it)."""
+    spec = {
+        "protocol": PROTOCOL_VERSION,
+        "n_cases": n_cases,
+        "seed": seed,
+        "counts": dict(counts),
+        "catalogue": [(e.name, e.field, e.bounds) for e in catalogue.values()],
+        "held_back": [(e.name, e.field, e.bounds) for e in held_back.values()],
+    }
+    return hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def prepare_cases(
+    layout: RunLayout,
+    n_cases: int,
+    seed: int,
+    mix: Mapping[str, float] | None = None,
+    catalogue: EffectLibrary = CATALOGUE,
+    held_back: EffectLibrary = HELD_BACK,
+) -> bool:
+    """Write the run's cases, key and manifest, unless the directory already holds this very run.
+
+    Parameters
+    ----------
+    layout : RunLayout
+        The run's directory.
+    n_cases, seed, mix, catalogue, held_back
+        As :func:`engine.validation.cases.generate_cases`.
+
+    Returns
+    -------
+    bool
+        True when the cases were generated now, False when the existing ones were kept.
+
+    Raises
+    ------
+    FileExistsError
+        The directory holds another run (other settings, protocol 1, or results without cases).
+    """
+    counts = case_counts(n_cases, mix)
+    fingerprint = _fingerprint(n_cases, seed, counts, catalogue, held_back)
+    manifest = layout.read_manifest()
+    if manifest is not None:
+        if manifest.get("fingerprint") != fingerprint:
+            raise FileExistsError(
+                f"{layout.root} holds another validation run (protocol {manifest.get('protocol')}, seed "
+                f"{manifest.get('seed')}, {manifest.get('n_cases')} cases); to resume it give the same settings, "
+                f"else choose a new output directory"
+            )
+        if manifest.get("complete"):
+            logger.info("keeping the %d cases of %s (seed %d)", n_cases, layout.root, seed)
+            return False
+    elif layout.done() or any(layout.cases.glob("*.json")):
+        raise FileExistsError(
+            f"{layout.root} already holds a validation run (cases or results) without a protocol-2 manifest "
+            f"(run.json): a protocol-1 run or foreign files; choose a new output directory"
+        )
+    header = {
+        "protocol": PROTOCOL_VERSION,
+        "seed": seed,
+        "n_cases": n_cases,
+        "counts": counts,
+        "library": list(catalogue),
+        "fingerprint": fingerprint,
+    }
+    layout.write_manifest({**header, "complete": False})
+    cases, key = generate_cases(n_cases, seed, catalogue, held_back, mix)
+    layout.write_cases((c.case_id, c.record) for c in cases)
+    layout.write_key(key, {**header, "held_back": list(held_back)})
+    layout.write_manifest({**header, "complete": True})
+    logger.info("wrote %d cases to %s, the key to %s", n_cases, layout.cases, layout.key)
+    return True
+
+
+def score_run(layout: RunLayout, version: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Score a finished run and write ``report.json`` and ``report.md``; returns the report document.
+
+    The answer key is read here, and only once every case has a result.
+
+    Raises
+    ------
+    RuntimeError
+        Some case has no result yet.
+    """
+    ids = layout.case_ids()
+    missing = sorted(set(ids) - layout.done())
+    if missing:
+        raise RuntimeError(f"{len(missing)} of {len(ids)} cases have no result yet (e.g. {missing[0]}): run them first")
+    results = {cid: layout.read_result(cid) for cid in ids}
+    header, key = layout.read_key()
+    scores = score_cases(key, results)
+    seen = sorted({str((r.get("code_version") or {}).get("describe")) for r in results.values()})
+    if len(seen) > 1:
+        logger.warning("the diagnoses of this run ran on %d code versions: %s", len(seen), ", ".join(seen))
+    doc = build_report(
+        scores,
+        {
+            "protocol": header["protocol"],
+            "seed": header["seed"],
+            "n_cases": header["n_cases"],
+            "counts": header["counts"],
+            "library": header["library"],
+            "held_back": header["held_back"],
+            "code_version": code_version() if version is None else version,
+            "result_code_versions": seen,
+        },
+    )
+    write_report(layout, doc)
+    for line in metric_lines(scores.metrics):
+        logger.info("%s", line)
+    return doc
+
+
+def run_validation(
+    n_cases: int,
+    seed: int,
+    out_dir: str | Path,
+    workers: int = 1,
+    settings: DiagnosisSettings | None = None,
+    mix: Mapping[str, float] | None = None,
+    catalogue: EffectLibrary = CATALOGUE,
+    held_back: EffectLibrary = HELD_BACK,
+    diagnose_fn: DiagnoseFn | None = None,
+) -> dict[str, Any]:
+    """Run (or resume) a protocol-v2 validation and write its report (see the module notes).
+
+    Parameters
+    ----------
+    n_cases : int
+        Number of cases.
+    seed : int
+        Seed of the case generator.
+    out_dir : path
+        The run's directory (``run.json``, ``cases/``, ``key/``, ``results/``, ``report.*``).
+    workers : int
+        Parallel diagnosis processes.
+    settings : DiagnosisSettings, optional
+        Diagnosis settings (default ``DiagnosisSettings()``).
+    mix : mapping of str to float, optional
+        Share of each case kind (default :data:`engine.validation.protocol.DEFAULT_MIX`).
+    catalogue : EffectLibrary
+        The library given to the diagnosis of every case (default the full catalogue).
+    held_back : EffectLibrary
+        The held-back family (default :data:`engine.simulation.HELD_BACK`).
+    diagnose_fn : DiagnoseFn, optional
+        The diagnosis (default :func:`engine.validation.blind.diagnose_record`).
+
+    Returns
+    -------
+    dict
+        The report document (as ``report.json``).
+
+    Raises
+    ------
+    FileExistsError
+        ``out_dir`` holds another run.
+    """
+    layout = RunLayout(Path(out_dir))
+    version = code_version()
+    prepare_cases(layout, n_cases, seed, mix, catalogue, held_back)
+    library = library_of_run(layout, catalogue)
+    diagnose_cases(layout, library, workers, settings, diagnose_fn, version)
+    return score_run(layout, version)

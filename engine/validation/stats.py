@@ -1,0 +1,172 @@
+"""Interval estimates of the validation's scores: Wilson intervals of rates, order-statistic intervals of medians."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import binom, norm
+
+__all__ = ["MedianEstimate", "Rate", "median_interval", "rate", "wilson_interval"]
+
+#: Confidence level of every interval the validation reports.
+CONFIDENCE: float = 0.95
+
+
+def wilson_interval(k: int, n: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion.
+
+    Parameters
+    ----------
+    k : int
+        Successes, ``0 <= k <= n``.
+    n : int
+        Trials, ``n >= 1``.
+    confidence : float
+        Two-sided confidence level (0.95: z = 1.96).
+
+    Returns
+    -------
+    (low, high) : tuple of float
+        Bounds of the proportion, in [0, 1].
+
+    Raises
+    ------
+    ValueError
+        ``n < 1`` or ``k`` outside ``[0, n]``.
+    """
+    if n < 1 or not 0 <= k <= n:
+        raise ValueError(f"need 0 <= k <= n and n >= 1, got k = {k}, n = {n}")
+    z = float(norm.ppf(0.5 + confidence / 2.0))
+    p = k / n
+    den = 1.0 + z * z / n
+    centre = (p + z * z / (2 * n)) / den
+    half = z * math.sqrt(p * (1.0 - p) / n + z * z / (4 * n * n)) / den
+    # exact at the ends (rounding would otherwise leave 1e-17 off 0 or 1)
+    low = 0.0 if k == 0 else max(0.0, centre - half)
+    high = 1.0 if k == n else min(1.0, centre + half)
+    return low, high
+
+
+@dataclass(frozen=True)
+class Rate:
+    """A proportion with its Wilson 95 % interval.
+
+    Attributes
+    ----------
+    k, n : int
+        Cases counted and cases in all.
+    value : float or None
+        ``k / n`` (None when ``n == 0``).
+    low, high : float or None
+        The interval's bounds (None when ``n == 0``).
+    """
+
+    k: int
+    n: int
+    value: float | None
+    low: float | None
+    high: float | None
+
+    def to_dict(self) -> dict[str, float | int | None]:
+        """JSON-ready copy (rates rounded to 4 decimals)."""
+        r = _round4
+        return {"k": self.k, "n": self.n, "rate": r(self.value), "low": r(self.low), "high": r(self.high)}
+
+    def text(self) -> str:
+        """E.g. ``95/100 = 95.0 % [88.8, 97.8]`` (``n/a`` when there is no case)."""
+        if self.value is None or self.low is None or self.high is None:
+            return "n/a (0 cases)"
+        return f"{self.k}/{self.n} = {100 * self.value:.1f} % [{100 * self.low:.1f}, {100 * self.high:.1f}]"
+
+
+def rate(outcomes: Sequence[bool]) -> Rate:
+    """The share of true outcomes with its Wilson interval."""
+    n, k = len(outcomes), int(sum(bool(o) for o in outcomes))
+    if n == 0:
+        return Rate(0, 0, None, None, None)
+    low, high = wilson_interval(k, n)
+    return Rate(k, n, k / n, low, high)
+
+
+@dataclass(frozen=True)
+class MedianEstimate:
+    """A sample median with a distribution-free interval from order statistics.
+
+    Attributes
+    ----------
+    n : int
+        Sample size.
+    median : float or None
+        Sample median (None when ``n == 0``).
+    low, high : float or None
+        Order statistics x_(l) and x_(n-l+1) bracketing the population median.
+    coverage : float or None
+        Exact coverage of ``[low, high]``, at least the confidence asked for. A sample too small
+        for that (n < 6 at 95 %: even its whole range covers only ``1 - 2 * 0.5**n``) has no
+        interval: ``low``, ``high`` and ``coverage`` are None.
+    """
+
+    n: int
+    median: float | None
+    low: float | None
+    high: float | None
+    coverage: float | None
+
+    def to_dict(self) -> dict[str, float | int | None]:
+        """JSON-ready copy (4 significant digits)."""
+        r = _sig4
+        return {
+            "n": self.n,
+            "median": r(self.median),
+            "low": r(self.low),
+            "high": r(self.high),
+            "coverage": _round4(self.coverage),
+        }
+
+    def text(self, unit: str = "") -> str:
+        """E.g. ``1.01 [0.99, 1.05] (n = 120)``."""
+        if self.median is None:
+            return "n/a (0 cases)"
+        if self.low is None or self.high is None:
+            return f"{self.median:.3g}{unit} (n = {self.n}: too few for an interval)"
+        return f"{self.median:.3g}{unit} [{self.low:.3g}, {self.high:.3g}] (n = {self.n})"
+
+
+def median_interval(values: Sequence[float], confidence: float = CONFIDENCE) -> MedianEstimate:
+    """Sample median and the order-statistic interval of the population median.
+
+    With B ~ Binomial(n, 1/2) the number of values below the median, the interval
+    ``[x_(l), x_(n-l+1)]`` (1-based order statistics) covers the median with probability
+    ``P(l <= B <= n - l)``; ``l`` is the largest rank keeping that at least ``confidence``.
+
+    Parameters
+    ----------
+    values : sequence of float
+        The sample (non-finite values are dropped).
+    confidence : float
+        Smallest coverage wanted.
+
+    Returns
+    -------
+    MedianEstimate
+    """
+    x = np.sort(np.asarray([v for v in values if v is not None and math.isfinite(v)], dtype=float))
+    n = x.size
+    if n == 0:
+        return MedianEstimate(0, None, None, None, None)
+    l = int(binom.ppf((1.0 - confidence) / 2.0, n, 0.5))  # P(B <= l - 1) < alpha / 2
+    if l < 1:  # even [min, max] covers less than asked
+        return MedianEstimate(n, float(np.median(x)), None, None, None)
+    coverage = float(1.0 - 2.0 * binom.cdf(l - 1, n, 0.5))
+    return MedianEstimate(n, float(np.median(x)), float(x[l - 1]), float(x[n - l]), coverage)
+
+
+def _round4(x: float | None) -> float | None:
+    return None if x is None else round(float(x), 4)
+
+
+def _sig4(x: float | None) -> float | None:
+    return None if x is None else float(f"{x:.4g}")

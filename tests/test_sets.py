@@ -1,0 +1,147 @@
+"""Several effects at once (issue 10): sets of effects, the gap budget, the parsimony rule, weak gaps."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from engine.diagnosis import diagnose
+from engine.diagnosis.calibration import CalibrationResult
+from engine.diagnosis.candidate import Candidate
+from engine.diagnosis.diagnose import DiagnosisSettings, choose_model, decide
+from engine.diagnosis.sets import CandidateSet, same_physics
+from engine.records import Record
+from engine.simulation import CATALOGUE, HELD_BACK, PlantParameters, simulate
+from engine.simulation.noise import noise_std
+
+
+def noisy(record: Record, snr_db: float, seed: int) -> Record:
+    rng = np.random.default_rng(seed)
+    ch = {k: v + rng.standard_normal(v.size) * noise_std(v, snr_db)[0] for k, v in record.channels.items()}
+    return Record(ch, record.sample_interval, record.event_index, conditions={"c1": 0.2})
+
+
+def fake_cal(reduced_chi2: float, n: int = 10_000, k: int = 4, ch: int = 5) -> CalibrationResult:
+    """A calibration result with only the statistics the decision reads."""
+    chi2 = reduced_chi2 * n
+    names = ["a1", "m_el", "omega1", "a2", "v2"][:ch]
+    return CalibrationResult(
+        values={f"p{i}": 0.0 for i in range(k)},
+        uncertainties={},
+        fixed={},
+        chi2=chi2,
+        chi2_per_channel={c: chi2 / ch for c in names},
+        n_data=n,
+        noise={c: 1.0 for c in names},
+        sigma={c: 1.0 for c in names},
+        effect=None,
+        n_simulations=0,
+        seconds=0.0,
+    )
+
+
+def single(name: str, reduced_chi2: float, strength: float, k: int = 5) -> Candidate:
+    cal = fake_cal(reduced_chi2, k=k)
+    e = CATALOGUE[name]
+    return Candidate(name, 1.0, 0.01, e.unit, cal, cal.bic, strength=strength, weight=1.0, locus=e.locus)
+
+
+def pair(names: tuple[str, ...], reduced_chi2: float, strengths: tuple[float, ...]) -> CandidateSet:
+    cal = fake_cal(reduced_chi2, k=4)
+    cal.values.update({n: 1.0 for n in names})
+    effects = [CATALOGUE[n] for n in names]
+    s = CandidateSet(
+        effects=names,
+        calibration=cal,
+        units={e.name: e.unit for e in effects},
+        loci={e.name: e.locus for e in effects},
+        bic=cal.bic,
+        strengths=dict(zip(names, strengths, strict=True)),
+        shares={n: 0.9 / len(names) for n in names},
+        left=0.1,
+        weight=1.0,
+    )
+    return s
+
+
+def test_libraries_combine_and_answer_membership() -> None:
+    both = CATALOGUE + HELD_BACK
+    assert "load_torque_ripple" in both and "load_inertia" in both and "nonsense" not in both
+    assert "load_torque_ripple" not in CATALOGUE  # the held-back family never reaches the diagnosis's library
+    assert len(both) == len(CATALOGUE) + len(HELD_BACK)
+
+
+def test_same_physics_pairs_are_not_searched() -> None:
+    assert same_physics(CATALOGUE["measurement_delay"], CATALOGUE["trigger_offset"])
+    assert not same_physics(CATALOGUE["load_inertia"], CATALOGUE["motor_coulomb_friction"])
+
+
+def test_a_set_replaces_the_single_effect_only_when_it_pays_and_every_member_is_strong() -> None:
+    s = DiagnosisSettings()
+    best = single("load_inertia", 20.0, 90.0)
+    good = pair(("load_inertia", "motor_coulomb_friction"), 1.0, (90.0, 40.0))
+    assert choose_model([best], [good], s) is good
+    weak_member = pair(("load_inertia", "motor_coulomb_friction"), 1.0, (90.0, 2.0))
+    assert choose_model([best], [weak_member], s) is best
+    # a set that does not lower the BIC by min_delta_bic loses to the smaller model
+    fitting = single("load_inertia", 1.0, 90.0)
+    no_gain = pair(("load_inertia", "motor_coulomb_friction"), 1.0, (90.0, 40.0))
+    assert choose_model([fitting], [no_gain], s) is fitting
+
+
+def test_decide_names_the_set_largest_share_first_with_its_loci() -> None:
+    nominal = fake_cal(50.0, k=4)
+    best = single("load_inertia", 20.0, 90.0)
+    st = pair(("motor_coulomb_friction", "load_inertia"), 1.0, (40.0, 90.0))
+    st.shares = {"motor_coulomb_friction": 0.2, "load_inertia": 0.79}
+    st.left = 0.01
+    v = decide(nominal, [best], DiagnosisSettings(), [st])
+    assert v.status == "explained"
+    assert [e["effect"] for e in v.effects] == ["load_inertia", "motor_coulomb_friction"]
+    assert v.effect == "load_inertia" and v.locus == "drive_train"
+    assert math.isclose(sum(e["share"] for e in v.effects) + v.left, 1.0)
+    assert v.to_dict()["effects"][1]["locus"] == "motor_shaft"
+
+
+def test_a_weak_but_real_gap_is_weak_gap_not_no_gap() -> None:
+    s = DiagnosisSettings()
+    # the nominal model misses the noise statistically (worst channel chi2/n 1.5) but by < 3 noise RMS
+    nominal = fake_cal(1.5, k=4)
+    v = decide(nominal, [], s)
+    assert v.status == "weak_gap"
+    # an effect with evidence that fits but moves the record by only 2 noise RMS
+    nominal = fake_cal(1.4, k=4)
+    v = decide(nominal, [single("load_inertia", 1.0, 2.0)], s)
+    assert v.status == "weak_gap" and v.effect is None
+    # the nominal model at the noise: no_gap
+    assert decide(fake_cal(1.0, k=4), [], s).status == "no_gap"
+
+
+@pytest.fixture(scope="module")
+def compound():
+    """Two catalogue effects at once on one record (40 dB), diagnosed against the whole catalogue."""
+    plant = PlantParameters(K=0.005, J1=0.85, c=1.1, c1=0.2)
+    truth = {"load_inertia": 1.4, "motor_coulomb_friction": 0.04}
+    rec = noisy(simulate(plant, effects=truth), 40.0, seed=1)
+    return truth, diagnose(rec, bounds={"K": (0.0022, 0.0105), "J1": (0.72, 0.96), "c": (0.75, 1.6)})
+
+
+def test_two_effects_at_once_are_named_with_values_and_a_gap_budget(compound) -> None:
+    truth, res = compound
+    v = res.verdict
+    assert v.status == "explained"
+    assert {e["effect"] for e in v.effects} == set(truth)
+    for e in v.effects:
+        assert abs(e["value"] - truth[e["effect"]]) < max(5 * e["uncertainty"], 0.01 * abs(truth[e["effect"]]))
+    shares = [e["share"] for e in v.effects]
+    assert shares == sorted(shares, reverse=True) and all(0 < x <= 1 for x in shares)
+    assert math.isclose(sum(shares) + v.left, 1.0, abs_tol=1e-9)
+    assert res.gap_after is not None and res.gap_after.rms_over_noise < 1.05 < res.gap_before.rms_over_noise
+    d = res.to_dict(include_records=False)
+    kinds = {c["kind"] for c in d["candidates"]}
+    assert kinds == {"single", "set"}
+    assert d["candidates"][0]["kind"] == "set"  # the set is the best model by BIC
+    assert d["gap"]["budget"]["shares"] == {e["effect"]: e["share"] for e in v.effects}
+    assert d["verdict"]["effect"] == v.effects[0]["effect"]
