@@ -28,7 +28,7 @@ Three parts, each optional:
   ``--noise``: the false-alarm rate of the verdict (anything but ``no_gap``) and how often the
   best candidate lowers the BIC by 10 or more (false evidence from correlated residuals).
   ``--v1-noise`` as above; ``--without NAMES`` leaves effects out of the library,
-  ``--colours LABELS`` picks the colours.
+  ``--colours "LABEL;LABEL"`` picks the colours (labels of ``COLOURS``).
 * ``--timing N``: wall time of N single-effect diagnoses (one random catalogue effect each, the
   full catalogue as candidates) with operating points across the plausible box, white noise
   30-50 dB; median, 90th percentile and maximum (budget: 90th percentile <= 10 s on 2 cores),
@@ -548,7 +548,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--verdicts", type=int, default=0, metavar="N", help="full diagnoses of N clean records per colour")
     ap.add_argument("--without", default="", help="with --verdicts: effects left out of the library (comma-separated)")
     ap.add_argument(
-        "--colours", default=",".join(VERDICT_COLOURS), help="with --verdicts: noise colours (labels, comma-separated)"
+        "--colours", default=";".join(VERDICT_COLOURS), help="with --verdicts: noise colours (labels, ';'-separated)"
     )
     ap.add_argument("--timing", type=int, default=0, metavar="N", help="single-effect diagnoses")
     ap.add_argument("--seed", type=int, default=1)
@@ -578,7 +578,7 @@ def main(argv: list[str] | None = None) -> int:
             args.seed,
             args.v1_noise,
             tuple(x for x in args.without.split(",") if x),
-            tuple(x.strip() for x in args.colours.split(",") if x.strip()),
+            tuple(x.strip() for x in args.colours.split(";") if x.strip()),
         )
     if args.timing:
         results["timing"] = bench_timing(args.timing, args.seed)
