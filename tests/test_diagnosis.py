@@ -182,8 +182,9 @@ def test_scorer_counts_what_it_should(tmp_path):
     assert "top-1" in rep.table() and "truth" in rep.confusion_table()
 
 
+@pytest.mark.slow  # 2.5 min; protocol 2's end to end run is tests/test_validation_v2.py::test_tiny_end_to_end_run_with_the_real_diagnosis
 def test_small_blind_validation(tmp_path):
-    """A small blind run end to end: generate, diagnose without the key, score."""
+    """A small blind run of protocol 1 end to end: generate, diagnose without the key, score."""
     rep = run_validation(
         4, seed=5, out_dir=tmp_path, workers=2, fractions={"effect": 0.5, "left_out": 0.25, "clean": 0.25}
     )

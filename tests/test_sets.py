@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import math
 
 import numpy as np
@@ -15,6 +16,8 @@ from engine.diagnosis.sets import CandidateSet, same_physics
 from engine.records import Record
 from engine.simulation import CATALOGUE, HELD_BACK, PlantParameters, simulate
 from engine.simulation.noise import noise_std
+
+diagnose_module = importlib.import_module("engine.diagnosis.diagnose")
 
 
 def noisy(record: Record, snr_db: float, seed: int) -> Record:
@@ -125,11 +128,29 @@ def compound():
     plant = PlantParameters(K=0.005, J1=0.85, c=1.1, c1=0.2)
     truth = {"load_inertia": 1.4, "motor_coulomb_friction": 0.04}
     rec = noisy(simulate(plant, effects=truth), 40.0, seed=1)
-    return truth, diagnose(rec, bounds={"K": (0.0022, 0.0105), "J1": (0.72, 0.96), "c": (0.75, 1.6)})
+    escalated: list[int] = []
+    real = diagnose_module.escalate_candidates
+
+    def counted(*args, **kwargs):
+        escalated.append(1)
+        return real(*args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(diagnose_module, "escalate_candidates", counted)
+        res = diagnose(rec, bounds={"K": (0.0022, 0.0105), "J1": (0.72, 0.96), "c": (0.75, 1.6)})
+    return truth, res, len(escalated)
+
+
+def test_a_pair_found_from_the_seeded_fits_costs_no_escalation(compound) -> None:
+    """The seeded pair fits to the noise with both members strong: no single candidate is escalated."""
+    truth, res, n_escalations = compound
+    assert res.verdict.status == "explained" and {e["effect"] for e in res.verdict.effects} == set(truth)
+    assert n_escalations == 0
+    assert all(c.calibration is None or c.calibration.reduced_chi2 > 1.1 for c in res.candidates)
 
 
 def test_two_effects_at_once_are_named_with_values_and_a_gap_budget(compound) -> None:
-    truth, res = compound
+    truth, res, _ = compound
     v = res.verdict
     assert v.status == "explained"
     assert {e["effect"] for e in v.effects} == set(truth)

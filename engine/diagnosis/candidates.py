@@ -46,7 +46,7 @@ from engine.simulation import CATALOGUE, EffectLibrary, serial_kernel
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["fit_candidates"]
+__all__ = ["escalate_candidates", "fit_candidates", "needs_escalation"]
 
 
 def _fitted(c: Candidate) -> CalibrationResult:
@@ -62,6 +62,7 @@ def fit_candidates(
     space: ModelSpace,
     library: EffectLibrary = CATALOGUE,
     settings: CandidateSettings | None = None,
+    escalate: bool = True,
 ) -> list[Candidate]:
     """Fit every effect of a library and rank them by BIC (best first).
 
@@ -77,6 +78,10 @@ def fit_candidates(
         Candidate effects.
     settings : CandidateSettings, optional
         Search settings (default ``CandidateSettings()``).
+    escalate : bool
+        Run pass 2 (the escalation) when no seeded fit reaches the noise; with False the
+        caller may escalate later with :func:`escalate_candidates` (the diagnosis first
+        tries sets of effects from the seeded fits).
 
     Returns
     -------
@@ -88,68 +93,123 @@ def fit_candidates(
     settings = CandidateSettings() if settings is None else settings
     runner = Runner(settings.jobs(), thread_context=serial_kernel, thread_name_prefix="candidate")
     with single_threaded_blas(), runner:
-        return _fit_candidates(record, nominal, space, library, settings, runner)
+        t0 = time.perf_counter()
+        # pass 1: seeded fits at the search step
+        seeded = [
+            runner.submit(fit_candidate, record, nominal, space, e, settings, polish=False) for e in library.values()
+        ]
+        cands = _order([f.result() for f in seeded])
+        logger.info("seeded fits of %d candidates: %.1f s", len(cands), time.perf_counter() - t0)
+        if escalate:
+            cands = _escalate(record, nominal, space, library, cands, settings, runner)
+        return _finish(record, nominal, space, library, cands, settings, runner, t0)
 
 
-def _fit_candidates(
+def needs_escalation(cands: list[Candidate], settings: CandidateSettings) -> bool:
+    """Whether no fitted candidate reaches the noise (search-step chi2/n above ``escalate_above``)."""
+    fitted = [c for c in cands if c.calibration is not None]
+    return bool(fitted) and min(_fitted(c).reduced_chi2 for c in fitted) > settings.escalate_above
+
+
+def escalate_candidates(
     record: Record,
     nominal: CalibrationResult,
     space: ModelSpace,
     library: EffectLibrary,
+    cands: list[Candidate],
+    settings: CandidateSettings | None = None,
+) -> list[Candidate]:
+    """Pass 2 and 3 for candidates fitted with ``fit_candidates(..., escalate=False)``.
+
+    Parameters
+    ----------
+    record, nominal, space, library
+        As given to :func:`fit_candidates`.
+    cands : list of Candidate
+        Its result (not modified).
+    settings : CandidateSettings, optional
+        Search settings (default ``CandidateSettings()``).
+
+    Returns
+    -------
+    list of Candidate
+        Ranked again, with the escalated fits that improved on the seeded ones (refined at
+        the final step when among the front runners).
+    """
+    settings = CandidateSettings() if settings is None else settings
+    runner = Runner(settings.jobs(), thread_context=serial_kernel, thread_name_prefix="candidate")
+    with single_threaded_blas(), runner:
+        t0 = time.perf_counter()
+        out = _escalate(record, nominal, space, library, _order(list(cands)), settings, runner)
+        return _finish(record, nominal, space, library, out, settings, runner, t0)
+
+
+def _order(cs: list[Candidate]) -> list[Candidate]:
+    return sorted(cs, key=lambda c: c.bic)
+
+
+def _escalate(
+    record: Record,
+    nominal: CalibrationResult,
+    space: ModelSpace,
+    library: EffectLibrary,
+    cands: list[Candidate],
     settings: CandidateSettings,
     runner: Runner,
 ) -> list[Candidate]:
-    def order(cs: list[Candidate]) -> list[Candidate]:
-        return sorted(cs, key=lambda c: c.bic)
-
+    """Pass 2: escalate (best BIC first) when none fits to the noise, until one does."""
+    if not needs_escalation(cands, settings):
+        return cands
     t0 = time.perf_counter()
-    # pass 1: seeded fits at the search step
-    seeded = [runner.submit(fit_candidate, record, nominal, space, e, settings, polish=False) for e in library.values()]
-    cands = order([f.result() for f in seeded])
-    logger.info("seeded fits of %d candidates: %.1f s", len(cands), time.perf_counter() - t0)
-    fitted = [c for c in cands if c.calibration is not None]
+    n_esc = len(cands) if settings.n_escalate is None else settings.n_escalate
+    logger.info("no candidate fits to the noise after the seeded fits; global search for up to %d", n_esc)
 
-    # pass 2: escalate (best seeded BIC first) when none fits to the noise, until one does
-    if fitted and min(_fitted(c).reduced_chi2 for c in fitted) > settings.escalate_above:
-        n_esc = len(cands) if settings.n_escalate is None else settings.n_escalate
-        logger.info("no candidate fits to the noise after the seeded fits; global search for up to %d", n_esc)
+    def escalate(i: int) -> Task[Candidate] | Deferred[Candidate]:
+        return runner.submit(
+            fit_candidate,
+            record,
+            nominal,
+            space,
+            library[cands[i].effect],
+            settings,
+            polish=False,
+            global_search=True,
+            extra_seeds=[_fitted(cands[i]).values],
+        )
 
-        def escalate(i: int) -> Task[Candidate] | Deferred[Candidate]:
-            return runner.submit(
-                fit_candidate,
-                record,
-                nominal,
-                space,
-                library[cands[i].effect],
-                settings,
-                polish=False,
-                global_search=True,
-                extra_seeds=[_fitted(cands[i]).values],
-            )
+    idx = [i for i, c in enumerate(cands[:n_esc]) if c.calibration is not None]
+    tasks: dict[int, Task[Candidate] | Deferred[Candidate]] = {}
+    for k, i in enumerate(idx):
+        if k == 1:  # the best seeded candidate ran alone (on every core); the rest run side by side
+            tasks = {j: escalate(j) for j in idx[1:]}
+        c = cands[i]
+        new = (tasks[i] if i in tasks else escalate(i)).result()
+        _fitted(new).n_simulations += _fitted(c).n_simulations
+        _fitted(new).seconds += _fitted(c).seconds
+        cands[i] = new if new.bic < c.bic else c
+        if _fitted(cands[i]).reduced_chi2 <= settings.escalate_above:
+            logger.info("escalation: %s (rank %d before it) fits to the noise", c.effect, i + 1)
+            # one effect explains the record: the others keep their seeded fits
+            for j, rest in enumerate(cands[i + 1 : n_esc], start=i + 1):
+                rest.note = rest.note or f"seeded fit only: the escalation stopped once {c.effect} fitted to the noise"
+                if j in tasks:
+                    tasks[j].cancel()  # stops it even if it is running
+            break
+    logger.info("escalation done in %.1f s", time.perf_counter() - t0)
+    return _order(cands)
 
-        idx = [i for i, c in enumerate(cands[:n_esc]) if c.calibration is not None]
-        tasks: dict[int, Task[Candidate] | Deferred[Candidate]] = {}
-        for k, i in enumerate(idx):
-            if k == 1:  # the best seeded candidate ran alone (on every core); the rest run side by side
-                tasks = {j: escalate(j) for j in idx[1:]}
-            c = cands[i]
-            new = (tasks[i] if i in tasks else escalate(i)).result()
-            _fitted(new).n_simulations += _fitted(c).n_simulations
-            _fitted(new).seconds += _fitted(c).seconds
-            cands[i] = new if new.bic < c.bic else c
-            if _fitted(cands[i]).reduced_chi2 <= settings.escalate_above:
-                # one effect explains the record: the others keep their seeded fits
-                for j, rest in enumerate(cands[i + 1 : n_esc], start=i + 1):
-                    rest.note = (
-                        rest.note or f"seeded fit only: the escalation stopped once {c.effect} fitted to the noise"
-                    )
-                    if j in tasks:
-                        tasks[j].cancel()  # stops it even if it is running
-                break
-        cands = order(cands)
-        logger.info("escalation done, %.1f s into the candidate fits", time.perf_counter() - t0)
 
-    # pass 3: refine the front runners at the final integrator step, from their search-step optimum
+def _finish(
+    record: Record,
+    nominal: CalibrationResult,
+    space: ModelSpace,
+    library: EffectLibrary,
+    cands: list[Candidate],
+    settings: CandidateSettings,
+    runner: Runner,
+    t0: float,
+) -> list[Candidate]:
+    """Pass 3 (refine the front runners at the final integrator step), strengths and weights."""
     fitted = [c for c in cands if c.calibration is not None]
     best_chi2 = _fitted(fitted[0]).chi2 if fitted else math.inf
     n_pol = len(
@@ -177,11 +237,11 @@ def _fit_candidates(
         cal.n_simulations += _fitted(c).n_simulations
         cal.seconds += _fitted(c).seconds
         cands[i] = Candidate.from_fit(library[c.effect], cal, nominal)
-    cands = order(cands)
+    cands = _order(cands)
     strengths = {
         i: runner.submit(effect_strength, c, space, record, nominal.noise)
         for i, c in enumerate(cands[:n_pol])
-        if c.calibration is not None
+        if c.calibration is not None and c.strength is None
     }
     for i, strength in strengths.items():
         cands[i].strength = strength.result()

@@ -82,7 +82,7 @@ from scipy.special import expit
 
 from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings, calibrate
 from engine.diagnosis.candidate import Candidate, CandidateSettings, posterior_weights
-from engine.diagnosis.candidates import fit_candidates
+from engine.diagnosis.candidates import escalate_candidates, fit_candidates, needs_escalation
 from engine.diagnosis.gap import Gap, closed_fraction, gap_of
 from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, localise
 from engine.diagnosis.sets import CandidateSet, SetSettings, search_sets
@@ -566,6 +566,27 @@ def _locate(record: Record, nominal: CalibrationResult, verdict: Verdict) -> tup
     return replace(verdict, locus=report.locus, missing_term=term), out
 
 
+def _explains(s: CandidateSet, settings: DiagnosisSettings) -> bool:
+    """Whether a set fits to the noise with every member strong (no single escalation needed)."""
+    return s.calibration is not None and _fits_noise(s.calibration, settings) and _all_strong(s, settings)
+
+
+def _explains_single(cands: Sequence[Candidate], settings: DiagnosisSettings) -> bool:
+    """Whether the best fitted single candidate fits to the noise."""
+    best = next((c for c in cands if c.calibration is not None), None)
+    return best is not None and best.calibration is not None and _fits_noise(best.calibration, settings)
+
+
+def _merge_sets(first: Sequence[CandidateSet], second: Sequence[CandidateSet]) -> list[CandidateSet]:
+    """The sets of two searches, the better fit of each group of effects, best BIC first."""
+    best: dict[frozenset[str], CandidateSet] = {}
+    for s in (*first, *second):
+        key = frozenset(s.effects)
+        if key not in best or s.bic < best[key].bic:
+            best[key] = s
+    return sorted(best.values(), key=lambda s: s.bic)
+
+
 def diagnose(
     record: Record,
     library: EffectLibrary = CATALOGUE,
@@ -635,20 +656,26 @@ def _diagnose(
     gap_before = gap_of(nominal)
     n_sim = nominal.n_simulations
 
-    cands = fit_candidates(record, nominal, space, library, settings.candidates)
-    n_sim += sum(c.calibration.n_simulations for c in cands if c.calibration)
+    cs = settings.candidates
+    set_settings = replace(settings.sets, min_strength=settings.min_strength)
+    use_sets = set_settings.max_size >= 2 and not _fits_noise(nominal, settings)
+    staged = use_sets and set_settings.before_escalation
+    cands = fit_candidates(record, nominal, space, library, cs, escalate=not staged)
     sets: list[CandidateSet] = []
-    best = next((c for c in cands if c.calibration is not None), None)
-    if (
-        settings.sets.max_size >= 2
-        and best is not None
-        and best.calibration is not None
-        and not _fits_noise(nominal, settings)
-        and not _fits_noise(best.calibration, settings)
-    ):
-        set_settings = replace(settings.sets, min_strength=settings.min_strength)
-        sets = search_sets(record, nominal, space, library, cands, settings.candidates, set_settings)
-        n_sim += sum(s.calibration.n_simulations for s in sets if s.calibration)
+    if staged and not _explains_single(cands, settings):
+        # pairs from the seeded single fits first; the singles' escalation only when none explains the record
+        first = replace(set_settings, escalate=False, max_size=2)
+        sets = search_sets(record, nominal, space, library, cands, cs, first)
+        if not any(_explains(s, settings) for s in sets):
+            if needs_escalation(cands, cs):
+                cands = escalate_candidates(record, nominal, space, library, cands, cs)
+            if not _explains_single(cands, settings):
+                sets = _merge_sets(sets, search_sets(record, nominal, space, library, cands, cs, set_settings))
+    elif use_sets and not _explains_single(cands, settings):
+        sets = search_sets(record, nominal, space, library, cands, cs, set_settings)
+    n_sim += sum(c.calibration.n_simulations for c in cands if c.calibration)
+    n_sim += sum(s.calibration.n_simulations for s in sets if s.calibration)
+    if sets:
         _reweight(nominal, cands, sets)
     verdict = decide(nominal, cands, settings, sets)
 

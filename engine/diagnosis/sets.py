@@ -92,6 +92,12 @@ class SetSettings:
         A member of a set that fits to the noise but moves the record by at most this many
         noise RMS on its own is dropped and the rest refitted (backward elimination); the
         diagnosis passes its own ``min_strength``.
+    before_escalation : bool
+        The diagnosis tries pairs built from the seeded single fits (no triples, no
+        escalation) before it escalates the single candidates, and escalates them only
+        when no such pair explains the record (fits to the noise with every member strong):
+        the escalation of every single candidate is the most expensive step of a compound
+        record, and a compound record is what it cannot explain (docs/diagnosis.md 8b).
     """
 
     max_size: int = 3
@@ -102,6 +108,7 @@ class SetSettings:
     n_polish: int = 3
     n_report: int = 5
     min_strength: float = 3.0
+    before_escalation: bool = True
 
 
 @dataclass
