@@ -123,6 +123,7 @@ def test_periodic_load_torque_has_its_frequency_and_amplitude() -> None:
     assert term.dominant_frequency_hz == pytest.approx(LOAD_RIPPLE_HZ, rel=0.1)
     assert term.amplitude == pytest.approx(STRONG["load_torque_ripple"], rel=0.25)
     assert "37" in term.description or "36" in term.description
+    assert term.description.count("on the load") == 1, term.description  # the place is said once
 
 
 def test_clutch_offset_is_a_constant_angle() -> None:

@@ -95,17 +95,18 @@ N_EXTRAS: int = 2
 _PARAM_STEP_REL: dict[str, float] = {"K": 1e-3, "J1": 1e-3, "c": 1e-3}
 _PARAM_STEP_ABS: dict[str, float] = {"c1": 1e-3, "trigger_offset": 1e-6}
 #: How the unknown input is called in a sentence, per locus.
+#: (The place is said once, by ``_WHERE``: "a periodic torque of about 0.03 pu at 37 Hz on the load".)
 _WHAT: dict[str, str] = {
     "supply": "supply-voltage deviation",
     "motor_electrical": "additive electromagnetic torque",
-    "motor_shaft": "torque on the motor shaft",
+    "motor_shaft": "torque",
     "clutch": "angle offset of the backlash zone",
-    "drive_train": "torque on the drive wheel",
-    "load": "torque on the load",
+    "drive_train": "torque",
+    "load": "torque",
 }
 _WHERE: dict[str, str] = {
-    "supply": "in the supply",
-    "motor_electrical": "in the motor's electromagnetic torque",
+    "supply": "at the motor's terminals",
+    "motor_electrical": "in the motor",
     "motor_shaft": "on the motor shaft",
     "clutch": "in the clutch",
     "drive_train": "on the drive wheel",
@@ -741,6 +742,7 @@ def _shape(
 
 def _describe(locus: str, unit: str, follows: str, amplitude: float, freq: float, details: Mapping[str, Any]) -> str:
     what, where = _WHAT[locus], _WHERE[locus]
+    a = "an" if what[0] in "aeiou" else "a"
     amp = f"{abs(amplitude):.2g} {unit}"
     if follows == "constant":
         if locus == "clutch":
@@ -750,19 +752,21 @@ def _describe(locus: str, unit: str, follows: str, amplitude: float, freq: float
         return f"a constant {what} of about {amplitude:+.2g} {unit} {where}"
     if follows == "time" and details.get("transient"):
         tau = details["time_constant_s"]
-        return f"a {what} of about {amp} at the event, decaying with a time constant of about {tau * 1e3:.2g} ms"
+        return (
+            f"{a} {what} of about {amp} at the event {where}, decaying with a time constant of about {tau * 1e3:.2g} ms"
+        )
     if follows == "time":
         return f"a periodic {what} of about {amp} at {freq:.3g} Hz (fixed frequency) {where}"
     if follows == "angle":
         order = details["order_per_revolution"]
         return (
-            f"a {what} of about {amp} periodic in the motor angle ({order:.3g} periods per revolution, "
+            f"{a} {what} of about {amp} periodic in the motor angle ({order:.3g} periods per revolution, "
             f"about {freq:.3g} Hz at the test's mean speed) {where}"
         )
     if follows == "speed":
         sp = "the motor speed" if details["speed"] == "w_1" else "the load speed"
-        return f"a {what} of about {amp} that follows {sp} (like a friction) {where}"
-    return f"a {what} of RMS about {amp} {where}, of no clear shape"
+        return f"{a} {what} of about {amp} that follows {sp} (like a friction) {where}"
+    return f"{a} {what} of RMS about {amp} {where}, of no clear shape"
 
 
 # --------------------------------------------------------------------------------------------
