@@ -8,11 +8,12 @@ import pywt
 
 from engine.constants import CHANNEL_WAVELETS, CHANNELS, SAMPLE_INTERVAL
 from engine.diagnosis import calibrate, default_space, diagnose
+from engine.diagnosis.candidate import CandidateSettings, fit_candidate
 from engine.diagnosis.diagnose import DiagnosisSettings, fit_statistic
 from engine.diagnosis.noise import ChannelNoise, NoiseModel, estimate_noise, noise_weights
 from engine.diagnosis.space import DEFAULT_BOUNDS, BoundsError, check_bounds
 from engine.records import Record
-from engine.simulation import EffectLibrary, PlantParameters, simulate
+from engine.simulation import CATALOGUE, EffectLibrary, PlantParameters, simulate
 from engine.simulation.noise import add_noise, coloured_noise
 
 #: An operating point outside the v1 search box (J1 above its 0.96).
@@ -167,6 +168,30 @@ def test_clean_record_with_low_passed_noise_is_not_a_gap(clean):
     # the v1 (white, finest-level) estimate takes the same record for a gap
     v1 = calibrate(rec, noise=estimate_noise(rec, coloured=False))
     assert not fits_noise(v1)
+
+
+@pytest.mark.parametrize(("lowpass", "order", "seed"), [(FS / 20, 2, 11), (FS / 6, 1, 21)])
+def test_the_speed_quantum_gets_no_false_evidence_from_coloured_noise(clean, lowpass, order, seed):
+    """Its chi-square is whitened like every other fit's: a quantum that moves nothing cannot lower it by much.
+
+    Before the fix it was computed in time on coloured records, and 11 of 36 clean records of a protocol-2
+    progress run (seed 101) came out weak_gap with "speed_quantization fits the record but moves it by
+    0.01-0.12 noise RMS".
+    """
+    rec = noisy(clean, np.random.default_rng(seed), lowpass_hz=lowpass, order=order)
+    nominal = calibrate(rec)
+    assert not nominal.noise.is_white
+    quantum = fit_candidate(rec, nominal, default_space(rec), CATALOGUE["speed_quantization"], CandidateSettings())
+    cal = quantum.calibration
+    assert cal is not None
+    # the reported chi2 is the whitened chi2 of its own (rounded) simulation
+    model = NoiseModel.of(nominal.sigma)
+    for j, name in enumerate(CHANNELS):
+        r = rec[name] - cal.simulation[j]
+        assert cal.chi2_per_channel[name] == pytest.approx(float(model.chi2(name, r)), rel=1e-9)
+    # one free parameter on a clean record: chi2 drops by a few units at most, so no BIC evidence
+    assert cal.chi2 > nominal.chi2 - 10.0
+    assert quantum.bic > nominal.bic
 
 
 def test_a_real_effect_still_shows_as_a_gap_under_coloured_noise():

@@ -7,6 +7,15 @@ by a dense scan of the rounded calibrated omega1 (:func:`quantum_scan`); the
 calibration is refitted on the unrounded omega1 with the rounding treated as
 extra white noise (variance q^2/12), and q is scanned again (two rounds). Its
 uncertainty is the half-width of the interval where chi2 rises by 1.
+
+The scans weigh omega1's residual by its noise standard deviation in time; the fit's
+reported chi-square, which its BIC and the decision compare with every other fit's, is
+computed like theirs (whitened per wavelet level when the noise is coloured,
+:meth:`engine.diagnosis.noise.NoiseModel.chi2`). It used to be computed in time on
+coloured records too, so that on clean records with low-passed noise
+the quantum's BIC differed from the nominal fit's by the difference of two estimates of
+the same noise energy (hundreds), which read as evidence (11 of 36 clean records of a
+protocol-2 progress run answered ``weak_gap``, docs/diagnosis.md 8c).
 """
 
 from __future__ import annotations
@@ -17,6 +26,7 @@ import numpy as np
 
 from engine.constants import CHANNELS
 from engine.diagnosis.calibration import CalibrationError, CalibrationResult, CalibrationSettings, calibrate
+from engine.diagnosis.noise import NoiseModel
 from engine.diagnosis.space import ModelSpace
 from engine.records import Record
 from engine.simulation import Case, Effect
@@ -122,9 +132,9 @@ def fit_quantisation(
     simulation = _simulation(cal).copy()
     simulation[j] = rounded
     cal.simulation = simulation
-    others = {
-        n: float(np.sum(((simulation[CHANNELS.index(n)] - record[n]) / nominal.sigma[n]) ** 2)) for n in record.channels
-    }
+    # the chi-square of every other fit: whitened per wavelet level when the noise is coloured
+    weights = NoiseModel.of(nominal.sigma)
+    others = {n: float(weights.chi2(n, np.asarray(record[n]) - simulation[CHANNELS.index(n)])) for n in record.channels}
     cal.chi2_per_channel = others
     cal.chi2 = float(sum(others.values()))
     if cal.case is not None:
