@@ -97,6 +97,25 @@ def box_points(n: int, seed: int) -> list[dict[str, float]]:
     ]
 
 
+def v1_range_records(
+    n: int, rng: np.random.Generator, effect: dict[str, float] | None = None
+) -> tuple[list[dict[str, float]], Any, list[str]]:
+    """N noiseless records at operating points uniform in the v1 operating range (``OPERATING_RANGE``).
+
+    Returns the points (K [m], J1 [kg m^2], c [pu]), the batch simulation (with ``effect`` on every
+    record) and the channel names.
+    """
+    from engine.constants import OPERATING_RANGE
+    from engine.simulation import Case, PlantParameters, simulate_batch
+
+    (K_lo, K_hi, _), (J_lo, J_hi, _), (c_lo, c_hi, _) = (OPERATING_RANGE[k] for k in ("K", "J1", "c"))
+    points = [
+        {"K": rng.uniform(K_lo, K_hi), "J1": rng.uniform(J_lo, J_hi), "c": rng.uniform(c_lo, c_hi)} for _ in range(n)
+    ]
+    sims = simulate_batch([Case(PlantParameters(K=p["K"], J1=p["J1"], c=p["c"])) for p in points], effects=effect)
+    return points, sims, list(sims.record(0).channels)
+
+
 def fits_noise(cal: Any) -> bool:
     """The decision's "fit to the noise": total chi2/n <= 1.05 and every channel <= 1.2."""
     from engine.diagnosis.diagnose import DiagnosisSettings, fit_statistic
@@ -188,21 +207,15 @@ def bench_calibration(
 
 def bench_noise(n: int, seed: int, effect: dict[str, float] | None = None, v1_noise: bool = False) -> dict[str, Any]:
     """False alarms of the nominal fit statistic per noise colour (or, with ``effect``, how often it shows)."""
-    from engine.constants import OPERATING_RANGE, SAMPLE_INTERVAL
+    from engine.constants import SAMPLE_INTERVAL
     from engine.diagnosis import calibrate
     from engine.diagnosis.diagnose import NOMINAL_CALIBRATION, fit_statistic
     from engine.diagnosis.noise import estimate_noise
     from engine.records import Record
-    from engine.simulation import Case, PlantParameters, simulate_batch
     from engine.simulation.noise import add_noise
 
     rng = np.random.default_rng(seed)
-    (K_lo, K_hi, _), (J_lo, J_hi, _), (c_lo, c_hi, _) = (OPERATING_RANGE[k] for k in ("K", "J1", "c"))
-    points = [
-        {"K": rng.uniform(K_lo, K_hi), "J1": rng.uniform(J_lo, J_hi), "c": rng.uniform(c_lo, c_hi)} for _ in range(n)
-    ]
-    sims = simulate_batch([Case(PlantParameters(K=p["K"], J1=p["J1"], c=p["c"])) for p in points], effects=effect)
-    names = list(sims.record(0).channels)
+    points, sims, names = v1_range_records(n, rng, effect)
     out: dict[str, Any] = {"n": n, "seed": seed, "effect": effect, "v1_noise": v1_noise, "colours": {}}
     for label, order, frac in COLOURS:
         rows = []
@@ -248,19 +261,13 @@ def bench_noise(n: int, seed: int, effect: dict[str, float] | None = None, v1_no
 
 def bench_estimate(n: int, seed: int) -> dict[str, Any]:
     """The noise estimate alone (no calibration): recognised order and estimated / true standard deviation."""
-    from engine.constants import OPERATING_RANGE, SAMPLE_INTERVAL
+    from engine.constants import SAMPLE_INTERVAL
     from engine.diagnosis.noise import estimate_noise
     from engine.records import Record
-    from engine.simulation import Case, PlantParameters, simulate_batch
     from engine.simulation.noise import add_noise
 
     rng = np.random.default_rng(seed)
-    (K_lo, K_hi, _), (J_lo, J_hi, _), (c_lo, c_hi, _) = (OPERATING_RANGE[k] for k in ("K", "J1", "c"))
-    points = [
-        {"K": rng.uniform(K_lo, K_hi), "J1": rng.uniform(J_lo, J_hi), "c": rng.uniform(c_lo, c_hi)} for _ in range(n)
-    ]
-    sims = simulate_batch([Case(PlantParameters(K=p["K"], J1=p["J1"], c=p["c"])) for p in points])
-    names = list(sims.record(0).channels)
+    _, sims, names = v1_range_records(n, rng, None)
     out: dict[str, Any] = {"n": n, "seed": seed, "colours": {}}
     for label, order, frac in COLOURS:
         ratios, orders = [], []
@@ -397,21 +404,16 @@ def bench_verdicts(
     colours: tuple[str, ...] = VERDICT_COLOURS,
 ) -> dict[str, Any]:
     """Full diagnoses of clean records per noise colour: how often the verdict is not ``no_gap``."""
-    from engine.constants import OPERATING_RANGE, SAMPLE_INTERVAL
+    from engine.constants import SAMPLE_INTERVAL
     from engine.diagnosis import diagnose
     from engine.diagnosis.noise import estimate_noise
     from engine.records import Record
-    from engine.simulation import CATALOGUE, Case, PlantParameters, simulate_batch
+    from engine.simulation import CATALOGUE
     from engine.simulation.noise import add_noise
 
     library = CATALOGUE.without(*without) if without else CATALOGUE
     rng = np.random.default_rng(seed)
-    (K_lo, K_hi, _), (J_lo, J_hi, _), (c_lo, c_hi, _) = (OPERATING_RANGE[k] for k in ("K", "J1", "c"))
-    points = [
-        {"K": rng.uniform(K_lo, K_hi), "J1": rng.uniform(J_lo, J_hi), "c": rng.uniform(c_lo, c_hi)} for _ in range(n)
-    ]
-    sims = simulate_batch([Case(PlantParameters(K=p["K"], J1=p["J1"], c=p["c"])) for p in points])
-    names = list(sims.record(0).channels)
+    points, sims, names = v1_range_records(n, rng, None)
     out: dict[str, Any] = {"n": n, "seed": seed, "v1_noise": v1_noise, "without": list(without), "colours": {}}
     for label, order, frac in COLOURS:
         if label not in colours:

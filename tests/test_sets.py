@@ -12,7 +12,7 @@ from engine.diagnosis import diagnose
 from engine.diagnosis.calibration import CalibrationResult
 from engine.diagnosis.candidate import Candidate
 from engine.diagnosis.diagnose import DiagnosisSettings, choose_model, decide
-from engine.diagnosis.sets import CandidateSet, same_physics
+from engine.diagnosis.sets import CandidateSet, SetSettings, same_physics
 from engine.records import Record
 from engine.simulation import CATALOGUE, HELD_BACK, PlantParameters, simulate
 from engine.simulation.noise import noise_std
@@ -79,6 +79,35 @@ def test_libraries_combine_and_answer_membership() -> None:
 def test_same_physics_pairs_are_not_searched() -> None:
     assert same_physics(CATALOGUE["measurement_delay"], CATALOGUE["trigger_offset"])
     assert not same_physics(CATALOGUE["load_inertia"], CATALOGUE["motor_coulomb_friction"])
+
+
+def test_sets_given_as_previous_are_kept_and_not_fitted_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The diagnosis's first pairs are not refitted by the full search when the singles did not change."""
+    sets_module = importlib.import_module("engine.diagnosis.sets")
+    fitted: list[tuple[str, ...]] = []
+
+    def fake_fit(record, space, members, *args, **kwargs):  # records the group, fits nothing
+        fitted.append(tuple(sorted(m.name for m in members)))
+
+    monkeypatch.setattr(sets_module, "_fit_set", fake_fit)
+    monkeypatch.setattr(sets_module, "_strengths", lambda *a, **k: {})
+    monkeypatch.setattr(sets_module, "gap_budget", lambda *a, **k: ({}, 0.0))
+    names = ("load_inertia", "motor_coulomb_friction", "supply_voltage")
+    singles = [single(n, 50.0, 10.0) for n in names]
+    prev = pair(("motor_coulomb_friction", "load_inertia"), 2.0, (10.0, 10.0))  # another order than the pool's
+    out = sets_module.search_sets(
+        None,
+        fake_cal(100.0, k=3),
+        None,
+        CATALOGUE,
+        singles,
+        settings=SetSettings(max_size=2, escalate=False),
+        previous=[prev],
+    )
+    assert prev in out
+    pairs_fitted = set(fitted)
+    assert ("load_inertia", "motor_coulomb_friction") not in pairs_fitted
+    assert {("load_inertia", "supply_voltage"), ("motor_coulomb_friction", "supply_voltage")} <= pairs_fitted
 
 
 def test_a_set_replaces_the_single_effect_only_when_it_pays_and_every_member_is_strong() -> None:

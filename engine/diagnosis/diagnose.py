@@ -667,10 +667,13 @@ def _diagnose(
         first = replace(set_settings, escalate=False, max_size=2)
         sets = search_sets(record, nominal, space, library, cands, cs, first)
         if not any(_explains(s, settings) for s in sets):
-            if needs_escalation(cands, cs):
+            escalated = needs_escalation(cands, cs)
+            if escalated:
                 cands = escalate_candidates(record, nominal, space, library, cands, cs)
             if not _explains_single(cands, settings):
-                sets = _merge_sets(sets, search_sets(record, nominal, space, library, cands, cs, set_settings))
+                # the first pairs stand as fitted unless the escalation changed the singles they came from
+                again = search_sets(record, nominal, space, library, cands, cs, set_settings, () if escalated else sets)
+                sets = _merge_sets(sets, again)
     elif use_sets and not _explains_single(cands, settings):
         sets = search_sets(record, nominal, space, library, cands, cs, set_settings)
     n_sim += sum(c.calibration.n_simulations for c in cands if c.calibration)

@@ -58,7 +58,7 @@ import logging
 import math
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -218,15 +218,7 @@ class LocusScore:
     simulated: bool = False
 
     def to_dict(self) -> dict[str, Any]:
-        return {
-            "bic": self.bic,
-            "delta_bic": self.delta_bic,
-            "rss": self.rss,
-            "dof": self.dof,
-            "explained": self.explained,
-            "weight": self.weight,
-            "simulated": self.simulated,
-        }
+        return asdict(self)
 
 
 @dataclass(frozen=True)

@@ -394,6 +394,7 @@ def search_sets(
     singles: Sequence[Candidate],
     candidate_settings: CandidateSettings | None = None,
     settings: SetSettings | None = None,
+    previous: Sequence[CandidateSet] = (),
 ) -> list[CandidateSet]:
     """Fit sets of two and three effects (see the module notes), best BIC first.
 
@@ -413,6 +414,9 @@ def search_sets(
         Search settings of the fits (seeded, escalated; threads).
     settings : SetSettings, optional
         Settings of the set search.
+    previous : sequence of CandidateSet
+        Sets already fitted from the same single candidates (the diagnosis's first pairs, when
+        the singles' escalation changed nothing): kept as they are, not fitted again.
 
     Returns
     -------
@@ -424,7 +428,7 @@ def search_sets(
     ss = SetSettings() if settings is None else settings
     runner = Runner(cs.jobs(), thread_context=serial_kernel, thread_name_prefix="set")
     with single_threaded_blas(), runner:
-        return _search(record, nominal, space, library, singles, cs, ss, runner)
+        return _search(record, nominal, space, library, singles, cs, ss, runner, previous)
 
 
 def _search(
@@ -436,6 +440,7 @@ def _search(
     cs: CandidateSettings,
     ss: SetSettings,
     runner: Runner,
+    previous: Sequence[CandidateSet] = (),
 ) -> list[CandidateSet]:
     t0 = time.perf_counter()
     pool = [c for c in singles if c.calibration is not None and c.bic < nominal.bic][: ss.pool]
@@ -447,6 +452,11 @@ def _search(
     single_values = {c.effect: float(c.value) for c in pool if c.value is not None}
     effects = {c.effect: library[c.effect] for c in pool}
     sets: dict[tuple[str, ...], CandidateSet] = {}
+    names = [c.effect for c in pool]
+    for prev in previous:
+        if prev.calibration is not None and set(prev.effects) <= set(names):
+            g = tuple(sorted(prev.effects, key=names.index))
+            fits[g], sets[g] = prev.calibration, prev
 
     def fit_all(
         groups: list[tuple[str, ...]],
@@ -481,9 +491,8 @@ def _search(
     def fits_noise(g: tuple[str, ...]) -> bool:
         return g in fits and fits[g].reduced_chi2 <= ss.escalate_above
 
-    names = [c.effect for c in pool]
     pairs = [tuple(p) for p in itertools.combinations(names, 2) if not same_physics(effects[p[0]], effects[p[1]])]
-    fit_all(pairs, cs.seeded, polish=False)
+    fit_all([p for p in pairs if p not in sets], cs.seeded, polish=False)
     logger.info("set search: %d pairs fitted, %.1f s", len(pairs), time.perf_counter() - t0)
 
     def best_of(size: int) -> list[tuple[str, ...]]:
