@@ -9,7 +9,10 @@ Three parts, each optional:
   settings. Counts the fits to the noise (total chi2/n <= 1.05 and every channel <= 1.2, the
   decision's thresholds) and the fits in the basin (|K error| < 3 %, |J1 error| < 1.5 %),
   with Wilson 95 % intervals, and the time per calibration. ``--linear-K`` searches K on a
-  linear scale and ``--v1-box`` searches the v1 box (the v1 code's search).
+  linear scale and ``--v1-box`` searches the v1 box (the v1 code's search);
+  ``--channels m_el,omega1`` keeps only those channels (a drive's own sensors) and
+  ``--before`` uses the nominal settings before the scan at each horizon extension
+  (``FORMER_NOMINAL``), for a comparison on the same records.
 * ``--noise N``: the nominal fit statistic's false-alarm rate on N clean records per noise
   colour (white; first- and second-order low-passes at fs/20, fs/8 and fs/3), operating points
   uniform in the v1 operating range, per-channel SNR 30-50 dB with channels differing by up
@@ -129,10 +132,20 @@ def fits_noise(cal: Any) -> bool:
 V1_BOX: dict[str, tuple[float, float]] = {"K": (0.0022, 0.0105), "J1": (0.72, 0.96), "c": (0.75, 1.6)}
 
 
+#: The nominal calibration's settings before the scan at each horizon extension (for ``--before``).
+FORMER_NOMINAL: dict[str, Any] = {"n_global": 256, "n_starts": 2}
+
+
 def bench_calibration(
-    n: int, seed: int, linear_K: bool = False, v1_box: bool = False, free_c1: bool = False
+    n: int,
+    seed: int,
+    linear_K: bool = False,
+    v1_box: bool = False,
+    free_c1: bool = False,
+    channels: tuple[str, ...] = (),
+    before: bool = False,
 ) -> dict[str, Any]:
-    from engine.diagnosis import calibrate, default_space
+    from engine.diagnosis import CalibrationSettings, calibrate, default_space
     from engine.diagnosis.diagnose import NOMINAL_CALIBRATION, fit_statistic
     from engine.records import Record
     from engine.simulation import Case, PlantParameters, simulate_batch
@@ -146,13 +159,14 @@ def bench_calibration(
         snr = float(rng.uniform(30.0, 50.0))
         x = add_noise(sims.channels[i], snr, rng)
         rec = Record(
-            {c: x[j] for j, c in enumerate(sims.record(i).channels)}, conditions={} if free_c1 else {"c1": 0.2}
+            {c: x[j] for j, c in enumerate(sims.record(i).channels) if not channels or c in channels},
+            conditions={} if free_c1 else {"c1": 0.2},
         )
         space = default_space(rec, V1_BOX if v1_box else None)
         if linear_K:
             space = replace(space, params=tuple(replace(q, log=False) for q in space.params))
         t0 = time.perf_counter()
-        cal = calibrate(rec, space, NOMINAL_CALIBRATION)
+        cal = calibrate(rec, space, CalibrationSettings(**FORMER_NOMINAL) if before else NOMINAL_CALIBRATION)
         dt = time.perf_counter() - t0
         total, worst = fit_statistic(cal)
         eK, eJ = cal.values["K"] / p["K"] - 1, cal.values["J1"] / p["J1"] - 1
@@ -194,6 +208,8 @@ def bench_calibration(
         "K_scale": "linear" if linear_K else "log",
         "box": "v1" if v1_box else "plausible",
         "c1": "fitted" if free_c1 else "known",
+        "channels": list(channels) or "all",
+        "settings": f"former nominal {FORMER_NOMINAL}" if before else "NOMINAL_CALIBRATION",
         "fits_noise": _rate(sum(r["fits_noise"] for r in rows), n),
         "in_basin": _rate(sum(r["in_basin"] for r in rows), n),
         "corners_fit_noise": _rate(sum(r["fits_noise"] for r in corners), len(corners)) if corners else None,
@@ -537,6 +553,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--linear-K", action="store_true", help="search K on a linear scale (v1)")
     ap.add_argument("--free-c1", action="store_true", help="c1 not given: calibrated too (4 parameters)")
     ap.add_argument("--v1-box", action="store_true", help="search the v1 box (K 2.2-10.5 mm, J1 0.72-0.96, c 0.75-1.6)")
+    ap.add_argument("--channels", default="", help="with --calibration: only these channels (comma-separated)")
+    ap.add_argument("--before", action="store_true", help="with --calibration: the former nominal settings")
     ap.add_argument("--noise", type=int, default=0, metavar="N", help="clean records per noise colour")
     ap.add_argument("--estimate", type=int, default=0, metavar="N", help="noise estimate alone, N records per colour")
     ap.add_argument("--effect", action="store_true", help="with --noise, add load_inertia 1.3 to every record")
@@ -562,7 +580,13 @@ def main(argv: list[str] | None = None) -> int:
     results: dict[str, Any] = {}
     if args.calibration:
         results["calibration"] = bench_calibration(
-            args.calibration, args.seed, args.linear_K, args.v1_box, args.free_c1
+            args.calibration,
+            args.seed,
+            args.linear_K,
+            args.v1_box,
+            args.free_c1,
+            tuple(x for x in args.channels.split(",") if x),
+            args.before,
         )
     if args.noise:
         results["noise"] = bench_noise(

@@ -110,6 +110,41 @@ def test_sets_given_as_previous_are_kept_and_not_fitted_again(monkeypatch: pytes
     assert {("load_inertia", "supply_voltage"), ("motor_coulomb_friction", "supply_voltage")} <= pairs_fitted
 
 
+def test_forward_selection_tries_every_effect_beside_the_best_singles(monkeypatch: pytest.MonkeyPatch) -> None:
+    """An effect that ranks low as a single (here worse than the nominal model) is still tried beside the best."""
+    sets_module = importlib.import_module("engine.diagnosis.sets")
+    fitted: list[tuple[str, ...]] = []
+
+    def fake_fit(record, space, members, *args, **kwargs):
+        fitted.append(tuple(sorted(m.name for m in members)))
+
+    monkeypatch.setattr(sets_module, "_fit_set", fake_fit)
+    strong = ["load_inertia", "motor_coulomb_friction", "supply_voltage", "contact_damping"]
+    singles = [single(n, 50.0 + i, 10.0) for i, n in enumerate(strong)]
+    singles.append(single("sensor_gain", 200.0, 1.0))  # worse than the nominal model: never in the pool
+    singles.append(single("measurement_delay", 60.0, 1.0))
+    singles.append(single("trigger_offset", 61.0, 1.0))
+
+    def run(n_base: int) -> set[tuple[str, ...]]:
+        fitted.clear()
+        sets_module.search_sets(
+            None,
+            fake_cal(100.0, k=3),
+            None,
+            CATALOGUE,
+            singles,
+            settings=SetSettings(max_size=2, escalate=False, pool=4, n_base=n_base),
+        )
+        return set(fitted)
+
+    forward = run(2)
+    assert ("load_inertia", "sensor_gain") in forward and ("motor_coulomb_friction", "sensor_gain") in forward
+    assert ("sensor_gain", "supply_voltage") not in forward  # only the n_base best singles are extended
+    assert ("measurement_delay", "trigger_offset") not in forward  # same physics is never fitted together
+    assert len(forward) == 6 + 2 * 3  # the pool's pairs, and each base with the three effects outside the pool
+    assert not any("sensor_gain" in g for g in run(0))
+
+
 def test_a_set_replaces_the_single_effect_only_when_it_pays_and_every_member_is_strong() -> None:
     s = DiagnosisSettings()
     best = single("load_inertia", 20.0, 90.0)
@@ -195,3 +230,15 @@ def test_two_effects_at_once_are_named_with_values_and_a_gap_budget(compound) ->
     assert d["candidates"][0]["kind"] == "set"  # the set is the best model by BIC
     assert d["gap"]["budget"]["shares"] == {e["effect"]: e["share"] for e in v.effects}
     assert d["verdict"]["effect"] == v.effects[0]["effect"]
+
+
+def test_the_verdict_says_which_named_effect_has_an_indistinguishable_twin() -> None:
+    nominal = fake_cal(50.0, k=4)
+    st = pair(("trigger_offset", "load_inertia"), 1.0, (40.0, 90.0))
+    st.calibration.values.update({"trigger_offset": 4e-4, "load_inertia": 1.3})
+    st.shares = {"trigger_offset": 0.3, "load_inertia": 0.69}
+    v = diagnose_module._with_alternatives(decide(nominal, [], DiagnosisSettings(), [st]), CATALOGUE)
+    rows = {r["effect"]: r for r in v.to_dict()["effects"]}
+    assert rows["trigger_offset"]["alternatives"] == ["measurement_delay"]
+    assert rows["load_inertia"]["alternatives"] == []
+    assert "trigger_offset cannot be told from measurement_delay" in v.reason

@@ -14,6 +14,7 @@ import pytest
 
 from engine.constants import CHANNELS, OPERATING_RANGE, PLAUSIBLE_RANGE
 from engine.diagnosis.diagnose import DiagnosisSettings
+from engine.diagnosis.space import indistinguishable
 from engine.records import Record
 from engine.simulation import CATALOGUE, Case, Effect, EffectLibrary, PlantParameters, simulate_batch
 from engine.simulation.noise import noise_std
@@ -471,6 +472,41 @@ def test_scorer_reads_results_without_the_new_fields() -> None:
     assert m["single_named"].met is True and m["held_back_locus"].rate.k == 0
     with pytest.raises(KeyError, match="no result"):
         score_cases(key, {"s": old})
+
+
+def test_a_declared_twin_counts_as_named_and_nothing_else_does() -> None:
+    """A measurement delay and a trigger offset give the same record; the diagnosis says so, the scorer credits it."""
+    delay, trigger = CATALOGUE["measurement_delay"], CATALOGUE["trigger_offset"]
+    base = Case(PlantParameters())
+    sims = simulate_batch([delay.apply(base, 3e-4), trigger.apply(base, 3e-4)]).channels
+    assert np.array_equal(sims[0], sims[1])  # the premise: not one sample differs
+    assert indistinguishable("trigger_offset", 3e-4, CATALOGUE) == ("measurement_delay",)
+    assert indistinguishable("trigger_offset", -3e-4, CATALOGUE) == ()  # a delay is never negative
+    assert indistinguishable("load_inertia", 1.0, CATALOGUE) == ()
+
+    def said(effects: list[tuple[str, float]], twins: dict[str, list[str]]) -> dict[str, Any]:
+        r = _fake_result("explained", effects)
+        for row in r["verdict"]["effects"]:
+            row["alternatives"] = twins.get(row["effect"], [])
+        return r
+
+    key = [
+        _entry("s", "single", [("measurement_delay", "sensors")]),
+        _entry("p", "pair", [("measurement_delay", "sensors"), ("supply_voltage", "supply")]),
+        _entry("q", "pair", [("load_inertia", "drive_train"), ("supply_voltage", "supply")]),
+    ]
+    twin = {"trigger_offset": ["measurement_delay"]}
+    res = {
+        "s": said([("trigger_offset", 3e-4)], twin),
+        "p": said([("supply_voltage", 0.9), ("trigger_offset", 3e-4)], twin),
+        "q": said([("supply_voltage", 0.9), ("trigger_offset", 3e-4)], twin),  # a twin of nothing true
+    }
+    m = _metrics(key, res)
+    assert m["single_named"].rate.k == 1 and m["pair_exact"].rate.k == 1 and m["pair_contains"].rate.k == 1
+    res["s"] = said([("trigger_offset", 3e-4)], {})  # not declared: not credited
+    res["p"] = said([("supply_voltage", 0.9), ("trigger_offset", 3e-4)], {})
+    m = _metrics(key, res)
+    assert m["single_named"].rate.k == 0 and m["pair_exact"].rate.k == 0
 
 
 def test_report_is_small_and_says_what_it_ran_on() -> None:

@@ -130,6 +130,20 @@ class CalibrationSettings:
         a deep valley from one that only happened to be sampled low.
     screen_nfev : int
         Cap on residual evaluations of each screening refinement.
+    n_late : int
+        Sobol points also picked by their cost over the whole record (at least
+        ``min_separation`` from the others) and refined there directly: a parameter whose
+        effect appears only late in the record (a wide backlash taken up late, seen only in
+        the drive's own channels) leaves the early horizons' cost flat in it, so the early
+        picks are blind to its basin. Free of simulations (the Sobol batch covers the whole
+        record), one more local fit each.
+    n_extend_scan : int
+        When positive, each time the continuation extends the horizon, every parameter is
+        scanned on its own over its whole range (this many values, one batch on the new
+        horizon) and the continuation goes on from the best point found (or stays): a
+        parameter that the shorter horizon did not pin sits wherever its start put it, and
+        when the longer horizon reveals its effect the local fit would only reach the
+        nearest of its basins.
     """
 
     n_global: int = 512
@@ -145,6 +159,8 @@ class CalibrationSettings:
     seed: int = 0
     n_screen: int = 8
     screen_nfev: int = 6
+    n_late: int = 0
+    n_extend_scan: int = 0
 
     def horizons(self, record: Record) -> list[int]:
         """Horizons as sample counts from the start of the record (on its own interval)."""
@@ -306,6 +322,17 @@ def _pick_starts(U: np.ndarray, cost: np.ndarray, n: int, min_sep: float) -> lis
     return starts
 
 
+def _scan_axes(obj: Objective, u: np.ndarray, horizon: int, solver: SolverSettings, n: int) -> np.ndarray:
+    """The best of ``u`` and the points of a scan of each coordinate alone (``n`` values) on ``horizon``."""
+    d = u.size
+    U = np.repeat(u[None], d * n + 1, axis=0)
+    grid = np.linspace(0.0, 1.0, n)
+    for j in range(d):
+        U[j * n : (j + 1) * n, j] = grid
+    C = obj.chi2(U, [horizon], solver)[:, 0]
+    return U[int(np.argmin(C))] if np.isfinite(C).any() else u
+
+
 def calibrate(
     record: Record,
     space: ModelSpace | None = None,
@@ -386,7 +413,8 @@ def _calibrate(
         if settings.n_global > 0:
             m = 1 << max(3, math.ceil(math.log2(settings.n_global)))
             U = qmc.Sobol(d, scramble=True, seed=settings.seed).random(m)
-            C = obj.chi2(U, horizons[:1], coarse)[:, 0]
+            C_both = obj.chi2(U, [horizons[0], record.n_samples], coarse)
+            C = C_both[:, 0]
             picked = _pick_starts(U, C, max(settings.n_starts, settings.n_screen), settings.min_separation)
             if len(picked) > settings.n_starts:  # screen: a short refinement on the first horizon each
                 refined = [
@@ -399,6 +427,11 @@ def _calibrate(
                     settings.min_separation,
                 )
             starts += [(u, "global") for u in picked]
+            if settings.n_late > 0:
+                late = _pick_starts(U, C_both[:, 1], settings.n_late, settings.min_separation)
+                starts += [
+                    (u, "late") for u in late if all(np.linalg.norm(u - p) >= settings.min_separation for p in picked)
+                ]
             logger.debug("global search: %d points, best early chi2 %.4g", len(U), np.min(C))
         # seeds (already close to a full-horizon optimum) skip the continuation
         starts += [(space.unit(s), "seed") for s in seeds]
@@ -412,7 +445,9 @@ def _calibrate(
         for s, kind in starts:
             u = s
             trace: list[Stage] = []
-            for h in horizons if kind == "global" else [record.n_samples]:
+            for i, h in enumerate(horizons if kind == "global" else [record.n_samples]):
+                if i > 0 and settings.n_extend_scan > 1:
+                    u = _scan_axes(obj, u, h, coarse, settings.n_extend_scan)
                 u, c2, _, nfev = obj.local_fit(u, h, coarse, settings.max_nfev, settings.fd_step)
                 trace.append({"start": kind, "horizon": h, "chi2": c2, "step": settings.search_step, "nfev": nfev})
             logger.debug("%s start %s -> %s chi2 %.4g", kind, np.round(s, 3), np.round(u, 3), trace[-1]["chi2"])

@@ -86,7 +86,7 @@ from engine.diagnosis.candidates import escalate_candidates, fit_candidates, nee
 from engine.diagnosis.gap import Gap, closed_fraction, gap_of
 from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, localise
 from engine.diagnosis.sets import CandidateSet, SetSettings, search_sets
-from engine.diagnosis.space import ALIGNMENT, Bounds, default_space
+from engine.diagnosis.space import ALIGNMENT, Bounds, default_space, indistinguishable
 from engine.parallel import single_threaded_blas
 from engine.records import Record, WindowUse
 from engine.simulation import CATALOGUE, EffectLibrary
@@ -111,8 +111,13 @@ __all__ = [
 IdentificationHook = Callable[[Record, "DiagnosisResult"], dict]
 
 
-#: Search settings of the nominal calibration of a diagnosis.
-NOMINAL_CALIBRATION = CalibrationSettings(n_global=256, n_starts=2)
+#: Search settings of the nominal calibration of a diagnosis: 256 Sobol points, 16 of them screened
+#: on the first horizon, 2 continued over six horizons with a scan of every parameter at each
+#: extension (a wide backlash seen only in the drive's own channels leaves the early window flat
+#: in c; docs/diagnosis.md section 8c).
+NOMINAL_CALIBRATION = CalibrationSettings(
+    n_global=256, n_starts=2, n_screen=16, horizons_ms=(10.0, 20.0, 40.0, 80.0, 130.0, 200.0), n_extend_scan=17
+)
 
 
 @dataclass(frozen=True)
@@ -189,7 +194,10 @@ class Verdict:
         One sentence on why.
     effects : list of dict
         Every named effect, ``{"effect", "value", "uncertainty", "unit", "locus", "share",
-        "strength"}``, largest share of the gap first (empty unless ``explained``).
+        "strength", "alternatives"}``, largest share of the gap first (empty unless
+        ``explained``); ``alternatives`` lists the library's effects that give the very same
+        record at that value (:func:`~engine.diagnosis.space.indistinguishable`: a measurement
+        delay and a trigger offset), which no record can tell from the named one.
     locus : str or None
         Where in the plant the missing physics acts (None for ``no_gap``).
     missing_term : dict or None
@@ -577,6 +585,31 @@ def _explains_single(cands: Sequence[Candidate], settings: DiagnosisSettings) ->
     return best is not None and best.calibration is not None and _fits_noise(best.calibration, settings)
 
 
+def _moved(before: Mapping[str, Mapping[str, float]], c: Candidate) -> bool:
+    """Whether a candidate's fit left its earlier fit's basin (a value changed by more than 1 %)."""
+    old = before.get(c.effect)
+    if old is None or c.calibration is None:
+        return True
+    new = c.calibration.values
+    return any(not math.isclose(v, old.get(k, math.nan), rel_tol=0.01, abs_tol=1e-6) for k, v in new.items())
+
+
+def _with_alternatives(verdict: Verdict, library: EffectLibrary) -> Verdict:
+    """The verdict with every named effect's indistinguishable twins (``alternatives``) and a word on them."""
+    if not verdict.effects:
+        return verdict
+    rows = []
+    notes = []
+    for r in verdict.effects:
+        value = r.get("value")
+        alts = indistinguishable(r["effect"], float(value), library) if value is not None else ()
+        rows.append({**r, "alternatives": list(alts)})
+        if alts:
+            notes.append(f"{r['effect']} cannot be told from {' or '.join(alts)} (the same shift of every channel)")
+    reason = f"{verdict.reason}; {'; '.join(notes)}" if notes else verdict.reason
+    return replace(verdict, effects=tuple(rows), reason=reason)
+
+
 def _merge_sets(first: Sequence[CandidateSet], second: Sequence[CandidateSet]) -> list[CandidateSet]:
     """The sets of two searches, the better fit of each group of effects, best BIC first."""
     best: dict[frozenset[str], CandidateSet] = {}
@@ -657,7 +690,9 @@ def _diagnose(
     n_sim = nominal.n_simulations
 
     cs = settings.candidates
-    set_settings = replace(settings.sets, min_strength=settings.min_strength)
+    set_settings = replace(
+        settings.sets, min_strength=settings.min_strength, max_reduced_chi2=settings.max_reduced_chi2
+    )
     use_sets = set_settings.max_size >= 2 and not _fits_noise(nominal, settings)
     staged = use_sets and set_settings.before_escalation
     cands = fit_candidates(record, nominal, space, library, cs, escalate=not staged)
@@ -667,12 +702,14 @@ def _diagnose(
         first = replace(set_settings, escalate=False, max_size=2)
         sets = search_sets(record, nominal, space, library, cands, cs, first)
         if not any(_explains(s, settings) for s in sets):
-            escalated = needs_escalation(cands, cs)
-            if escalated:
+            seeded = {c.effect: c.calibration.values for c in cands if c.calibration is not None}
+            if needs_escalation(cands, cs):
                 cands = escalate_candidates(record, nominal, space, library, cands, cs)
             if not _explains_single(cands, settings):
-                # the first pairs stand as fitted unless the escalation changed the singles they came from
-                again = search_sets(record, nominal, space, library, cands, cs, set_settings, () if escalated else sets)
+                # the first pairs stand as fitted unless the escalation moved a single they came from
+                moved = {c.effect for c in cands if c.calibration is not None and _moved(seeded, c)}
+                keep = [s for s in sets if not moved & set(s.effects)]
+                again = search_sets(record, nominal, space, library, cands, cs, set_settings, keep)
                 sets = _merge_sets(sets, again)
     elif use_sets and not _explains_single(cands, settings):
         sets = search_sets(record, nominal, space, library, cands, cs, set_settings)
@@ -680,7 +717,7 @@ def _diagnose(
     n_sim += sum(s.calibration.n_simulations for s in sets if s.calibration)
     if sets:
         _reweight(nominal, cands, sets)
-    verdict = decide(nominal, cands, settings, sets)
+    verdict = _with_alternatives(decide(nominal, cands, settings, sets), library)
 
     after = None
     gap_after = None

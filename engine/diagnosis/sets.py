@@ -7,23 +7,35 @@ together with the calibration (one more bounded parameter per effect,
 selection:
 
 1. **Pairs**: every pair among the ``pool`` best single candidates (by BIC,
-   only those that lower the nominal BIC), less pairs that are the same physics
-   (two pure time shifts, or two effects on the same field). Each pair is fitted
-   from seeds built of its members' single fits (the better member's
-   calibration with the other effect at its single-fit value and at its neutral
-   value), by least squares at the search step.
+   only those that lower the nominal BIC), and every effect of the library as
+   the second member of each of the ``n_base`` best singles (forward selection:
+   an effect that is weak beside a strong one, such as a sensor gain, ranks low
+   as a single because its single fit cannot absorb the strong effect's
+   residual, yet it is what the best single lacks), less pairs that are the
+   same physics (two pure time shifts, or two effects on the same field). Each
+   pair is fitted from seeds built of its members' single fits (the better
+   member's calibration with the other effect at its single-fit value and at
+   its neutral value, and the best point of a scan of the other effect's value
+   over its range at the better member's fit), by least squares at the search
+   step.
 2. **Triples**: the ``n_extend`` best pairs, each extended by every other
-   pool member, seeded the same way from the pair's fit; only when no pair fits
-   to the noise.
+   effect of the library (every other pool member when ``n_base`` is 0),
+   seeded the same way from the pair's fit and a scan of the new member's value
+   at it; only when no pair fits to the noise, the best pair refined at the final
+   integrator step first (the search step's integration error alone can lift a
+   right pair's chi2/n above the threshold on a quiet record).
 3. **Escalation**: when no set fits to the noise after the seeded fits, the best
    set of each size gets the full global search in its joint space (strong
    effects can drag every single fit out of the true basin).
 4. **Polish**: the best sets are refined at the final integrator step.
-5. **Backward elimination**: a polished set that fits to the noise but has a
-   weak member (one that moves the record by at most ``min_strength`` noise
-   RMS on its own) is refitted without it, seeded from its own fit: a spurious
-   third effect often lets the search reach the basin that the smaller set's
-   seeded fit missed.
+5. **Backward elimination**: a polished set that fits to the noise is refitted
+   without its weak members (those that move the record by at most
+   ``min_strength`` noise RMS on its own), or, when every member is strong,
+   without each member in turn, seeded from its own fit: a spurious third
+   effect often lets the search reach the basin that the smaller set's seeded
+   fit missed, and on a quiet record a spurious member can sit a hair from its
+   neutral value yet move the record by several noise RMS at that operating
+   point, so only the refitted smaller set shows it is not needed.
 
 Evidence is the same BIC as for single effects (``chi2 + k ln n``): every
 added effect must lower chi2 by more than ln(n) (about 9 for five channels) to
@@ -58,6 +70,8 @@ from engine.constants import CHANNELS
 from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings, calibrate
 from engine.diagnosis.candidate import Candidate, CandidateSettings
 from engine.diagnosis.gap import Gap, gap_of, shrinkage_ratio
+from engine.diagnosis.noise import NoiseModel, noise_weights
+from engine.diagnosis.objective import Objective
 from engine.diagnosis.space import TIME_SHIFT_EFFECTS, ModelSpace
 from engine.parallel import Runner, single_threaded_blas
 from engine.records import Record
@@ -80,10 +94,18 @@ class SetSettings:
         Best single candidates (by BIC) the sets are built from.
     n_extend : int
         Best pairs extended to triples.
+    n_base : int
+        Forward selection: every effect of the library is tried as the second member of
+        this many best singles, and as the third member of the ``n_extend`` best pairs
+        (0: sets are built of the ``pool`` only).
     escalate : bool
         Global search for the best set of each size when no seeded set fits to the noise.
     escalate_above : float
         A set "fits to the noise" for the escalation rule when its search-step chi2/n is at most this.
+    max_reduced_chi2 : float
+        ... and when its chi2/n at the final integrator step (once refined) is at most this: the
+        decision's threshold (the diagnosis passes its own), so that a refined set just above it
+        goes on to the triples and the escalation instead of ending the search unexplained.
     n_polish : int
         Best sets (by BIC) refined at the final integrator step.
     n_report : int
@@ -103,8 +125,10 @@ class SetSettings:
     max_size: int = 3
     pool: int = 5
     n_extend: int = 2
+    n_base: int = 2
     escalate: bool = True
     escalate_above: float = 1.1
+    max_reduced_chi2: float = 1.05
     n_polish: int = 3
     n_report: int = 5
     min_strength: float = 3.0
@@ -367,6 +391,31 @@ def _seeds(
     return seeds
 
 
+def _scan_seed(
+    record: Record,
+    gspace: ModelSpace,
+    noise: Mapping[str, float],
+    base: Mapping[str, float],
+    name: str,
+    n_scan: int,
+    step: float,
+) -> list[dict[str, float]]:
+    """The best point of a 1-D scan of one member's value at a smaller set's fit (``base``).
+
+    The member's single fit was made at an operating point distorted by the other members'
+    residual, so its value may lie far from the one it takes beside them; a scan over its
+    whole range (``n_scan`` values, one batch at integrator step ``step`` [s]) finds the
+    basin cheaply, as for the single candidates (:func:`engine.diagnosis.candidate._seeds`).
+    """
+    obj = Objective(record, gspace, noise_weights(record, NoiseModel.of(noise)))
+    i = gspace.names.index(name)
+    U = np.repeat(gspace.unit(base)[None], n_scan, axis=0)
+    U[:, i] = np.linspace(0.0, 1.0, n_scan)
+    c2 = obj.chi2(U, [record.n_samples], SolverSettings(max_step=step))[:, 0]
+    j = int(np.argmin(c2))
+    return [gspace.values(U[j])] if np.isfinite(c2[j]) else []
+
+
 def _fit_set(
     record: Record,
     space: ModelSpace,
@@ -375,12 +424,21 @@ def _fit_set(
     noise: Mapping[str, float],
     seeds: Sequence[Mapping[str, float]],
     polish: bool,
+    scan: tuple[Mapping[str, float], str, int] | None = None,
 ) -> CalibrationResult | None:
-    """Joint fit of a set, or None when nothing of it can be simulated."""
+    """Joint fit of a set, or None when nothing of it can be simulated.
+
+    ``scan``: ``(base, name, n)``, add the seed of an ``n``-value scan of member ``name`` at
+    the smaller set's fit ``base`` (:func:`_scan_seed`).
+    """
     from engine.diagnosis.calibration import CalibrationError
 
+    gspace = space.with_effects(members)
+    if scan is not None:
+        base, name, n = scan
+        seeds = [*seeds, *_scan_seed(record, gspace, noise, base, name, n, settings.search_step)]
     try:
-        return calibrate(record, space.with_effects(members), settings, noise=noise, seeds=seeds, polish=polish)
+        return calibrate(record, gspace, settings, noise=noise, seeds=seeds, polish=polish)
     except CalibrationError as exc:
         logger.info("set %s could not be fitted: %s", "+".join(e.name for e in members), exc)
         return None
@@ -443,16 +501,20 @@ def _search(
     previous: Sequence[CandidateSet] = (),
 ) -> list[CandidateSet]:
     t0 = time.perf_counter()
-    pool = [c for c in singles if c.calibration is not None and c.bic < nominal.bic][: ss.pool]
-    if len(pool) < 2 or ss.max_size < 2:
+    fitted = sorted((c for c in singles if c.calibration is not None), key=lambda c: c.bic)
+    pool = [c for c in fitted if c.bic < nominal.bic][: ss.pool]
+    if len(pool) < (1 if ss.n_base > 0 else 2) or ss.max_size < 2:
         return []
+    # forward selection reaches every fitted single; without it the pool is all there is
+    reach = fitted if ss.n_base > 0 else pool
     fits: dict[tuple[str, ...], CalibrationResult] = {
-        (c.effect,): c.calibration for c in pool if c.calibration is not None
+        (c.effect,): c.calibration for c in reach if c.calibration is not None
     }
-    single_values = {c.effect: float(c.value) for c in pool if c.value is not None}
-    effects = {c.effect: library[c.effect] for c in pool}
+    single_values = {c.effect: float(c.value) for c in reach if c.value is not None}
+    effects = {c.effect: library[c.effect] for c in reach}
     sets: dict[tuple[str, ...], CandidateSet] = {}
-    names = [c.effect for c in pool]
+    names = [c.effect for c in reach]
+    base = [c.effect for c in pool[: ss.n_base]]
     for prev in previous:
         if prev.calibration is not None and set(prev.effects) <= set(names):
             g = tuple(sorted(prev.effects, key=names.index))
@@ -467,6 +529,7 @@ def _search(
         tasks = {}
         for g in groups:
             members = [effects[n] for n in g]
+            scan = None
             if given is not None and g in given:
                 seeds = [dict(given[g])]
             elif polish and g in fits:
@@ -475,7 +538,13 @@ def _search(
                 seeds = _seeds(members, fits, single_values)
                 if g in fits:
                     seeds.insert(0, dict(fits[g].values))
-            tasks[g] = runner.submit(_fit_set, record, space, members, settings, nominal.noise, seeds, polish)
+                elif cs.n_scan > 1:  # the newest member scanned at the best fit of the others
+                    subs = [s for s in itertools.combinations(g, len(g) - 1) if s in fits]
+                    if subs:
+                        sub = min(subs, key=lambda s: fits[s].chi2)
+                        new = next(n for n in g if n not in sub)
+                        scan = ({**fits[sub].values, new: effects[new].neutral}, new, cs.n_scan)
+            tasks[g] = runner.submit(_fit_set, record, space, members, settings, nominal.noise, seeds, polish, scan)
         for g, task in tasks.items():
             cal = task.result()
             if cal is None:
@@ -489,31 +558,46 @@ def _search(
                 sets[g] = CandidateSet.from_fit([effects[n] for n in g], cal, nominal)
 
     def fits_noise(g: tuple[str, ...]) -> bool:
-        return g in fits and fits[g].reduced_chi2 <= ss.escalate_above
+        if g not in fits:
+            return False
+        refined = fits[g].step == cs.seeded.final_step
+        return fits[g].reduced_chi2 <= (ss.max_reduced_chi2 if refined else ss.escalate_above)
 
-    pairs = [tuple(p) for p in itertools.combinations(names, 2) if not same_physics(effects[p[0]], effects[p[1]])]
+    def group(*members: str) -> tuple[str, ...]:
+        return tuple(sorted(members, key=names.index))
+
+    def compatible(n: str, g: Sequence[str]) -> bool:
+        return n not in g and not any(same_physics(effects[n], effects[m]) for m in g)
+
+    pairs: list[tuple[str, ...]] = []
+    for a, b in [*itertools.combinations([c.effect for c in pool], 2), *((b, n) for b in base for n in names)]:
+        if compatible(b, (a,)) and group(a, b) not in pairs:
+            pairs.append(group(a, b))
     fit_all([p for p in pairs if p not in sets], cs.seeded, polish=False)
     logger.info("set search: %d pairs fitted, %.1f s", len(pairs), time.perf_counter() - t0)
 
     def best_of(size: int) -> list[tuple[str, ...]]:
         return sorted((g for g in sets if len(g) == size), key=lambda g: sets[g].bic)
 
+    if ss.max_size >= 3 and not any(fits_noise(g) for g in best_of(2)) and best_of(2):
+        # the search step's integration error alone can keep a right pair above the threshold:
+        # refine the best pair at the final step before paying for the triples
+        g = best_of(2)[0]
+        fit_all([g], cs.seeded, polish=True)
     if ss.max_size >= 3 and not any(fits_noise(g) for g in best_of(2)):
         triples: list[tuple[str, ...]] = []
         for p in best_of(2)[: ss.n_extend]:
-            for n in names:
-                if n in p or any(same_physics(effects[n], effects[m]) for m in p):
-                    continue
-                g = tuple(sorted((*p, n), key=names.index))
-                if g not in triples:
-                    triples.append(g)
+            for n in names if ss.n_base > 0 else [c.effect for c in pool]:
+                if compatible(n, p) and group(*p, n) not in triples:
+                    triples.append(group(*p, n))
         fit_all(triples, cs.seeded, polish=False)
         logger.info("set search: %d triples fitted, %.1f s", len(triples), time.perf_counter() - t0)
 
     if ss.escalate and sets and not any(fits_noise(g) for g in sets):
         best = [b[0] for b in (best_of(2), best_of(3)) if b]
         logger.info("no set fits to the noise; global search for %s", ", ".join("+".join(g) for g in best))
-        fit_all(best, cs.escalated, polish=False)
+        # refined at the final step, so that it is compared like for like with refined fits
+        fit_all(best, cs.escalated, polish=True)
 
     def finish(groups: list[tuple[str, ...]]) -> None:
         """Refine at the final step, then the strengths and the gap budget."""
@@ -525,19 +609,28 @@ def _search(
             st.shares, st.left = gap_budget(record, cal, space, members, nominal)
 
     finish(sorted(sets, key=lambda g: sets[g].bic)[: ss.n_polish])
-    # backward elimination: a set that fits to the noise with a weak member is refitted without it,
-    # from its own fit (its basin is that of the smaller set too)
+    # backward elimination: a set that fits to the noise is refitted without each of its members in
+    # turn (those with a weak member without all of them at once), from its own fit (its basin is
+    # that of the smaller set too); the decision then prefers the smaller set when it pays
     for g in sorted(sets, key=lambda g: sets[g].bic)[: ss.n_polish]:
         st = sets[g]
+        if fits[g].reduced_chi2 > ss.escalate_above:
+            continue
         weak = [n for n, v in st.strengths.items() if not (math.isfinite(v) and v > ss.min_strength)]
-        sub = tuple(n for n in g if n not in weak)
-        if not weak or len(sub) < 2 or fits[g].reduced_chi2 > ss.escalate_above:
+        subs = [tuple(n for n in g if n not in weak)] if weak else [tuple(n for n in g if n != m) for m in g]
+        todo = [
+            sub
+            for sub in subs
+            if len(sub) >= 2
+            and not (sub in fits and fits[sub].step == cs.seeded.final_step and fits[sub].chi2 <= fits[g].chi2 * 1.01)
+        ]
+        if not todo:
             continue
-        if sub in fits and fits[sub].step == cs.seeded.final_step and fits[sub].chi2 <= fits[g].chi2 * 1.01:
-            continue
-        logger.info("set %s: %s weak; refitting %s from its fit", st.name, ", ".join(weak), "+".join(sub))
-        fit_all([sub], cs.seeded, polish=True, given={sub: fits[g].values})
-        finish([sub])
+        logger.info(
+            "set %s fits to the noise; refitting %s from its fit", st.name, ", ".join("+".join(t) for t in todo)
+        )
+        fit_all(todo, cs.seeded, polish=True, given={sub: fits[g].values for sub in todo})
+        finish(todo)
     ranked = sorted(sets, key=lambda g: sets[g].bic)[: ss.n_report]
     out = [sets[g] for g in ranked]
     for s in out:

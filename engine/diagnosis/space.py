@@ -36,7 +36,7 @@ import numpy as np
 
 from engine.constants import PLAUSIBLE_RANGE
 from engine.records import Record
-from engine.simulation import Case, Effect, ParameterError, PlantParameters, SensorParameters
+from engine.simulation import Case, Effect, EffectLibrary, ParameterError, PlantParameters, SensorParameters
 
 __all__ = [
     "ALIGNMENT",
@@ -50,6 +50,7 @@ __all__ = [
     "ModelSpace",
     "check_bounds",
     "default_space",
+    "indistinguishable",
 ]
 
 #: Search interval of c1 [pu]: it has no operating range (records usually give it).
@@ -67,8 +68,40 @@ CALIBRATED: tuple[str, ...] = ("K", "J1", "c", "c1")
 ALIGNMENT: str = "trigger_offset"
 #: Effects that are pure time shifts of every channel: absorbed by :data:`ALIGNMENT` when it is free.
 TIME_SHIFT_EFFECTS: frozenset[str] = frozenset({"trigger_offset", "measurement_delay"})
+
 #: Effects whose value is best searched on a logarithmic scale.
 LOG_SCALED_EFFECTS: frozenset[str] = frozenset({"contact_stiffness", "contact_damping", "sensor_lowpass"})
+
+
+def indistinguishable(name: str, value: float, library: EffectLibrary) -> tuple[str, ...]:
+    """Other effects of ``library`` that give the very same record as effect ``name`` at ``value``.
+
+    Two pure time shifts of every channel (:data:`TIME_SHIFT_EFFECTS`: a measurement delay and a
+    trigger offset) simulate identical records wherever their ranges overlap (MODEL.md, sensor
+    chain: the sample k holds the value at ``t_e + (k - E) Ts - (delay + trigger_offset)``); no
+    record can tell them apart, so a diagnosis naming one must say that it may be the other.
+
+    Parameters
+    ----------
+    name : str
+        The named effect.
+    value : float
+        Its fitted value, in its unit.
+    library : EffectLibrary
+        The candidate effects.
+
+    Returns
+    -------
+    tuple of str
+        The other effects (empty when the named effect has no twin at this value).
+    """
+    if name not in TIME_SHIFT_EFFECTS or not math.isfinite(value):
+        return ()
+    return tuple(
+        n
+        for n in library
+        if n != name and n in TIME_SHIFT_EFFECTS and library[n].bounds[0] <= value <= library[n].bounds[1]
+    )
 
 
 @dataclass(frozen=True)

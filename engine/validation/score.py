@@ -6,6 +6,11 @@ result without that list names ``[verdict.effect]``); ``verdict.effect``, the
 largest share; ``verdict.locus`` (None when absent); ``gap.before`` /
 ``gap.after`` ``rms_over_noise``; ``seconds``.
 
+A named effect counts for every effect the diagnosis declared indistinguishable from it
+(``verdict.effects[i].alternatives``: a measurement delay and a trigger offset give the very
+same record, :func:`engine.diagnosis.space.indistinguishable`); results without that field
+are scored by the names alone.
+
 Metrics (rates with their Wilson 95 % intervals; :data:`~engine.validation.protocol.TARGETS`):
 
 * ``single_named``: single-effect cases answered ``explained`` with the right top effect;
@@ -23,6 +28,7 @@ Metrics (rates with their Wilson 95 % intervals; :data:`~engine.validation.proto
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import Counter, defaultdict
 from collections.abc import Sequence
@@ -57,6 +63,10 @@ class Answer:
         Diagnosis time [s] (``seconds``, else the wall time around it).
     rms_before, rms_after : float or None
         ``gap.before`` / ``gap.after`` ``rms_over_noise`` [-].
+    alternatives : tuple of tuple of str
+        Per named effect, the effects the diagnosis declared indistinguishable from it at its
+        value (``verdict.effects[i].alternatives``: the same record, e.g. a measurement delay
+        and a trigger offset); a true effect among them counts as named.
     """
 
     status: str
@@ -65,6 +75,7 @@ class Answer:
     seconds: float | None
     rms_before: float | None
     rms_after: float | None
+    alternatives: tuple[tuple[str, ...], ...] = ()
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -73,6 +84,27 @@ class Answer:
     @property
     def top(self) -> str | None:
         return self.effects[0][0] if self.effects else None
+
+    def _could_be(self, i: int) -> set[str]:
+        """The i-th named effect and its declared twins."""
+        alts = self.alternatives[i] if i < len(self.alternatives) else ()
+        return {self.effects[i][0], *alts}
+
+    def top_is(self, name: str) -> bool:
+        """Whether the largest-share effect is ``name`` (or declared indistinguishable from it)."""
+        return bool(self.effects) and name in self._could_be(0)
+
+    def names_effect(self, name: str) -> bool:
+        """Whether some named effect is ``name`` (or declared indistinguishable from it)."""
+        return any(name in self._could_be(i) for i in range(len(self.effects)))
+
+    def names_exactly(self, names: Sequence[str]) -> bool:
+        """Whether the named effects are exactly ``names``, one each (twins count as named)."""
+        truth = list(dict.fromkeys(names))
+        if len(self.effects) != len(truth):
+            return False
+        # match named effects to true ones (at most three each: try every order)
+        return any(all(t in self._could_be(i) for i, t in enumerate(order)) for order in itertools.permutations(truth))
 
 
 def _number(x: Any) -> float | None:
@@ -84,15 +116,18 @@ def answer_of(result: dict[str, Any]) -> Answer:
     v = result.get("verdict") or {}
     status = str(v.get("status", "error"))
     listed = v.get("effects")
+    alternatives: tuple[tuple[str, ...], ...] = ()
     if isinstance(listed, list):
-        effects = tuple((str(e["effect"]), _number(e.get("value"))) for e in listed if e.get("effect"))
+        rows = [e for e in listed if e.get("effect")]
+        top = v.get("effect")
+        if top and rows and rows[0]["effect"] != top:  # verdict.effect is the largest share: put it first
+            rows.sort(key=lambda e: e["effect"] != top)
+        effects = tuple((str(e["effect"]), _number(e.get("value"))) for e in rows)
+        alternatives = tuple(tuple(str(x) for x in (e.get("alternatives") or ())) for e in rows)
     elif v.get("effect"):
         effects = ((str(v["effect"]), _number(v.get("value"))),)
     else:
         effects = ()
-    top = v.get("effect")
-    if top and effects and effects[0][0] != top:  # verdict.effect is the largest share: put it first
-        effects = tuple(sorted(effects, key=lambda e: e[0] != top))
     gap = result.get("gap") or {}
     before, after = gap.get("before") or {}, gap.get("after") or {}
     seconds = _number(result.get("seconds"))
@@ -103,6 +138,7 @@ def answer_of(result: dict[str, Any]) -> Answer:
         seconds=seconds if seconds is not None else _number(result.get("wall_seconds")),
         rms_before=_number(before.get("rms_over_noise")),
         rms_after=_number(after.get("rms_over_noise")),
+        alternatives=alternatives,
     )
 
 
@@ -110,9 +146,9 @@ def correct(k: KeyEntry, a: Answer) -> bool:
     """Whether an answer is right by its case kind's main criterion (the named effect, the exact set,
     ``unexplained``, ``no_gap``)."""
     if k.kind == "single":
-        return a.status == "explained" and a.top == k.effects[0].name
+        return a.status == "explained" and a.top_is(k.effects[0].name)
     if k.kind in COMPOUND_KINDS:
-        return a.status == "explained" and set(a.names) == set(k.effect_names)
+        return a.status == "explained" and a.names_exactly(k.effect_names)
     return a.status == k.expected_status
 
 
@@ -312,10 +348,10 @@ def score_cases(key: Sequence[KeyEntry], results: dict[str, dict[str, Any]]) -> 
     compound = [p for kind in COMPOUND_KINDS for p in by_kind[kind]]
 
     def exact(pairs: list[tuple[KeyEntry, Answer]]) -> Rate:
-        return rate([a.status == "explained" and set(a.names) == set(k.effect_names) for k, a in pairs])
+        return rate([a.status == "explained" and a.names_exactly(k.effect_names) for k, a in pairs])
 
     def contains(pairs: list[tuple[KeyEntry, Answer]]) -> Rate:
-        return rate([a.status == "explained" and set(k.effect_names) <= set(a.names) for k, a in pairs])
+        return rate([a.status == "explained" and all(a.names_effect(n) for n in k.effect_names) for k, a in pairs])
 
     singles, held, clean = by_kind["single"], by_kind["held_back"], by_kind["clean"]
     explained_after = [a.rms_after for a in answers.values() if a.status == "explained" and a.rms_after is not None]
@@ -326,7 +362,7 @@ def score_cases(key: Sequence[KeyEntry], results: dict[str, dict[str, Any]]) -> 
         Metric(
             "single_named",
             "single effect: explained, top effect right",
-            rate([a.status == "explained" and a.top == k.effects[0].name for k, a in singles]),
+            rate([a.status == "explained" and a.top_is(k.effects[0].name) for k, a in singles]),
         ),
         Metric("compound_exact", "pair or triple: explained, exactly the true set", exact(compound)),
         Metric("pair_exact", "pair: explained, exactly the true set", exact(by_kind["pair"])),
@@ -403,12 +439,12 @@ def score_cases(key: Sequence[KeyEntry], results: dict[str, dict[str, Any]]) -> 
     per_effect: dict[str, dict[str, list[int]]] = defaultdict(lambda: defaultdict(lambda: [0, 0]))
     for k, a in singles:
         cell = per_effect[k.effects[0].name]["single_named"]
-        cell[0] += int(a.status == "explained" and a.top == k.effects[0].name)
+        cell[0] += int(a.status == "explained" and a.top_is(k.effects[0].name))
         cell[1] += 1
     for k, a in compound:
         for e in k.effects:
             cell = per_effect[e.name]["compound_found"]
-            cell[0] += int(a.status == "explained" and e.name in a.names)
+            cell[0] += int(a.status == "explained" and a.names_effect(e.name))
             cell[1] += 1
     for k, a in held:
         name, locus = k.effects[0].name, k.effects[0].locus
