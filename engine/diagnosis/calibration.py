@@ -130,13 +130,6 @@ class CalibrationSettings:
         a deep valley from one that only happened to be sampled low.
     screen_nfev : int
         Cap on residual evaluations of each screening refinement.
-    n_late : int
-        Sobol points also picked by their cost over the whole record (at least
-        ``min_separation`` from the others) and refined there directly: a parameter whose
-        effect appears only late in the record (a wide backlash taken up late, seen only in
-        the drive's own channels) leaves the early horizons' cost flat in it, so the early
-        picks are blind to its basin. Free of simulations (the Sobol batch covers the whole
-        record), one more local fit each.
     n_extend_scan : int
         When positive, each time the continuation extends the horizon, every parameter is
         scanned on its own over its whole range (this many values, one batch on the new
@@ -159,7 +152,6 @@ class CalibrationSettings:
     seed: int = 0
     n_screen: int = 8
     screen_nfev: int = 6
-    n_late: int = 0
     n_extend_scan: int = 0
 
     def horizons(self, record: Record) -> list[int]:
@@ -413,8 +405,7 @@ def _calibrate(
         if settings.n_global > 0:
             m = 1 << max(3, math.ceil(math.log2(settings.n_global)))
             U = qmc.Sobol(d, scramble=True, seed=settings.seed).random(m)
-            C_both = obj.chi2(U, [horizons[0], record.n_samples], coarse)
-            C = C_both[:, 0]
+            C = obj.chi2(U, horizons[:1], coarse)[:, 0]
             picked = _pick_starts(U, C, max(settings.n_starts, settings.n_screen), settings.min_separation)
             if len(picked) > settings.n_starts:  # screen: a short refinement on the first horizon each
                 refined = [
@@ -427,11 +418,6 @@ def _calibrate(
                     settings.min_separation,
                 )
             starts += [(u, "global") for u in picked]
-            if settings.n_late > 0:
-                late = _pick_starts(U, C_both[:, 1], settings.n_late, settings.min_separation)
-                starts += [
-                    (u, "late") for u in late if all(np.linalg.norm(u - p) >= settings.min_separation for p in picked)
-                ]
             logger.debug("global search: %d points, best early chi2 %.4g", len(U), np.min(C))
         # seeds (already close to a full-horizon optimum) skip the continuation
         starts += [(space.unit(s), "seed") for s in seeds]

@@ -570,7 +570,8 @@ def _search(
         return n not in g and not any(same_physics(effects[n], effects[m]) for m in g)
 
     pairs: list[tuple[str, ...]] = []
-    for a, b in [*itertools.combinations([c.effect for c in pool], 2), *((b, n) for b in base for n in names)]:
+    forward = ((m, n) for m in base for n in names)  # every effect beside each base single
+    for a, b in [*itertools.combinations([c.effect for c in pool], 2), *forward]:
         if compatible(b, (a,)) and group(a, b) not in pairs:
             pairs.append(group(a, b))
     fit_all([p for p in pairs if p not in sets], cs.seeded, polish=False)
