@@ -8,7 +8,7 @@ selection:
 
 1. **Pairs**: every pair among the ``pool`` best single candidates (by BIC,
    only those that lower the nominal BIC), and every effect of the library as
-   the second member of each of the ``n_base`` best singles (forward selection:
+   the second member of the ``n_base`` best singles (forward selection:
    an effect that is weak beside a strong one, such as a sensor gain, ranks low
    as a single because its single fit cannot absorb the strong effect's
    residual, yet it is what the best single lacks), less pairs that are the
@@ -18,10 +18,10 @@ selection:
    its neutral value, and the best point of a scan of the other effect's value
    over its range at the better member's fit), by least squares at the search
    step.
-2. **Triples**: the ``n_extend`` best pairs, each extended by every other
-   effect of the library (every other pool member when ``n_base`` is 0),
-   seeded the same way from the pair's fit and a scan of the new member's value
-   at it; only when no pair fits to the noise, the best pair refined at the final
+2. **Triples**: the ``n_extend`` best pairs, the ``n_base`` best of them
+   extended by every other effect of the library, the others by every other
+   pool member, seeded the same way from the pair's fit and a scan of the new
+   member's value at it; only when no pair fits to the noise, the best pair refined at the final
    integrator step first (the search step's integration error alone can lift a
    right pair's chi2/n above the threshold on a quiet record).
 3. **Escalation**: when no set fits to the noise after the seeded fits, the best
@@ -96,8 +96,8 @@ class SetSettings:
         Best pairs extended to triples.
     n_base : int
         Forward selection: every effect of the library is tried as the second member of
-        this many best singles, and as the third member of the ``n_extend`` best pairs
-        (0: sets are built of the ``pool`` only).
+        this many best singles, and as the third member of this many best pairs (the other
+        extended pairs, and the other pairs, are built of the ``pool`` only; 0: the pool only).
     escalate : bool
         Global search for the best set of each size when no seeded set fits to the noise.
     escalate_above : float
@@ -125,7 +125,7 @@ class SetSettings:
     max_size: int = 3
     pool: int = 5
     n_extend: int = 2
-    n_base: int = 2
+    n_base: int = 1
     escalate: bool = True
     escalate_above: float = 1.1
     max_reduced_chi2: float = 1.05
@@ -587,8 +587,8 @@ def _search(
         fit_all([g], cs.seeded, polish=True)
     if ss.max_size >= 3 and not any(fits_noise(g) for g in best_of(2)):
         triples: list[tuple[str, ...]] = []
-        for p in best_of(2)[: ss.n_extend]:
-            for n in names if ss.n_base > 0 else [c.effect for c in pool]:
+        for i, p in enumerate(best_of(2)[: ss.n_extend]):
+            for n in names if i < ss.n_base else [c.effect for c in pool]:
                 if compatible(n, p) and group(*p, n) not in triples:
                     triples.append(group(*p, n))
         fit_all(triples, cs.seeded, polish=False)
