@@ -242,3 +242,43 @@ def test_the_verdict_says_which_named_effect_has_an_indistinguishable_twin() -> 
     assert rows["trigger_offset"]["alternatives"] == ["measurement_delay"]
     assert rows["load_inertia"]["alternatives"] == []
     assert "trigger_offset cannot be told from measurement_delay" in v.reason
+
+
+@pytest.mark.parametrize(("refined_chi2", "triples_expected"), [(1.079, True), (1.0, False)])
+def test_a_refined_pair_just_above_the_threshold_goes_on_to_the_triples(
+    monkeypatch: pytest.MonkeyPatch, refined_chi2: float, triples_expected: bool
+) -> None:
+    """A pair refined at the final step is judged at the decision's chi2/n (1.05), not the search step's 1.1."""
+    sets_module = importlib.import_module("engine.diagnosis.sets")
+    fitted: list[tuple[tuple[str, ...], bool]] = []
+
+    def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None):
+        names = tuple(m.name for m in members)
+        fitted.append((names, polish))
+        cal = fake_cal(refined_chi2 if polish else 1.3, k=3 + len(names))
+        cal.values.update({n: 1.0 for n in names})
+        cal.step = settings.final_step if polish else settings.search_step
+        return cal
+
+    monkeypatch.setattr(sets_module, "_fit_set", fake_fit)
+    monkeypatch.setattr(
+        sets_module, "_strengths", lambda record, cal, space, members, noise: {m.name: 10.0 for m in members}
+    )
+    monkeypatch.setattr(sets_module, "gap_budget", lambda *a, **k: ({}, 0.0))
+    singles = [single(n, 50.0 + i, 10.0) for i, n in enumerate(("load_inertia", "supply_voltage", "sensor_gain"))]
+    sets_module.search_sets(
+        None, fake_cal(100.0, k=3), None, CATALOGUE, singles, settings=SetSettings(escalate=False, n_base=0)
+    )
+    assert any(polish and len(g) == 2 for g, polish in fitted)  # the best pair is refined first
+    assert any(len(g) == 3 for g, _ in fitted) is triples_expected
+
+
+def test_a_first_pair_is_refitted_only_when_the_escalation_moved_a_member() -> None:
+    before = {"load_inertia": {"K": 0.005, "J1": 0.85, "load_inertia": 1.4}}
+    same = single("load_inertia", 1.0, 10.0)
+    same.calibration.values.clear()
+    same.calibration.values.update({"K": 0.00501, "J1": 0.8501, "load_inertia": 1.4003})  # polish-sized changes
+    assert not diagnose_module._moved(before, same)
+    same.calibration.values["K"] = 0.0056  # another basin
+    assert diagnose_module._moved(before, same)
+    assert diagnose_module._moved({}, same)  # never fitted before
