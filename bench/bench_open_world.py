@@ -578,6 +578,12 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("engine.diagnosis.calibration", "engine.diagnosis.candidates", "engine.diagnosis.diagnose"):
         logging.getLogger(name).setLevel(logging.WARNING)
     results: dict[str, Any] = {}
+    from engine.constants import CHANNELS
+
+    channels = tuple(x for x in args.channels.split(",") if x)
+    unknown = [c for c in channels if c not in CHANNELS]
+    if unknown:
+        ap.error(f"--channels: unknown channel(s) {', '.join(unknown)}; the channels are {', '.join(CHANNELS)}")
     if args.calibration:
         results["calibration"] = bench_calibration(
             args.calibration,
@@ -585,7 +591,7 @@ def main(argv: list[str] | None = None) -> int:
             args.linear_K,
             args.v1_box,
             args.free_c1,
-            tuple(x for x in args.channels.split(",") if x),
+            channels,
             args.before,
         )
     if args.noise:

@@ -507,6 +507,10 @@ def test_a_declared_twin_counts_as_named_and_nothing_else_does() -> None:
     res["p"] = said([("supply_voltage", 0.9), ("trigger_offset", 3e-4)], {})
     m = _metrics(key, res)
     assert m["single_named"].rate.k == 0 and m["pair_exact"].rate.k == 0
+    res["s"] = said([("trigger_offset", 3e-4)], {})
+    res["s"]["verdict"]["effects"][0]["alternatives"] = "measurement_delay"  # a string is not read letter by letter
+    with pytest.raises(ValueError, match="must be a list of effect names"):
+        answer_of(res["s"])
 
 
 def test_report_is_small_and_says_what_it_ran_on() -> None:

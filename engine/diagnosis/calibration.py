@@ -314,17 +314,6 @@ def _pick_starts(U: np.ndarray, cost: np.ndarray, n: int, min_sep: float) -> lis
     return starts
 
 
-def _scan_axes(obj: Objective, u: np.ndarray, horizon: int, solver: SolverSettings, n: int) -> np.ndarray:
-    """The best of ``u`` and the points of a scan of each coordinate alone (``n`` values) on ``horizon``."""
-    d = u.size
-    U = np.repeat(u[None], d * n + 1, axis=0)
-    grid = np.linspace(0.0, 1.0, n)
-    for j in range(d):
-        U[j * n : (j + 1) * n, j] = grid
-    C = obj.chi2(U, [horizon], solver)[:, 0]
-    return U[int(np.argmin(C))] if np.isfinite(C).any() else u
-
-
 def calibrate(
     record: Record,
     space: ModelSpace | None = None,
@@ -433,7 +422,8 @@ def _calibrate(
             trace: list[Stage] = []
             for i, h in enumerate(horizons if kind == "global" else [record.n_samples]):
                 if i > 0 and settings.n_extend_scan > 1:
-                    u = _scan_axes(obj, u, h, coarse, settings.n_extend_scan)
+                    U, C = obj.axis_scan(u, range(u.size), settings.n_extend_scan, h, coarse)
+                    u = U[int(np.argmin(C))] if np.isfinite(C).any() else u
                 u, c2, _, nfev = obj.local_fit(u, h, coarse, settings.max_nfev, settings.fd_step)
                 trace.append({"start": kind, "horizon": h, "chi2": c2, "step": settings.search_step, "nfev": nfev})
             logger.debug("%s start %s -> %s chi2 %.4g", kind, np.round(s, 3), np.round(u, 3), trace[-1]["chi2"])

@@ -226,10 +226,10 @@ def _seeds(
         raise ValueError("the seeds of a joint fit need a space with an effect")
     obj = Objective(record, space, nominal.sigma)
     base = space.unit(nominal.values)
-    U = np.repeat(base[None], settings.n_scan + 1, axis=0)
-    U[:-1, -1] = np.linspace(0.0, 1.0, settings.n_scan)
-    U[-1, -1] = space.params[-1].unit_coord(space.effect.neutral)
-    c2 = obj.chi2(U, [record.n_samples], SolverSettings(max_step=search_step))[:, 0]
+    base[-1] = space.params[-1].unit_coord(space.effect.neutral)
+    U, c2 = obj.axis_scan(
+        base, [space.dim - 1], settings.n_scan, record.n_samples, SolverSettings(max_step=search_step)
+    )
     seeds = [space.values(U[-1])]
     i = int(np.argmin(c2[:-1]))
     if np.isfinite(c2[i]) and abs(U[i, -1] - U[-1, -1]) > 1e-9:

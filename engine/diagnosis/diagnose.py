@@ -111,6 +111,10 @@ __all__ = [
 IdentificationHook = Callable[[Record, "DiagnosisResult"], dict]
 
 
+#: A single candidate's fit "moved" during the escalation (so that the pairs built from it are fitted
+#: again) when some value changed by more than this fraction (polishing moves values by ~0.1 %).
+MOVED_REL_TOL: float = 0.01
+
 #: Search settings of the nominal calibration of a diagnosis: 256 Sobol points, 16 of them screened
 #: on the first horizon, 2 continued over six horizons with a scan of every parameter at each
 #: extension (a wide backlash seen only in the drive's own channels leaves the early window flat
@@ -586,12 +590,12 @@ def _explains_single(cands: Sequence[Candidate], settings: DiagnosisSettings) ->
 
 
 def _moved(before: Mapping[str, Mapping[str, float]], c: Candidate) -> bool:
-    """Whether a candidate's fit left its earlier fit's basin (a value changed by more than 1 %)."""
+    """Whether a candidate's fit left its earlier fit's basin (a value changed by more than ``MOVED_REL_TOL``)."""
     old = before.get(c.effect)
     if old is None or c.calibration is None:
         return True
     new = c.calibration.values
-    return any(not math.isclose(v, old.get(k, math.nan), rel_tol=0.01, abs_tol=1e-6) for k, v in new.items())
+    return any(not math.isclose(v, old.get(k, math.nan), rel_tol=MOVED_REL_TOL, abs_tol=1e-6) for k, v in new.items())
 
 
 def _with_alternatives(verdict: Verdict, library: EffectLibrary) -> Verdict:

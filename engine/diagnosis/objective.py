@@ -165,6 +165,37 @@ class Objective:
         out[~ok] = np.inf
         return out
 
+    def axis_scan(
+        self, u: np.ndarray, axes: Sequence[int], n: int, horizon: int, solver: SolverSettings
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Scan of each of ``axes`` alone over its whole range around ``u``, one batch of simulations.
+
+        Parameters
+        ----------
+        u : ndarray, shape (d,)
+            The point the other coordinates keep.
+        axes : sequence of int
+            Coordinates scanned, one after the other.
+        n : int
+            Values of each scan, evenly spaced over [0, 1] in unit-box coordinates.
+        horizon : int
+            Samples of the chi2.
+        solver : SolverSettings
+            Integrator settings.
+
+        Returns
+        -------
+        U : ndarray, shape (len(axes) * n + 1, d)
+            The scan's points, axis after axis, then ``u`` itself (last row).
+        chi2 : ndarray, shape (len(axes) * n + 1,)
+            Their chi2 [noise variances] on ``horizon`` (inf where the simulation failed).
+        """
+        U = np.repeat(np.asarray(u, dtype=float)[None], len(axes) * n + 1, axis=0)
+        grid = np.linspace(0.0, 1.0, n)
+        for k, j in enumerate(axes):
+            U[k * n : (k + 1) * n, j] = grid
+        return U, self.chi2(U, [horizon], solver)[:, 0]
+
     def jacobian(
         self,
         u: np.ndarray,

@@ -409,10 +409,8 @@ def _scan_seed(
     """
     obj = Objective(record, gspace, noise_weights(record, NoiseModel.of(noise)))
     i = gspace.names.index(name)
-    U = np.repeat(gspace.unit(base)[None], n_scan, axis=0)
-    U[:, i] = np.linspace(0.0, 1.0, n_scan)
-    c2 = obj.chi2(U, [record.n_samples], SolverSettings(max_step=step))[:, 0]
-    j = int(np.argmin(c2))
+    U, c2 = obj.axis_scan(gspace.unit(base), [i], n_scan, record.n_samples, SolverSettings(max_step=step))
+    j = int(np.argmin(c2[:-1]))  # the scan's own points (the base, last, is a seed already)
     return [gspace.values(U[j])] if np.isfinite(c2[j]) else []
 
 

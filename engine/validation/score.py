@@ -111,6 +111,18 @@ def _number(x: Any) -> float | None:
     return float(x) if isinstance(x, (int, float)) and math.isfinite(x) else None
 
 
+def _alternatives(row: dict[str, Any]) -> tuple[str, ...]:
+    """A named effect's declared twins; a result that gives them as anything but a list of names is refused."""
+    alts = row.get("alternatives")
+    if alts is None:
+        return ()
+    if not isinstance(alts, list) or not all(isinstance(x, str) for x in alts):
+        raise ValueError(
+            f"verdict.effects[].alternatives of {row.get('effect')!r} must be a list of effect names, got {alts!r}"
+        )
+    return tuple(alts)
+
+
 def answer_of(result: dict[str, Any]) -> Answer:
     """Read a result file's answer, tolerant of results written before ``effects`` and ``locus`` existed."""
     v = result.get("verdict") or {}
@@ -123,7 +135,7 @@ def answer_of(result: dict[str, Any]) -> Answer:
         if top and rows and rows[0]["effect"] != top:  # verdict.effect is the largest share: put it first
             rows.sort(key=lambda e: e["effect"] != top)
         effects = tuple((str(e["effect"]), _number(e.get("value"))) for e in rows)
-        alternatives = tuple(tuple(str(x) for x in (e.get("alternatives") or ())) for e in rows)
+        alternatives = tuple(_alternatives(e) for e in rows)
     elif v.get("effect"):
         effects = ((str(v["effect"]), _number(v.get("value"))),)
     else:

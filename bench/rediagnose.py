@@ -1,0 +1,70 @@
+"""Diagnose cases of a finished validation run again, with the current code (development, not blind).
+
+A scored run's cases are development data once read: this re-runs chosen ones with the code at
+hand and prints, per case, its truth (from the run's answer key), the new answer, whether it is
+right by the case kind's main criterion (:func:`engine.validation.score.correct`) and the time.
+Nothing in the run directory is changed. The run directory can be made again from its seed
+(``backlash validate --cases N --seed S --out DIR``: the cases and key are drawn by the seed).
+
+Example (six triples of the seed-101 progress run)::
+
+    python bench/rediagnose.py out/validation-v2-progress-seed101 \\
+        case0031,case0045,case0052,case0064,case0068,case0092
+
+One JSON line per case on stdout; the diagnosis's log on stderr (``--log-level``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from pathlib import Path
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("run", type=Path, help="directory of a validation run (its cases/ and key/)")
+    ap.add_argument("cases", help="case ids, comma-separated (e.g. case0018,case0040)")
+    ap.add_argument("--log-level", default="WARNING", help="log level of the diagnosis (default WARNING)")
+    args = ap.parse_args(argv)
+    logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(name)s %(message)s", stream=sys.stderr)
+
+    from engine.diagnosis import diagnose
+    from engine.validation.layout import RunLayout
+    from engine.validation.score import answer_of, correct
+
+    layout = RunLayout(args.run)
+    if not layout.key.exists():
+        ap.error(f"{args.run} holds no validation run (no {layout.key})")
+    _, key = layout.read_key()
+    by_id = {k.case_id: k for k in key}
+    ids = [c for c in args.cases.split(",") if c]
+    unknown = [c for c in ids if c not in by_id]
+    if unknown:
+        ap.error(f"not cases of this run: {', '.join(unknown)}")
+    for cid in ids:
+        k = by_id[cid]
+        t0 = time.perf_counter()
+        result = diagnose(layout.read_case(cid)).to_dict(include_records=False)
+        seconds = time.perf_counter() - t0
+        a = answer_of(result)
+        row = {
+            "case": cid,
+            "kind": k.kind,
+            "truth": list(k.effect_names),
+            "status": a.status,
+            "effects": list(a.names),
+            "alternatives": [list(x) for x in a.alternatives],
+            "locus": a.locus,
+            "correct": correct(k, a),
+            "seconds": round(seconds, 1),
+        }
+        print(json.dumps(row), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
