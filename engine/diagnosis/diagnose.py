@@ -702,8 +702,9 @@ def _diagnose(
     cands = fit_candidates(record, nominal, space, library, cs, escalate=not staged)
     sets: list[CandidateSet] = []
     if staged and not _explains_single(cands, settings):
-        # pairs from the seeded single fits first; the singles' escalation only when none explains the record
-        first = replace(set_settings, escalate=False, max_size=2)
+        # pairs from the seeded single fits first, the best with a global search in its joint space;
+        # the singles' escalation only when none explains the record
+        first = replace(set_settings, max_size=2)
         sets = search_sets(record, nominal, space, library, cands, cs, first)
         if not any(_explains(s, settings) for s in sets):
             seeded = {c.effect: c.calibration.values for c in cands if c.calibration is not None}

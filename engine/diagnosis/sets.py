@@ -7,10 +7,12 @@ together with the calibration (one more bounded parameter per effect,
 selection:
 
 1. **Pairs**: every pair among the ``pool`` best single candidates (by BIC,
-   only those that lower the nominal BIC), and every effect of the library as
-   the second member of the ``n_base`` best singles (forward selection:
-   an effect that is weak beside a strong one, such as a sensor gain, ranks low
-   as a single because its single fit cannot absorb the strong effect's
+   only those that lower the nominal BIC), and the ``n_forward`` effects of the
+   library that the profiled screen (:func:`engine.diagnosis.screening.rank_additions`:
+   a scan of each effect's value at the single's fit with the calibration refitted to
+   first order) ranks best as the second member of the ``n_base`` best singles
+   (forward selection: an effect that is weak beside a strong one, such as a sensor
+   gain, ranks low as a single because its single fit cannot absorb the strong effect's
    residual, yet it is what the best single lacks), less pairs that are the
    same physics (two pure time shifts, or two effects on the same field). Each
    pair is fitted from seeds built of its members' single fits (the better
@@ -19,7 +21,7 @@ selection:
    over its range at the better member's fit), by least squares at the search
    step.
 2. **Triples**: the ``n_extend`` best pairs, the ``n_base`` best of them
-   extended by every other effect of the library, the others by every other
+   extended by the ``n_forward`` best-screened other effects of the library, the others by every other
    pool member, seeded the same way from the pair's fit and a scan of the new
    member's value at it; only when no pair fits to the noise, the best pair refined at the final
    integrator step first (the search step's integration error alone can lift a
@@ -72,6 +74,7 @@ from engine.diagnosis.candidate import Candidate, CandidateSettings
 from engine.diagnosis.gap import Gap, gap_of, shrinkage_ratio
 from engine.diagnosis.noise import NoiseModel, noise_weights
 from engine.diagnosis.objective import Objective
+from engine.diagnosis.screening import rank_additions
 from engine.diagnosis.space import TIME_SHIFT_EFFECTS, ModelSpace
 from engine.parallel import Runner, single_threaded_blas
 from engine.records import Record
@@ -98,6 +101,10 @@ class SetSettings:
         Forward selection: every effect of the library is tried as the second member of
         this many best singles, and as the third member of this many best pairs (the other
         extended pairs, and the other pairs, are built of the ``pool`` only; 0: the pool only).
+    n_forward : int or None
+        Forward selection fits only this many of the library's effects beside a base model,
+        the best ranked by the profiled scan of :func:`engine.diagnosis.screening.rank_additions`
+        (None: every effect).
     escalate : bool
         Global search for the best set of each size when no seeded set fits to the noise.
     escalate_above : float
@@ -115,8 +122,9 @@ class SetSettings:
         noise RMS on its own is dropped and the rest refitted (backward elimination); the
         diagnosis passes its own ``min_strength``.
     before_escalation : bool
-        The diagnosis tries pairs built from the seeded single fits (no triples, no
-        escalation) before it escalates the single candidates, and escalates them only
+        The diagnosis tries pairs built from the seeded single fits (no triples; the best
+        pair with the global search in its joint space when none fits to the noise) before
+        it escalates the single candidates, and escalates them only
         when no such pair explains the record (fits to the noise with every member strong):
         the escalation of every single candidate is the most expensive step of a compound
         record, and a compound record is what it cannot explain (docs/diagnosis.md 8b).
@@ -126,6 +134,7 @@ class SetSettings:
     pool: int = 5
     n_extend: int = 2
     n_base: int = 1
+    n_forward: int | None = 6
     escalate: bool = True
     escalate_above: float = 1.1
     max_reduced_chi2: float = 1.05
@@ -168,6 +177,9 @@ class CandidateSet:
         Posterior probability among every model fitted (nominal, singles, sets).
     note : str
         Remarks (e.g. why it was not refined).
+    searched : bool
+        Whether its joint space has had the global search (the escalation), so that a later
+        search that reuses it does not pay for it again.
     """
 
     effects: tuple[str, ...]
@@ -183,6 +195,7 @@ class CandidateSet:
     delta_bic: float = 0.0
     weight: float = 0.0
     note: str = ""
+    searched: bool = False
 
     @property
     def name(self) -> str:
@@ -567,8 +580,30 @@ def _search(
     def compatible(n: str, g: Sequence[str]) -> bool:
         return n not in g and not any(same_physics(effects[n], effects[m]) for m in g)
 
+    def screened(g: tuple[str, ...]) -> list[str]:
+        """The effects to try beside ``g``'s fit: the ``n_forward`` best of the profiled screen."""
+        todo = [n for n in names if compatible(n, g)]
+        if ss.n_forward is None or len(todo) <= ss.n_forward:
+            return todo
+        try:
+            order = rank_additions(
+                record,
+                space,
+                fits[g].values,
+                [effects[m] for m in g],
+                [effects[n] for n in todo],
+                nominal.noise,
+                max(cs.n_scan, 2),
+                cs.seeded.search_step,
+                cs.seeded.fd_step,
+            )
+        except RuntimeError as exc:  # the screen is an economy: without it, every effect is fitted
+            logger.warning("screen of the additions to %s failed (%s); fitting all", "+".join(g), exc)
+            return todo
+        return [name for name, _, _ in order[: ss.n_forward]]
+
     pairs: list[tuple[str, ...]] = []
-    forward = ((m, n) for m in base for n in names)  # every effect beside each base single
+    forward = ((m, n) for m in base for n in screened((m,)))  # the best-screened effects beside each base
     for a, b in [*itertools.combinations([c.effect for c in pool], 2), *forward]:
         if compatible(b, (a,)) and group(a, b) not in pairs:
             pairs.append(group(a, b))
@@ -586,17 +621,20 @@ def _search(
     if ss.max_size >= 3 and not any(fits_noise(g) for g in best_of(2)):
         triples: list[tuple[str, ...]] = []
         for i, p in enumerate(best_of(2)[: ss.n_extend]):
-            for n in names if i < ss.n_base else [c.effect for c in pool]:
+            for n in screened(p) if i < ss.n_base else [c.effect for c in pool]:
                 if compatible(n, p) and group(*p, n) not in triples:
                     triples.append(group(*p, n))
         fit_all(triples, cs.seeded, polish=False)
         logger.info("set search: %d triples fitted, %.1f s", len(triples), time.perf_counter() - t0)
 
     if ss.escalate and sets and not any(fits_noise(g) for g in sets):
-        best = [b[0] for b in (best_of(2), best_of(3)) if b]
-        logger.info("no set fits to the noise; global search for %s", ", ".join("+".join(g) for g in best))
-        # refined at the final step, so that it is compared like for like with refined fits
-        fit_all(best, cs.escalated, polish=True)
+        best = [b[0] for b in (best_of(2), best_of(3)) if b and not sets[b[0]].searched]
+        if best:
+            logger.info("no set fits to the noise; global search for %s", ", ".join("+".join(g) for g in best))
+            # refined at the final step, so that it is compared like for like with refined fits
+            fit_all(best, cs.escalated, polish=True)
+            for g in best:
+                sets[g].searched = True
 
     def finish(groups: list[tuple[str, ...]]) -> None:
         """Refine at the final step, then the strengths and the gap budget."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -55,6 +56,10 @@ class TrueEffect:
     strength_in_set : float
         The same for the record with every effect of the case minus the record with the others
         (equal to ``strength`` for a single effect).
+    strength_refit : float
+        The same for the record with every effect minus the best local refit of the model
+        without this one (K, J1, c and the case's other effects refitted; the absorption rule,
+        :func:`engine.validation.cases.absorbed_strength`); NaN in keys written before the rule.
     """
 
     name: str
@@ -63,6 +68,7 @@ class TrueEffect:
     locus: str
     strength: float
     strength_in_set: float
+    strength_refit: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready copy."""
@@ -73,6 +79,7 @@ class TrueEffect:
             "locus": self.locus,
             "strength": round(self.strength, 3),
             "strength_in_set": round(self.strength_in_set, 3),
+            "strength_refit": round(self.strength_refit, 3) if math.isfinite(self.strength_refit) else None,
         }
 
     @classmethod
@@ -84,6 +91,7 @@ class TrueEffect:
             str(d["locus"]),
             float(d["strength"]),
             float(d["strength_in_set"]),
+            float(d["strength_refit"]) if d.get("strength_refit") is not None else math.nan,
         )
 
 

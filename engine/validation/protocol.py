@@ -26,11 +26,13 @@ __all__ = [
     "COLOURED_SHARE",
     "COMPOUND_KINDS",
     "DEFAULT_MIX",
+    "GENERATOR_RULES",
     "MAX_CHANNEL_SNR_SPREAD_DB",
     "MAX_DRAWS_PER_CASE",
     "MAX_DRAWS_PER_EFFECT_SET",
     "OPERATING_BOX",
     "PROTOCOL_VERSION",
+    "REFIT_NFEV",
     "SAME_PHYSICS",
     "SNR_RANGE_DB",
     "STRENGTH_THRESHOLD",
@@ -84,6 +86,17 @@ SAME_PHYSICS: Final[tuple[frozenset[str], ...]] = (frozenset({"measurement_delay
 MAX_DRAWS_PER_EFFECT_SET: Final[int] = 25
 #: Draws for one case before the generator gives up (raises).
 MAX_DRAWS_PER_CASE: Final[int] = 500
+
+#: The rules a draw must pass (written into every run's manifest and fingerprint):
+#: ``strength``, each effect moves some recorded channel by more than ``STRENGTH_THRESHOLD``
+#: noise RMS on its own and within its set; ``absorption`` (added after the seed-105 progress run,
+#: see docs/validation-v2.md), each effect still leaves more than that once the plant's calibrated
+#: parameters (K, J1, c) and the case's other effects are refitted without it, i.e. the rest of the
+#: model cannot mimic it (a draw no diagnosis could name is not a case).
+GENERATOR_RULES: Final[tuple[str, ...]] = ("strength", "absorption")
+#: Cap on the residual evaluations of the absorption rule's local refit (a bounded least-squares
+#: fit started at the truth; :func:`engine.validation.cases.absorbed_strength`).
+REFIT_NFEV: Final[int] = 30
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ from engine.simulation import CATALOGUE, HELD_BACK, EffectLibrary
 from engine.validation.blind import DiagnoseFn, diagnose_cases, library_of_run
 from engine.validation.cases import case_counts, generate_cases
 from engine.validation.layout import RunLayout
-from engine.validation.protocol import PROTOCOL_VERSION
+from engine.validation.protocol import GENERATOR_RULES, PROTOCOL_VERSION
 from engine.validation.provenance import code_version
 from engine.validation.report import build_report, metric_lines, write_report
 from engine.validation.score import score_cases
@@ -34,12 +34,23 @@ logger = logging.getLogger(__name__)
 __all__ = ["prepare_cases", "run_validation", "score_run"]
 
 
+def _rules(absorption: bool) -> list[str]:
+    """The generator rules of a run (:data:`~engine.validation.protocol.GENERATOR_RULES`)."""
+    return [r for r in GENERATOR_RULES if absorption or r != "absorption"]
+
+
 def _fingerprint(
-    n_cases: int, seed: int, counts: Mapping[str, int], catalogue: EffectLibrary, held_back: EffectLibrary
+    n_cases: int,
+    seed: int,
+    counts: Mapping[str, int],
+    catalogue: EffectLibrary,
+    held_back: EffectLibrary,
+    absorption: bool = True,
 ) -> str:
     """Hash of everything the cases depend on (the held-back family enters only through it)."""
     spec = {
         "protocol": PROTOCOL_VERSION,
+        "rules": _rules(absorption),
         "n_cases": n_cases,
         "seed": seed,
         "counts": dict(counts),
@@ -56,6 +67,7 @@ def prepare_cases(
     mix: Mapping[str, float] | None = None,
     catalogue: EffectLibrary = CATALOGUE,
     held_back: EffectLibrary = HELD_BACK,
+    absorption: bool = True,
 ) -> bool:
     """Write the run's cases, key and manifest, unless the directory already holds this very run.
 
@@ -63,7 +75,7 @@ def prepare_cases(
     ----------
     layout : RunLayout
         The run's directory.
-    n_cases, seed, mix, catalogue, held_back
+    n_cases, seed, mix, catalogue, held_back, absorption
         As :func:`engine.validation.cases.generate_cases`.
 
     Returns
@@ -77,7 +89,7 @@ def prepare_cases(
         The directory holds another run (other settings, protocol 1, or results without cases).
     """
     counts = case_counts(n_cases, mix)
-    fingerprint = _fingerprint(n_cases, seed, counts, catalogue, held_back)
+    fingerprint = _fingerprint(n_cases, seed, counts, catalogue, held_back, absorption)
     manifest = layout.read_manifest()
     if manifest is not None:
         if manifest.get("fingerprint") != fingerprint:
@@ -96,6 +108,7 @@ def prepare_cases(
         )
     header = {
         "protocol": PROTOCOL_VERSION,
+        "rules": _rules(absorption),
         "seed": seed,
         "n_cases": n_cases,
         "counts": counts,
@@ -103,7 +116,7 @@ def prepare_cases(
         "fingerprint": fingerprint,
     }
     layout.write_manifest({**header, "complete": False})
-    cases, key = generate_cases(n_cases, seed, catalogue, held_back, mix)
+    cases, key = generate_cases(n_cases, seed, catalogue, held_back, mix, absorption)
     layout.write_cases((c.case_id, c.record) for c in cases)
     layout.write_key(key, {**header, "held_back": list(held_back)})
     layout.write_manifest({**header, "complete": True})
@@ -160,6 +173,7 @@ def run_validation(
     catalogue: EffectLibrary = CATALOGUE,
     held_back: EffectLibrary = HELD_BACK,
     diagnose_fn: DiagnoseFn | None = None,
+    absorption: bool = True,
 ) -> dict[str, Any]:
     """Run (or resume) a protocol-v2 validation and write its report (see the module notes).
 
@@ -183,6 +197,9 @@ def run_validation(
         The held-back family (default :data:`engine.simulation.HELD_BACK`).
     diagnose_fn : DiagnoseFn, optional
         The diagnosis (default :func:`engine.validation.blind.diagnose_record`).
+    absorption : bool
+        The generator's absorption rule (:func:`engine.validation.cases.generate_cases`; off only
+        in tests of the run's machinery).
 
     Returns
     -------
@@ -196,7 +213,7 @@ def run_validation(
     """
     layout = RunLayout(Path(out_dir))
     version = code_version()
-    prepare_cases(layout, n_cases, seed, mix, catalogue, held_back)
+    prepare_cases(layout, n_cases, seed, mix, catalogue, held_back, absorption)
     library = library_of_run(layout, catalogue)
     diagnose_cases(layout, library, workers, settings, diagnose_fn, version)
     return score_run(layout, version)
