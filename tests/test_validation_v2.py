@@ -172,7 +172,9 @@ def test_generated_compound_cases_pass_the_absorption_rule() -> None:
     for k in key:
         assert all(e.strength_refit > STRENGTH_THRESHOLD for e in k.effects), k
         again = KeyEntry.from_dict(json.loads(json.dumps(k.to_dict())))
-        assert [e.strength_refit for e in again.effects] == pytest.approx([e.strength_refit for e in k.effects], abs=1e-3)
+        assert [e.strength_refit for e in again.effects] == pytest.approx(
+            [e.strength_refit for e in k.effects], abs=1e-3
+        )
     # the rule off: nothing refitted, the key says so
     _, key = generate_cases(1, 8, CATALOGUE, STAND_IN, {"pair": 1.0}, absorption=False)
     assert all(math.isnan(e.strength_refit) for e in key[0].effects)
