@@ -252,7 +252,7 @@ def test_a_refined_pair_just_above_the_threshold_goes_on_to_the_triples(
     sets_module = importlib.import_module("engine.diagnosis.sets")
     fitted: list[tuple[tuple[str, ...], bool]] = []
 
-    def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None):
+    def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0):
         names = tuple(m.name for m in members)
         fitted.append((names, polish))
         cal = fake_cal(refined_chi2 if polish else 1.3, k=3 + len(names))
@@ -282,3 +282,25 @@ def test_a_first_pair_is_refitted_only_when_the_escalation_moved_a_member() -> N
     same.calibration.values["K"] = 0.0056  # another basin
     assert diagnose_module._moved(before, same)
     assert diagnose_module._moved({}, same)  # never fitted before
+
+
+def test_a_set_with_the_speed_quantum_fits_its_quantum_by_scans_not_least_squares() -> None:
+    """Seed-107: all five compound records holding the speed quantum failed; inside a set its value
+    was left to least squares, whose cost is piecewise constant in q (it stays at its seed). A set
+    with the quantum is now fitted like the single candidate: the rest first, then dense scans of q."""
+    from engine.diagnosis.candidate import SEEDED_FITS
+    from engine.diagnosis.space import default_space
+
+    sets_module = importlib.import_module("engine.diagnosis.sets")
+    plant = PlantParameters(K=0.005, J1=0.85, c=1.1, c1=0.2)
+    truth = {"load_inertia": 1.3, "speed_quantization": 0.3}
+    clean = simulate(plant, effects=truth)
+    sd = {k: float(noise_std(v, 40.0)[0]) for k, v in clean.channels.items()}
+    rec, _ = noisy(clean, 40.0, seed=2).test_window()
+    members = [CATALOGUE["load_inertia"], CATALOGUE["speed_quantization"]]
+    seed = {"K": 0.005, "J1": 0.85, "c": 1.1, "load_inertia": 1.25, "speed_quantization": 0.1}
+    cal = sets_module._fit_set(rec, default_space(rec), members, SEEDED_FITS, sd, [seed], True)
+    assert cal is not None
+    assert cal.values["speed_quantization"] == pytest.approx(0.3, abs=0.01)
+    assert cal.values["load_inertia"] == pytest.approx(1.3, rel=0.01)
+    assert cal.reduced_chi2 <= 1.05

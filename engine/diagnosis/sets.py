@@ -63,7 +63,7 @@ import logging
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -74,6 +74,7 @@ from engine.diagnosis.candidate import Candidate, CandidateSettings
 from engine.diagnosis.gap import Gap, gap_of, shrinkage_ratio
 from engine.diagnosis.noise import NoiseModel, noise_weights
 from engine.diagnosis.objective import Objective
+from engine.diagnosis.quantisation import fit_quantisation, is_speed_quantum
 from engine.diagnosis.screening import rank_additions
 from engine.diagnosis.space import TIME_SHIFT_EFFECTS, ModelSpace
 from engine.parallel import Runner, single_threaded_blas
@@ -436,20 +437,63 @@ def _fit_set(
     seeds: Sequence[Mapping[str, float]],
     polish: bool,
     scan: tuple[Mapping[str, float], str, int] | None = None,
+    n_quantum: int = 4000,
 ) -> CalibrationResult | None:
     """Joint fit of a set, or None when nothing of it can be simulated.
 
     ``scan``: ``(base, name, n)``, add the seed of an ``n``-value scan of member ``name`` at
-    the smaller set's fit ``base`` (:func:`_scan_seed`).
+    the smaller set's fit ``base`` (:func:`_scan_seed`). A set holding the speed quantum is
+    fitted as :func:`_fit_set_with_quantum` says (``n_quantum`` values per dense scan).
     """
     from engine.diagnosis.calibration import CalibrationError
 
+    quantum = next((e for e in members if is_speed_quantum(e)), None)
+    if quantum is not None:
+        return _fit_set_with_quantum(record, space, members, quantum, settings, noise, seeds, n_quantum)
     gspace = space.with_effects(members)
     if scan is not None:
         base, name, n = scan
         seeds = [*seeds, *_scan_seed(record, gspace, noise, base, name, n, settings.search_step)]
     try:
         return calibrate(record, gspace, settings, noise=noise, seeds=seeds, polish=polish)
+    except CalibrationError as exc:
+        logger.info("set %s could not be fitted: %s", "+".join(e.name for e in members), exc)
+        return None
+
+
+def _fit_set_with_quantum(
+    record: Record,
+    space: ModelSpace,
+    members: Sequence[Effect],
+    quantum: Effect,
+    settings: CalibrationSettings,
+    noise: Mapping[str, float],
+    seeds: Sequence[Mapping[str, float]],
+    n_quantum: int,
+) -> CalibrationResult | None:
+    """Joint fit of a set that holds the speed quantum, or None when it cannot be fitted.
+
+    Least squares cannot move a quantum (its cost is piecewise constant in q), so, as for the
+    single candidate (:func:`engine.diagnosis.quantisation.fit_quantisation`), the other members
+    and the calibration are fitted first (from the seeds, without the quantum), then refitted on
+    the unrounded omega1 with the rounding as extra noise, q found by dense scans in between.
+    """
+    from engine.diagnosis.calibration import CalibrationError
+
+    if "omega1" not in record.channels:
+        return None
+    others = [e for e in members if e.name != quantum.name]
+    ospace = space.with_effects(others)
+    oseeds: list[dict[str, float]] = []
+    for seed in seeds:
+        s = {k: v for k, v in seed.items() if k != quantum.name}
+        if s not in oseeds:
+            oseeds.append(s)
+    try:
+        start = calibrate(record, ospace, settings, noise=noise, seeds=oseeds, polish=False)
+        # the start had the global search, if any: the refits around it are local
+        local = replace(settings, n_global=0)
+        return fit_quantisation(record, start, ospace, quantum, n_quantum, local, local)
     except CalibrationError as exc:
         logger.info("set %s could not be fitted: %s", "+".join(e.name for e in members), exc)
         return None
@@ -555,7 +599,9 @@ def _search(
                         sub = min(subs, key=lambda s: fits[s].chi2)
                         new = next(n for n in g if n not in sub)
                         scan = ({**fits[sub].values, new: effects[new].neutral}, new, cs.n_scan)
-            tasks[g] = runner.submit(_fit_set, record, space, members, settings, nominal.noise, seeds, polish, scan)
+            tasks[g] = runner.submit(
+                _fit_set, record, space, members, settings, nominal.noise, seeds, polish, scan, cs.n_quantum
+            )
         for g, task in tasks.items():
             cal = task.result()
             if cal is None:
