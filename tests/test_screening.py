@@ -65,5 +65,9 @@ def test_the_screen_refuses_a_member_as_an_addition_and_a_single_value_scan() ->
     li = CATALOGUE["load_inertia"]
     with pytest.raises(ValueError, match="already members"):
         rank_additions(rec, space, fit, [li], [li], sd, 9, STEP, FD)
+    with pytest.raises(ValueError, match="lacks load_inertia"):
+        rank_additions(
+            rec, space, {"K": 0.005, "J1": 0.85, "c": 1.1}, [li], [CATALOGUE["sensor_gain"]], sd, 9, STEP, FD
+        )
     with pytest.raises(ValueError, match="n_scan"):
         rank_additions(rec, space, fit, [li], [CATALOGUE["sensor_gain"]], sd, 1, STEP, FD)

@@ -165,6 +165,8 @@ def test_absorption_rule_tells_an_effect_the_calibration_mimics_from_one_it_cann
     friction = CATALOGUE["motor_coulomb_friction"]
     rec, sd = _noiseless(truth["K"], truth["J1"], truth["c"], friction, 0.05, 42.0)
     assert absorbed_strength(rec, {**truth, friction.name: 0.05}, [friction], 0, sd) > 3 * STRENGTH_THRESHOLD
+    with pytest.raises(ValueError, match="lacks c"):  # never a refit from the box centre
+        absorbed_strength(rec, {"K": truth["K"], "J1": truth["J1"]}, [friction], 0, sd)
 
 
 def test_generated_compound_cases_pass_the_absorption_rule() -> None:

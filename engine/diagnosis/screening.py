@@ -98,7 +98,8 @@ def rank_additions(
     Raises
     ------
     ValueError
-        When an addition is already a member, or ``n_scan < 2``.
+        When an addition is already a member, ``values`` lacks a free parameter of the smaller
+        model, or ``n_scan < 2``.
     RuntimeError
         When the smaller model's fit itself cannot be simulated.
     """
@@ -108,6 +109,9 @@ def rank_additions(
     clash = [e.name for e in additions if e.name in names]
     if clash:
         raise ValueError(f"already members of the model: {', '.join(clash)}")
+    missing = [k for k in space.with_effects(members).names if k not in values]
+    if missing:  # the screen would run at the box centre instead of the fit
+        raise ValueError(f"the fit to be extended lacks {', '.join(missing)}")
     weights = noise_weights(record, NoiseModel.of(noise))
     solver = SolverSettings(max_step=step)
     n = record.n_samples

@@ -244,11 +244,11 @@ def _strong(truths: Sequence[TrueEffect]) -> bool:
     return all(min(t.strength, t.strength_in_set) > STRENGTH_THRESHOLD for t in truths)
 
 
-def _record(draw: _Draw, full: np.ndarray) -> Record:
-    """The noiseless record of a draw (its recorded channels of the full simulation ``full``)."""
+def _record(channels: Sequence[str], data: np.ndarray) -> Record:
+    """A case's record on the protocol grid: ``data[j]`` is channel ``channels[j]``."""
     grid = PROTOCOL_GRID
     return Record(
-        {ch: full[CHANNELS.index(ch)] for ch in draw.channels},
+        {ch: data[j] for j, ch in enumerate(channels)},
         grid.sample_interval,
         grid.event_index,
         conditions={"c1": C1_CONDITION},
@@ -280,9 +280,17 @@ def absorbed_strength(
         model without ``effects[left_out]`` (K, J1, c and the other effects refitted, started
         at the truth, at most :data:`REFIT_NFEV` evaluations), in noise standard deviations;
         inf when that model cannot be simulated near the truth (nothing can absorb the effect).
+
+    Raises
+    ------
+    ValueError
+        When ``truth`` lacks a refitted parameter (K, J1, c or another effect's value).
     """
     others = [e for i, e in enumerate(effects) if i != left_out]
     space = default_space(record).with_effects(others)
+    missing = [k for k in space.names if k not in truth]
+    if missing:  # the refit would start at the box centre instead of the truth
+        raise ValueError(f"the truth lacks {', '.join(missing)}")
     seed = {k: v for k, v in truth.items() if k in space.names}
     settings = CalibrationSettings(n_global=0, max_nfev=REFIT_NFEV, polish_nfev=REFIT_NFEV)
     try:
@@ -299,7 +307,7 @@ def absorbed_strength(
 
 def _absorption(draw: _Draw, truths: list[TrueEffect], full: np.ndarray, sd: np.ndarray) -> list[TrueEffect]:
     """The truths with their ``strength_refit`` (:func:`absorbed_strength`) filled in."""
-    record = _record(draw, full)
+    record = _record(draw.channels, full[[CHANNELS.index(ch) for ch in draw.channels]])
     sigma = {ch: float(s) for ch, s in zip(draw.channels, sd, strict=True)}
     truth = {
         "K": draw.K,
@@ -411,12 +419,7 @@ def generate_cases(
         truths, full, sd = tried
         rows = [CHANNELS.index(ch) for ch in channels]
         noisy = full[rows] + render_noise((len(rows), full.shape[1]), sd, noise, grid.sample_interval, rng)
-        record = Record(
-            {ch: noisy[j] for j, ch in enumerate(channels)},
-            grid.sample_interval,
-            grid.event_index,
-            conditions={"c1": C1_CONDITION},
-        )
+        record = _record(channels, noisy)
         cases.append(BlindCase(case_id, record))
         key.append(KeyEntry(case_id, kind, tuple(truths), draw.K, draw.J1, draw.c, channels, noise.to_dict(), n_draw))
         logger.debug("%s: %s %s after %d draw(s)", case_id, kind, ", ".join(names) or "-", n_draw)
