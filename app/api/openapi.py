@@ -26,10 +26,17 @@ _CSV_EXAMPLE = "\n".join(
 )
 
 
-def body_schema(model: type[BaseModel], csv: bool = False) -> dict[str, Any]:
-    """``openapi_extra`` for a route whose body is ``model`` as JSON (or, with ``csv``, a record's CSV form)."""
-    _BODY_MODELS[model.__name__] = model
-    content: dict[str, Any] = {"application/json": {"schema": {"$ref": f"#/components/schemas/{model.__name__}"}}}
+def body_schema(
+    model: type[BaseModel], csv: bool = False, alternatives: tuple[type[BaseModel], ...] = ()
+) -> dict[str, Any]:
+    """``openapi_extra`` for a route whose body is ``model`` as JSON (or one of ``alternatives``; or, with
+    ``csv``, a record's CSV form)."""
+    refs = []
+    for m in (model, *alternatives):
+        _BODY_MODELS[m.__name__] = m
+        refs.append({"$ref": f"#/components/schemas/{m.__name__}"})
+    schema: dict[str, Any] = refs[0] if len(refs) == 1 else {"oneOf": refs}
+    content: dict[str, Any] = {"application/json": {"schema": schema}}
     if csv:
         content["text/csv"] = {
             "schema": {

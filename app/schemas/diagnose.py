@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, FiniteFloat
 
 from app.schemas.common import RecordIn
+from engine.plants.emps import EmpsRecord
+from engine.plants.emps.record import record_from_arrays
 
 
 class DiagnoseCreate(BaseModel):
@@ -12,6 +16,9 @@ class DiagnoseCreate(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
+    plant: Literal["backlash_drive"] = Field(
+        default="backlash_drive", description="The plant the record is of; `emps` takes an EMPS record instead."
+    )
     record: RecordIn
     effects: list[str] | None = Field(
         default=None, description="Candidate effects (catalogue names) to consider; default the whole catalogue."
@@ -24,4 +31,46 @@ class DiagnoseCreate(BaseModel):
             "c 0.5-2.0 pu, c1 0-0.6 pu); a record's conditions fix a parameter outright."
         ),
         examples=[{"K": [0.002, 0.008], "J1": [0.7, 0.9]}],
+    )
+
+
+class EmpsRecordIn(BaseModel):
+    """One EMPS record as the benchmark's .mat file holds it (1 kHz, one value per sample and signal)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: str = Field(default="record", max_length=200, description="Name of the record (echoed in the answer).")
+    t: list[FiniteFloat] = Field(description="Sample instants [s], uniform at 1 ms.")
+    qm: list[FiniteFloat] = Field(description="Measured motor position, load side [m].")
+    qg: list[FiniteFloat] = Field(description="Reference position [m].")
+    vir: list[FiniteFloat] = Field(description="Controller output as measured [V].")
+    pulses_N: list[FiniteFloat] | None = Field(default=None, description="Pulse signal added to the command [V].")
+    kp: FiniteFloat = Field(description="Position gain [1/s].")
+    kv: FiniteFloat = Field(description="Velocity gain [V/(m/s)].")
+    gtau: FiniteFloat = Field(description="Drive gain [N/V].")
+
+    def to_record(self) -> EmpsRecord:
+        """The engine's record, checked (RecordError, 422, says what to fix)."""
+        import numpy as np
+
+        arrays = {
+            k: np.asarray(v, dtype=float)
+            for k in ("t", "qm", "qg", "vir", "pulses_N")
+            if (v := getattr(self, k)) is not None
+        }
+        return record_from_arrays(arrays, {"kp": self.kp, "kv": self.kv, "gtau": self.gtau}, self.name)
+
+
+class PlantDiagnoseCreate(BaseModel):
+    """Diagnose a record of another plant than the backlash drive (``"plant": "emps"``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    plant: Literal["emps"] = Field(description="The plant the record is of.")
+    record: EmpsRecordIn
+    calibrate_on: EmpsRecordIn | None = Field(
+        default=None, description="Calibrate on this record of the same plant instead (the cross-record check)."
+    )
+    hold_calibration: bool = Field(
+        default=False, description="Hold the calibrated parameters while fitting effects (default: refit them)."
     )

@@ -140,6 +140,9 @@ def test_pattern_sets_list_show_delete(env: Path, capsys: pytest.CaptureFixture[
         ),
         (["identify", "nan.json", "--channel", "v2"], "the JSON holds NaN, which is not a number"),
         (["diagnose", "full.csv", "--event-index", "48", "--effects", "magic"], "unknown effect 'magic'"),
+        (["diagnose", "--plant", "emps", "record.txt"], "an EMPS record is a .mat file"),
+        (["diagnose", "--plant", "emps", "full.csv"], "unknown column(s) ['v2']"),
+        (["diagnose", "--plant", "emps", "full.csv", "--effects", "stribeck"], "--effects and --bound apply to"),
         (["simulate", "--K", "0.005", "--unit", "omega1=rpmm"], "unknown unit 'rpmm' for channel 'omega1'"),
         (["simulate", "--K", "0.005", "--sample-interval", "2e-3"], "outside the accepted range"),
         (["simulate", "--K", "0.005", "--after", "0.1"], "100 ms after it missing"),
@@ -404,3 +407,26 @@ def test_unit_help_lists_the_engines_units() -> None:
     for channel, units in UNITS.items():
         section = next(s for s in UNITS_HELP.split(";") if channel in s.split(":")[0])
         assert all(u in section for u in units), (channel, section)
+
+
+def test_diagnose_an_emps_record_in_csv_form(env: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--plant emps`` reads the CSV form, answers in the plant's channels and writes its plots."""
+    from engine.plants.emps import load_mat
+
+    rec = load_mat(Path(__file__).resolve().parents[2] / "engine" / "plants" / "emps" / "data" / "DATA_EMPS_PULSES.mat")
+    n = 2500  # 2.5 s, two pulses: a quick diagnosis
+    rows = "\n".join(
+        ",".join(repr(float(x[k])) for x in (rec.t, rec.qm, rec.qg, rec.vir, rec.pulses)) for k in range(n)
+    )
+    path = tmp_path / "pulses.csv"
+    path.write_text(f"# kp = {rec.kp!r}\n# kv = {rec.kv!r}\n# gtau = {rec.gtau!r}\nt,qm,qg,vir,pulses_N\n{rows}\n")
+    code, out, err = run(capsys, "diagnose", "--plant", "emps", str(path), "--plots", str(tmp_path / "plots"))
+    assert code == 0, err
+    result = json.loads(out)
+    assert result["plant"] == "emps" and result["record"] == "pulses.csv"
+    for when in ("before", "after"):
+        assert set(result["relative_error"][when]) == {"position", "velocity", "acceleration", "force"}
+        assert result["relative_error"]["after"]["force"] <= result["relative_error"]["before"]["force"] + 1e-9
+    assert result["event_share"]["samples"]["share"] > 0  # the pulses are the record's events
+    assert result["status"] in {"explained", "partly_explained", "unexplained"}
+    assert (tmp_path / "plots" / "overlay_acceleration.png").stat().st_size > 0

@@ -36,3 +36,47 @@ def test_diagnose_validates_its_input_first(client: httpx.Client, sim_record: di
     assert r.status_code == 422 and "unknown effect 'no_such_effect'" in r.json()["detail"]
     r = client.post("/v1/diagnose", json={"record": {"channels": {"v2": [0.0] * 10}, "event_index": 5}})
     assert r.status_code == 422 and "4.3 ms before the event and 199.5 ms after it missing" in r.json()["detail"]
+
+
+def _emps_body(n: int) -> dict[str, Any]:
+    from pathlib import Path
+
+    from engine.plants.emps import load_mat
+
+    rec = load_mat(Path(__file__).resolve().parents[2] / "engine" / "plants" / "emps" / "data" / "DATA_EMPS_PULSES.mat")
+    return {
+        "name": "pulses-head",
+        "t": rec.t[:n].tolist(),
+        "qm": rec.qm[:n].tolist(),
+        "qg": rec.qg[:n].tolist(),
+        "vir": rec.vir[:n].tolist(),
+        "pulses_N": rec.pulses[:n].tolist(),
+        "kp": rec.kp,
+        "kv": rec.kv,
+        "gtau": rec.gtau,
+    }
+
+
+def test_diagnose_an_emps_record_over_http(client: httpx.Client) -> None:
+    """``"plant": "emps"``: the answer carries the relative error per channel before and after (eq. 11)."""
+    r = client.post("/v1/diagnose", json={"plant": "emps", "record": _emps_body(2500)}, timeout=300)
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert body["plant"] == "emps" and body["record"] == "pulses-head"
+    errors = body["relative_error"]
+    assert set(errors["before"]) == set(errors["after"]) == {"position", "velocity", "acceleration", "force"}
+    assert sum(errors["after"].values()) <= sum(errors["before"].values())
+
+
+def test_diagnose_refuses_an_emps_record_it_cannot_read(client: httpx.Client) -> None:
+    bad = _emps_body(1000)
+    bad["t"][500] += 0.0004  # a jittered instant: the grid is not the controller's
+    r = client.post("/v1/diagnose", json={"plant": "emps", "record": bad})
+    assert r.status_code == 422 and "not uniform" in r.json()["detail"]
+    short = _emps_body(1000)
+    short["qm"] = short["qm"][:-1]
+    r = client.post("/v1/diagnose", json={"plant": "emps", "record": short})
+    assert r.status_code == 422 and "qm has 999 samples but t has 1000" in r.json()["detail"]
+    r = client.post("/v1/diagnose", json={"plant": "mars_rover", "record": _emps_body(1000)})
+    assert r.status_code == 422 and "emps" in r.text
+    assert client.get("/healthz").status_code == 200  # the server stays up

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 from fastapi import APIRouter, Request
@@ -10,18 +11,29 @@ from starlette.concurrency import run_in_threadpool
 from app.api.deps import CSV_QUERY, CSVRecordDep, body_kind, csv_record, json_body, reject_query
 from app.api.openapi import body_schema
 from app.schemas.common import ErrorPublic
-from app.schemas.diagnose import DiagnoseCreate
-from app.services import diagnosis
+from app.schemas.diagnose import DiagnoseCreate, PlantDiagnoseCreate
+from app.services import diagnosis, plant_diagnosis
+from app.services.plant_diagnosis import PlantRecords
 from engine.diagnosis.space import check_bounds
+from engine.plants import DEFAULT_PLANT, get_plant
 from engine.simulation import CATALOGUE
 
 router = APIRouter(prefix="/diagnose", tags=["diagnose"])
 
 
+def _names_another_plant(raw: bytes) -> bool:
+    """Whether a JSON body names a plant other than the default (malformed bodies are left to the validation)."""
+    try:
+        body = json.loads(raw)
+    except ValueError:
+        return False
+    return isinstance(body, dict) and body.get("plant", DEFAULT_PLANT) != DEFAULT_PLANT
+
+
 @router.post(
     "",
     summary="Diagnose the gap between a record and the model",
-    openapi_extra=body_schema(DiagnoseCreate, csv=True),
+    openapi_extra=body_schema(DiagnoseCreate, csv=True, alternatives=(PlantDiagnoseCreate,)),
     responses={
         422: {"model": ErrorPublic, "description": "Invalid record, unknown effect, or a record the model cannot fit"},
     },
@@ -33,12 +45,26 @@ async def diagnose(request: Request, csv_params: CSVRecordDep) -> Any:
     (optionally with a ``t`` column; ``sample_interval``, ``event_index``, ``units``, ``base_torque`` and the
     known conditions as query parameters).
 
+    ``"plant": "emps"`` diagnoses a record of the EMPS benchmark instead (``PlantDiagnoseCreate``: the record's
+    signals and gains as its .mat file holds them, optionally ``calibrate_on`` another record and
+    ``hold_calibration``); the answer then carries ``relative_error`` before and after per channel.
+
     The record may be on any grid (10 us to 1 ms, any length covering the test window, the event given or
     located, any accepted units); it is fitted on its own instants, ``record`` in the answer says how it was
     read (event, window of samples used), and ``records.before`` / ``records.after`` come back on its grid and
     in its units.
     """
     bounds = None
+    if body_kind(request) != "csv" and _names_another_plant(await request.body()):
+        reject_query(request, CSV_QUERY)
+        other = await json_body(request, PlantDiagnoseCreate)
+        records = PlantRecords(
+            get_plant(other.plant),
+            other.record.to_record(),
+            other.calibrate_on.to_record() if other.calibrate_on else None,
+        )
+        result = await run_in_threadpool(plant_diagnosis.run, records, other.hold_calibration)
+        return result.to_dict()
     if body_kind(request) == "csv":
         record, effects = await csv_record(request, csv_params), None
     else:

@@ -1,0 +1,587 @@
+"""The gap diagnosis on any plant of the interface (:mod:`engine.plants.base`): calibrate, where, which, how far.
+
+This module reads a plant only through its interface (channels, calibrated parameters, catalogue,
+``measured``, ``simulate``, ``scored``); it is where the diagnosis of real records starts (the
+EMPS benchmark). The backlash drive's own diagnosis (:func:`engine.diagnosis.diagnose`) predates the
+interface and still works on its cases directly.
+
+Method
+------
+- **Objective.** The residual of channel c is ``(y_sim,c - y_c) / ||y_c||`` over the plant's scored
+  samples, stacked over the channels: its squared norm is the sum over channels of the squared
+  relative errors ``(e_c / 100)^2`` of the authors' eq. 11, so every channel weighs by its own
+  scale and the fit minimises the very figure the report tables.
+- **Calibration** (:func:`calibrate`): bounded least squares (scipy's trf) of the calibrated
+  parameters, on a unit box, from their nominal values.
+- **Where** (:func:`localise`): the calibrated model's residual energy of every channel split into
+  frequency bands (zero-phase Butterworth band-passes) and time windows of :data:`WINDOW`; the
+  cells holding the most energy are reported with their share. Where the plant knows its input
+  events (a pulse edge), :func:`event_shares` says how much of each channel's residual lies just
+  after them, beside the share of samples that lie there.
+- **Which** (:func:`rank_effects`): every catalogue effect is fitted with the calibrated parameters
+  (refitted with it, or held when a calibration from another record is being scored): a scan of the
+  effect over its range first (the best of :data:`N_SCAN` values, calibration held), then least
+  squares from there. An effect is *named* when it removes at least :data:`MIN_SHARE` of the
+  residual's squared norm; a greedy forward set (up to three effects, each addition fitted jointly)
+  keeps an addition that removes a further :data:`MIN_SHARE` of what is left.
+- **How far**: the relative error per channel before and after.
+
+Uncertainties are the linearised least-squares ones, scaled by the residual's own RMS. On a real
+record the residual is model error, correlated in time, so they are lower bounds; the cross-record
+check (calibrate on one record, score the other) is the better measure of what holds.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.signal import butter, sosfiltfilt
+
+from engine.plants.base import CalibratedParameter, Plant, relative_error
+
+__all__ = [
+    "BANDS",
+    "MIN_SHARE",
+    "N_SCAN",
+    "Cell",
+    "EffectFit",
+    "Fit",
+    "PlantGapReport",
+    "calibrate",
+    "diagnose_plant",
+    "event_shares",
+    "fit",
+    "gap_budget",
+    "localise",
+    "rank_effects",
+    "relative_errors",
+]
+
+logger = logging.getLogger(__name__)
+
+#: Share of the residual's squared norm an effect must remove to be named (and an addition to a set).
+MIN_SHARE: float = 0.05
+#: Share of the gap a named set must remove for the status ``explained`` (else ``partly_explained``).
+EXPLAINED_SHARE: float = 0.9
+#: Values of an effect's scalar scanned across its range before its least-squares fit.
+N_SCAN: int = 9
+#: Frequency bands of the localisation [Hz] (the last ends at the measurement chain's 100 Hz).
+BANDS: tuple[tuple[float, float], ...] = ((0.0, 2.0), (2.0, 10.0), (10.0, 30.0), (30.0, 100.0))
+#: Length of a time window of the localisation [s].
+WINDOW: float = 0.1
+#: Span around each of the plant's input events within which residual energy is counted as the
+#: event's [s]: from 20 ms before to 80 ms after (a closed-loop transient of the EMPS rings ~60 ms).
+EVENT_SPAN: tuple[float, float] = (-0.02, 0.08)
+#: Cells of the localisation reported.
+TOP_CELLS: int = 8
+#: Largest number of effects in a set.
+MAX_SET: int = 3
+#: Least-squares settings: function evaluations per fit; step of the finite differences, as a share
+#: of each parameter's search interval. The step is coarse on purpose: a simulation with Coulomb
+#: friction chatters at standstill, so its cost is rough on scales of 1e-3 of an interval and
+#: finer differences send the solver the roughness, not the slope (an EMPS fit stopped at its start
+#: with 1e-3).
+MAX_NFEV: int = 60
+DIFF_STEP: float = 1e-2
+
+
+@dataclass(frozen=True)
+class Fit:
+    """A fitted model: values, cost and linearised uncertainties.
+
+    Attributes
+    ----------
+    values : dict of str to float
+        Every fitted name (calibrated parameters and effect scalars) and every held one.
+    free : tuple of str
+        The names that were fitted.
+    cost : float
+        Squared norm of the residual (sum over channels of squared relative errors / 100^2).
+    uncertainty : dict of str to float
+        One standard deviation per fitted name, in its unit (lower bound, module docstring); inf
+        where the record does not constrain it (the cost is flat along it, e.g. a command limit
+        above every command of the record).
+    n_eval : int
+        Simulations spent.
+    """
+
+    values: dict[str, float]
+    free: tuple[str, ...]
+    cost: float
+    uncertainty: dict[str, float]
+    n_eval: int
+
+
+@dataclass(frozen=True)
+class EffectFit:
+    """One effect (or set) fitted with the calibration.
+
+    Attributes
+    ----------
+    effects : tuple of str
+        The effects' names.
+    fit : Fit
+        The joint fit.
+    share : float
+        Share of the calibrated model's residual squared norm it removes, in [0, 1].
+    loci : tuple of str
+        The effects' loci.
+    path : tuple of float
+        For a set built by forward selection, its share after each addition (in the order of
+        ``effects``): the gap budget.
+    """
+
+    effects: tuple[str, ...]
+    fit: Fit
+    share: float
+    loci: tuple[str, ...]
+    path: tuple[float, ...] = ()
+
+
+@dataclass(frozen=True)
+class Cell:
+    """Residual energy of one channel in one band and one time window.
+
+    Attributes
+    ----------
+    channel : str
+    band : tuple of float
+        [Hz].
+    window : tuple of float
+        [s], on the record's time axis.
+    share : float
+        Share of the total residual energy (all channels, weighted as the objective weighs them).
+    """
+
+    channel: str
+    band: tuple[float, float]
+    window: tuple[float, float]
+    share: float
+
+
+@dataclass(frozen=True)
+class PlantGapReport:
+    """Where, which and how far, for one record of one plant.
+
+    Attributes
+    ----------
+    plant : str
+    record : str
+    calibration : Fit
+        The calibrated model the gap is measured from.
+    relative_error : dict
+        ``{"before": {channel: %}, "after": {channel: %}}``: the calibrated model, and the model
+        with the named effects.
+    where : list of Cell
+        The largest residual cells of the calibrated model.
+    where_summary : dict
+        ``{"channel": {name: share}, "band_hz": {"lo-hi": share}}``: the residual energy summed
+        over the other two axes of the localisation.
+    event_share : dict
+        ``{"before": {channel: share}, "after": {...}, "samples": {"share": s}}``: the share of each
+        channel's residual energy within :data:`EVENT_SPAN` of the plant's input events, before and
+        after, beside the share of samples there (empty dicts without events).
+    ranking : list of EffectFit
+        Every single effect, best first.
+    named : EffectFit or None
+        The named set (None when no effect removes :data:`MIN_SHARE`).
+    calibration_refitted : bool
+        Whether the calibrated parameters were refitted with each effect.
+    """
+
+    plant: str
+    record: str
+    calibration: Fit
+    relative_error: dict[str, dict[str, float]]
+    where: list[Cell]
+    where_summary: dict[str, dict[str, float]]
+    event_share: dict[str, dict[str, float]]
+    ranking: list[EffectFit]
+    named: EffectFit | None
+    calibration_refitted: bool
+    budget: dict[str, float] = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def status(self) -> str:
+        """``unexplained`` (no effect removes :data:`MIN_SHARE`), ``explained`` (the named set removes
+        at least :data:`EXPLAINED_SHARE` of the gap) or ``partly_explained``."""
+        if self.named is None:
+            return "unexplained"
+        return "explained" if self.named.share >= EXPLAINED_SHARE else "partly_explained"
+
+    def to_dict(self, plant: Plant) -> dict[str, Any]:
+        """JSON-ready form (the CLI's and the API's response); values in the units the plant declares."""
+        cat = plant.catalogue
+        units = {p.name: p.unit for p in plant.calibrated}
+        effects = []
+        if self.named is not None:
+            for name in sorted(self.named.effects, key=lambda n: -self.budget.get(n, 0.0)):
+                effects.append(
+                    {
+                        "effect": name,
+                        "value": self.named.fit.values[name],
+                        "uncertainty": _finite(self.named.fit.uncertainty.get(name)),
+                        "unit": cat[name].unit,
+                        "locus": cat[name].locus,
+                        "share": self.budget.get(name, 0.0),
+                    }
+                )
+        return {
+            "plant": self.plant,
+            "record": self.record,
+            "status": self.status,
+            "verdict": {
+                "effects": effects,
+                "effect": effects[0]["effect"] if effects else None,
+                "value": effects[0]["value"] if effects else None,
+                "locus": effects[0]["locus"] if effects else None,
+                "share": self.named.share if self.named else 0.0,
+                "left": 1.0 - self.named.share if self.named else 1.0,
+            },
+            "calibration": {
+                "values": {k: self.calibration.values[k] for k in units if k in self.calibration.values},
+                "uncertainty": {k: _finite(v) for k, v in self.calibration.uncertainty.items()},
+                "units": units,
+                "refitted_with_effects": self.calibration_refitted,
+                "from": self.extra.get("calibrated_on", self.record),
+            },
+            "relative_error": self.relative_error,
+            "where": [
+                {"channel": c.channel, "band_hz": list(c.band), "window_s": list(c.window), "share": c.share}
+                for c in self.where
+            ],
+            "where_summary": self.where_summary,
+            "event_share": self.event_share,
+            "candidates": [
+                {
+                    "effects": list(e.effects),
+                    "values": {n: e.fit.values[n] for n in e.effects},
+                    "share": e.share,
+                    "loci": list(e.loci),
+                }
+                for e in ([self.named] if self.named and len(self.named.effects) > 1 else []) + self.ranking
+            ],
+            "n_simulations": self.extra.get("n_eval", 0),
+        }
+
+
+def _finite(x: float | None) -> float | None:
+    """JSON has no inf: an unconstrained uncertainty is reported as null."""
+    return x if x is not None and math.isfinite(x) else None
+
+
+class _Objective:
+    """Stacked, channel-normalised residual of a plant on a record."""
+
+    def __init__(self, plant: Plant, record: Any) -> None:
+        self.plant = plant
+        self.record = record
+        self.window = plant.scored(record)
+        meas = plant.measured(record)
+        self.channels = [c.name for c in plant.channels]
+        self.y = {c: meas[c][self.window] for c in self.channels}
+        self.scale = {c: 1.0 / float(np.linalg.norm(self.y[c])) for c in self.channels}
+        self.n_eval = 0
+
+    def residuals(self, values: Mapping[str, float]) -> dict[str, np.ndarray]:
+        """Per-channel residual (simulated - measured) over the scored samples, in channel units."""
+        self.n_eval += 1
+        sim = self.plant.simulate(self.record, values)
+        return {c: sim[c][self.window] - self.y[c] for c in self.channels}
+
+    def vector(self, values: Mapping[str, float]) -> np.ndarray:
+        r = self.residuals(values)
+        return np.concatenate([r[c] * self.scale[c] for c in self.channels])
+
+
+def relative_errors(plant: Plant, record: Any, values: Mapping[str, float]) -> dict[str, float]:
+    """Relative error [%] per channel of the model at ``values`` (authors' eq. 11, on the scored samples)."""
+    sl = plant.scored(record)
+    meas = plant.measured(record)
+    sim = plant.simulate(record, values)
+    return {c.name: relative_error(meas[c.name][sl], sim[c.name][sl]) for c in plant.channels}
+
+
+def fit(
+    plant: Plant,
+    record: Any,
+    free: Sequence[CalibratedParameter],
+    held: Mapping[str, float] | None = None,
+    start: Mapping[str, float] | None = None,
+    objective: _Objective | None = None,
+) -> Fit:
+    """Bounded least squares of ``free`` with ``held`` fixed (module docstring).
+
+    Parameters
+    ----------
+    plant, record
+        The plant and one of its records.
+    free : sequence of CalibratedParameter
+        The fitted names with their intervals.
+    held : mapping, optional
+        Values held fixed (names not given and not free keep the plant's nominal or neutral value).
+    start : mapping, optional
+        Start values of free names (default: each one's nominal, clipped into its interval).
+
+    Raises
+    ------
+    RuntimeError
+        When the solver fails.
+    """
+    obj = objective or _Objective(plant, record)
+    held = dict(held or {})
+    start = dict(start or {})
+    n0 = obj.n_eval
+
+    # the solver works on z = 1 + u in [1, 2]: its relative difference step is then the same share
+    # of every interval wherever the point lies
+    def values(z: np.ndarray) -> dict[str, float]:
+        return {**held, **{p.name: p.value(zi - 1.0) for p, zi in zip(free, z, strict=True)}}
+
+    u0 = np.array([p.unit_coord(start.get(p.name, p.nominal)) for p in free])
+    if not free:
+        r = obj.vector(held)
+        return Fit(dict(held), (), float(r @ r), {}, obj.n_eval - n0)
+    res = least_squares(
+        lambda z: obj.vector(values(z)),
+        1.0 + u0,
+        bounds=(1.0, 2.0),
+        method="trf",
+        diff_step=DIFF_STEP,
+        x_scale=1.0,
+        max_nfev=MAX_NFEV,
+    )
+    if res.status < 0 or not np.all(np.isfinite(res.fun)):
+        raise RuntimeError(f"least squares failed on {[p.name for p in free]}: {res.message}")
+    cost = float(res.fun @ res.fun)
+    dof = max(res.fun.size - len(free), 1)
+    s2 = cost / dof
+    jac = np.asarray(res.jac)
+    scale = np.linalg.norm(jac, axis=0)
+    flat = scale <= 1e-9 * max(float(scale.max()), 1e-300)  # the record does not move the cost along it
+    sd_u = np.full(len(free), math.inf)
+    if np.any(~flat):
+        j = jac[:, ~flat]
+        try:
+            sd_u[~flat] = np.sqrt(np.clip(np.diag(np.linalg.pinv(j.T @ j)) * s2, 0.0, None))
+        except np.linalg.LinAlgError:
+            sd_u[~flat] = math.nan
+    unc = {}
+    for p, zi, su in zip(free, res.x, sd_u, strict=True):
+        ui = zi - 1.0
+        lo, hi = max(ui - 1e-6, 0.0), min(ui + 1e-6, 1.0)
+        unc[p.name] = float(abs((p.value(hi) - p.value(lo)) / (hi - lo)) * su)
+    return Fit(values(res.x), tuple(p.name for p in free), cost, unc, obj.n_eval - n0)
+
+
+def calibrate(plant: Plant, record: Any, objective: _Objective | None = None) -> Fit:
+    """Fit the plant's calibrated parameters to a record, from their nominal values."""
+    out = fit(plant, record, plant.calibrated, objective=objective)
+    logger.info("calibrated %s on %s: %s (cost %.4g)", plant.name, getattr(record, "name", ""), out.values, out.cost)
+    return out
+
+
+def _fit_effects(
+    plant: Plant,
+    record: Any,
+    names: Sequence[str],
+    calibration: Fit,
+    refit: bool,
+    obj: _Objective,
+    start: Mapping[str, float] | None = None,
+) -> Fit:
+    """Joint fit of effects ``names`` (the last one scanned first) with the calibration refitted or held."""
+    effects = [plant.catalogue[n].as_parameter() for n in names]
+    start = dict(start or {})
+    last = effects[-1]
+    base = {**calibration.values, **start}
+    best_v, best_c = last.nominal, math.inf
+    for u in np.linspace(0.0, 1.0, N_SCAN):
+        v = last.value(float(u))
+        r = obj.vector({**base, last.name: v})
+        c = float(r @ r)
+        if c < best_c:
+            best_v, best_c = v, c
+    start[last.name] = best_v
+    free = [*effects, *(plant.calibrated if refit else ())]
+    held = {} if refit else dict(calibration.values)
+    return fit(plant, record, free, held=held, start={**calibration.values, **start}, objective=obj)
+
+
+def rank_effects(
+    plant: Plant,
+    record: Any,
+    calibration: Fit,
+    refit: bool = True,
+    objective: _Objective | None = None,
+) -> tuple[list[EffectFit], EffectFit | None]:
+    """Fit every catalogue effect; name the best set (module docstring).
+
+    Returns
+    -------
+    ranking : list of EffectFit
+        Single effects, best first.
+    named : EffectFit or None
+        The named set, or None when no effect removes :data:`MIN_SHARE` of the gap.
+    """
+    obj = objective or _Objective(plant, record)
+    c0 = calibration.cost
+    singles = []
+    for name in plant.catalogue:
+        f = _fit_effects(plant, record, [name], calibration, refit, obj)
+        share = max(0.0, 1.0 - f.cost / c0)
+        singles.append(EffectFit((name,), f, share, (plant.catalogue[name].locus,), (share,)))
+        logger.info("effect %s: share %.3f, value %.4g", name, singles[-1].share, f.values[name])
+    singles.sort(key=lambda e: -e.share)
+    if not singles or singles[0].share < MIN_SHARE:
+        return singles, None
+    named = singles[0]
+    for _ in range(MAX_SET - 1):
+        best: EffectFit | None = None
+        for cand in singles:
+            (name,) = cand.effects
+            if name in named.effects or cand.share < MIN_SHARE:
+                continue
+            start = {n: named.fit.values[n] for n in named.effects}
+            f = _fit_effects(plant, record, [*named.effects, name], calibration, refit, obj, start=start)
+            if best is None or f.cost < best.fit.cost:
+                loci = tuple(plant.catalogue[n].locus for n in (*named.effects, name))
+                share = max(0.0, 1.0 - f.cost / c0)
+                best = EffectFit((*named.effects, name), f, share, loci, (*named.path, share))
+        if best is None or best.fit.cost > named.fit.cost * (1.0 - MIN_SHARE):
+            break
+        named = best
+    return singles, named
+
+
+def gap_budget(named: EffectFit) -> dict[str, float]:
+    """Share of the gap each effect of a set closes, in the order forward selection added them.
+
+    The first effect's share is what it closes alone (with the calibration); each later one's is
+    what its addition closed beyond the set before it. The shares add up to the set's share; what
+    is left is ``1 - named.share``. (The order matters where effects overlap: the share of a later
+    effect is what it adds, not what it would close alone.)
+    """
+    out = {}
+    before = 0.0
+    for name, cumulative in zip(named.effects, named.path or (named.share,), strict=False):
+        out[name] = max(0.0, cumulative - before)
+        before = cumulative
+    return out
+
+
+def localise(plant: Plant, record: Any, values: Mapping[str, float], top: int | None = TOP_CELLS) -> list[Cell]:
+    """The largest cells of residual energy: channel x band x time window (module docstring); all with ``top=None``."""
+    obj = _Objective(plant, record)
+    res = obj.residuals(values)
+    t = np.asarray(plant.time(record), dtype=float)[obj.window]
+    nyq = 0.5 / float(t[1] - t[0])
+    cells: list[tuple[str, tuple[float, float], tuple[float, float], float]] = []
+    edges = np.arange(t[0], t[-1] + WINDOW, WINDOW)
+    which = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, edges.size - 2)
+    for c in obj.channels:
+        r = res[c] * obj.scale[c]
+        for lo, hi in BANDS:
+            if lo <= 0.0:
+                sos = butter(4, hi / nyq, btype="low", output="sos")
+            else:
+                sos = butter(4, [lo / nyq, min(hi / nyq, 0.99)], btype="band", output="sos")
+            energy = np.bincount(which, weights=sosfiltfilt(sos, r) ** 2, minlength=edges.size - 1)
+            cells.extend((c, (lo, hi), (float(edges[i]), float(edges[i + 1])), float(e)) for i, e in enumerate(energy))
+    total = sum(e for *_, e in cells) or 1.0
+    cells.sort(key=lambda x: -x[3])
+    return [Cell(c, band, win, e / total) for c, band, win, e in (cells if top is None else cells[:top])]
+
+
+def event_shares(plant: Plant, record: Any, values: Mapping[str, float]) -> tuple[dict[str, float], float]:
+    """Share of each channel's residual energy near the plant's input events, and the share of samples there.
+
+    Returns
+    -------
+    shares : dict of str to float
+        Per channel, the share of its residual energy within :data:`EVENT_SPAN` of an event
+        (empty when the record has no events).
+    samples : float
+        The share of the scored samples within those spans (what the energy share would be if
+        the residual ignored the events).
+    """
+    obj = _Objective(plant, record)
+    t = np.asarray(plant.time(record), dtype=float)[obj.window]
+    events = np.asarray(plant.events(record), dtype=float)
+    if events.size == 0:
+        return {}, 0.0
+    near = np.zeros(t.size, dtype=bool)
+    for te in events:
+        near |= (t >= te + EVENT_SPAN[0]) & (t < te + EVENT_SPAN[1])
+    res = obj.residuals(values)
+    shares = {c: float(res[c][near] @ res[c][near] / max(res[c] @ res[c], 1e-300)) for c in obj.channels}
+    return shares, float(near.mean())
+
+
+def diagnose_plant(
+    plant: Plant,
+    record: Any,
+    calibration: Fit | None = None,
+    refit: bool = True,
+    calibrated_on: str | None = None,
+) -> PlantGapReport:
+    """Diagnose one record: calibrate (unless given), localise, rank effects, errors before and after.
+
+    Parameters
+    ----------
+    plant, record
+        The plant and one of its records.
+    calibration : Fit, optional
+        A calibration (e.g. from another record); default: calibrate on this record.
+    refit : bool
+        Refit the calibrated parameters with every effect (True), or hold them (the cross-record
+        check).
+    calibrated_on : str, optional
+        Name of the record ``calibration`` came from (reported).
+    """
+    obj = _Objective(plant, record)
+    if calibration is None:
+        calibration = calibrate(plant, record, objective=obj)
+    else:
+        r = obj.vector(calibration.values)
+        calibration = Fit(dict(calibration.values), calibration.free, float(r @ r), calibration.uncertainty, 1)
+    cells = localise(plant, record, calibration.values, top=None)
+    where = cells[:TOP_CELLS]
+    summary: dict[str, dict[str, float]] = {"channel": {}, "band_hz": {}}
+    for cell in cells:
+        band = f"{cell.band[0]:g}-{cell.band[1]:g}"
+        summary["channel"][cell.channel] = summary["channel"].get(cell.channel, 0.0) + cell.share
+        summary["band_hz"][band] = summary["band_hz"].get(band, 0.0) + cell.share
+    ranking, named = rank_effects(plant, record, calibration, refit=refit, objective=obj)
+    after_values = named.fit.values if named else calibration.values
+    budget = gap_budget(named) if named else {}
+    before_share, samples = event_shares(plant, record, calibration.values)
+    after_share, _ = event_shares(plant, record, after_values)
+    return PlantGapReport(
+        plant=plant.name,
+        record=getattr(record, "name", ""),
+        calibration=calibration,
+        relative_error={
+            "before": relative_errors(plant, record, calibration.values),
+            "after": relative_errors(plant, record, after_values),
+        },
+        where=where,
+        where_summary=summary,
+        event_share={
+            "before": before_share,
+            "after": after_share,
+            "samples": {"share": samples} if before_share else {},
+        },
+        ranking=ranking,
+        named=named,
+        calibration_refitted=refit,
+        budget=budget,
+        extra={"n_eval": obj.n_eval, **({"calibrated_on": calibrated_on} if calibrated_on else {})},
+    )

@@ -1,0 +1,91 @@
+"""The backlash drive of MODEL.md as a :class:`~engine.plants.base.Plant`.
+
+A thin adapter over :mod:`engine.simulation` and :mod:`engine.diagnosis.space`: its calibrated
+parameters are the search box of :data:`engine.diagnosis.space.DEFAULT_BOUNDS` (K, J1, c, c1),
+its catalogue :data:`engine.simulation.CATALOGUE`, its loci :data:`engine.simulation.LOCI`, and a
+record is a :class:`engine.records.Record` simulated on its own grid (the calibration's own model
+space, so conditions a record fixes stay fixed).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from types import MappingProxyType
+
+import numpy as np
+
+from engine.constants import CHANNEL_UNITS, CHANNELS
+from engine.diagnosis.space import DEFAULT_BOUNDS, LOG_SCALED_EFFECTS, LOG_SCALED_PARAMETERS, default_space
+from engine.plants.base import CalibratedParameter, CandidateEffect, Channel
+from engine.records import Record
+from engine.simulation import CATALOGUE, LOCI, PlantParameters, SimulationError, SolverSettings, run_cases
+
+__all__ = ["BacklashDrivePlant"]
+
+
+def _nominal(name: str) -> float:
+    lo, hi, _ = DEFAULT_BOUNDS[name]
+    v = float(getattr(PlantParameters(), name))
+    return min(max(v, lo), hi)
+
+
+class BacklashDrivePlant:
+    """The reference plant (MODEL.md) behind the plant interface."""
+
+    name: str = "backlash_drive"
+    loci: tuple[str, ...] = LOCI
+    channels: tuple[Channel, ...] = tuple(Channel(c, CHANNEL_UNITS[c]) for c in CHANNELS)
+    calibrated: tuple[CalibratedParameter, ...] = tuple(
+        CalibratedParameter(n, _nominal(n), lo, hi, unit, n in LOG_SCALED_PARAMETERS)
+        for n, (lo, hi, unit) in DEFAULT_BOUNDS.items()
+    )
+    catalogue: Mapping[str, CandidateEffect] = MappingProxyType(
+        {
+            n: CandidateEffect(e.name, e.description, e.bounds, e.neutral, e.unit, e.locus, n in LOG_SCALED_EFFECTS)
+            for n, e in CATALOGUE.items()
+        }
+    )
+
+    def __init__(self, solver: SolverSettings | None = None) -> None:
+        self.solver = solver or SolverSettings()
+
+    def measured(self, record: Record) -> dict[str, np.ndarray]:
+        """The record's channels as given (model units)."""
+        return {n: np.asarray(v, dtype=float) for n, v in record.channels.items()}
+
+    def scored(self, record: Record) -> slice:
+        """Every sample."""
+        return slice(None)
+
+    def time(self, record: Record) -> np.ndarray:
+        """Sample instants [s] relative to the event."""
+        return record.time
+
+    def events(self, record: Record) -> np.ndarray:
+        """The record's event instant t_e (MODEL.md's backlash test; 0 on the record's time axis)."""
+        return np.array([record.time[record.event_index]])
+
+    def simulate(self, record: Record, values: Mapping[str, float]) -> dict[str, np.ndarray]:
+        """The record's channels simulated on its grid (names not given: nominal or neutral).
+
+        A calibrated parameter the record's conditions fix keeps the record's value.
+
+        Raises
+        ------
+        KeyError
+            For an unknown name.
+        SimulationError
+            When the simulation fails (no event, divergence).
+        """
+        space = default_space(record)
+        unknown = [n for n in values if n not in space.names and n not in DEFAULT_BOUNDS and n not in CATALOGUE]
+        if unknown:
+            raise KeyError(f"unknown backlash-drive parameter or effect(s) {unknown}")
+        effects = [CATALOGUE[n] for n in values if n in CATALOGUE]
+        space = space.with_effects(effects)
+        full = {n: _nominal(n) for n in DEFAULT_BOUNDS} | {e.name: e.neutral for e in effects} | dict(values)
+        case = space.case(space.unit(full))
+        ch, _, status = run_cases([case], self.solver, record.grid)
+        if status[0] != 0:
+            raise SimulationError({0: f"kernel status {int(status[0])}"})
+        return {n: ch[0, CHANNELS.index(n)] for n in record.channels}

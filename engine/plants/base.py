@@ -1,0 +1,193 @@
+"""The plant interface: what the gap diagnosis needs to know of a plant, and nothing more.
+
+A plant (in the manner of motulator's subsystems, reduced to what a diagnosis reads) declares
+
+- its **channels**: the measured signals a record holds, each with its unit;
+- its **calibrated parameters**: the ones uncertain in practice, each with a nominal value and a
+  plausible search interval (the diagnosis refits them with every candidate effect);
+- its **catalogue** of candidate effects: named one-scalar extensions of the model (the shape of
+  pysindy's feature libraries), each acting at one **locus**, a part of the plant;
+- the record's sample instants and the instants of its known input **events** (a pulse, a switch-off);
+- how to obtain the **measured** channels from one of its records, and how to **simulate** the record's channels on the record's own grid for given parameter and effect
+  values (names not given keep their nominal or neutral value).
+
+Every plant is one module plus its catalogue, registered in :mod:`engine.plants`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+__all__ = ["CalibratedParameter", "CandidateEffect", "Channel", "Plant", "relative_error"]
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One measured signal.
+
+    Parameters
+    ----------
+    name : str
+        Name used in responses (e.g. ``position``).
+    unit : str
+        Unit of its samples.
+    description : str
+        What it is and how it is obtained from the raw record.
+    """
+
+    name: str
+    unit: str
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class CalibratedParameter:
+    """A plant parameter the diagnosis refits, with its search interval.
+
+    Parameters
+    ----------
+    name : str
+        Parameter name.
+    nominal : float
+        Its nominal value, in ``unit`` (the start of a calibration).
+    lo, hi : float
+        Plausible search interval, in ``unit``.
+    unit : str
+        Unit.
+    log : bool
+        Search on a logarithmic scale (needs ``lo > 0``).
+    """
+
+    name: str
+    nominal: float
+    lo: float
+    hi: float
+    unit: str
+    log: bool = False
+
+    def __post_init__(self) -> None:
+        if not (self.lo < self.hi) or (self.log and self.lo <= 0.0):
+            raise ValueError(f"parameter {self.name!r}: bad search interval [{self.lo}, {self.hi}]")
+
+    def value(self, u: float) -> float:
+        """Value at unit-box coordinate u in [0, 1], in ``unit``."""
+        u = min(max(float(u), 0.0), 1.0)
+        if self.log:
+            return self.lo * (self.hi / self.lo) ** u
+        return self.lo + (self.hi - self.lo) * u
+
+    def unit_coord(self, v: float) -> float:
+        """Unit-box coordinate of value v (clipped to the interval)."""
+        v = min(max(float(v), self.lo), self.hi)
+        if self.log:
+            return math.log(v / self.lo) / math.log(self.hi / self.lo)
+        return (v - self.lo) / (self.hi - self.lo)
+
+
+@dataclass(frozen=True)
+class CandidateEffect:
+    """One candidate unmodelled effect with one scalar parameter.
+
+    Parameters
+    ----------
+    name : str
+        Catalogue name.
+    description : str
+        What it models, with the scalar's meaning and unit.
+    bounds : tuple of float
+        Range searched, in ``unit``.
+    neutral : float
+        Value at which the model is unchanged.
+    unit : str
+        Unit of the scalar.
+    locus : str
+        Part of the plant where it acts (one of the plant's loci).
+    log : bool
+        Search on a logarithmic scale.
+    """
+
+    name: str
+    description: str
+    bounds: tuple[float, float]
+    neutral: float
+    unit: str
+    locus: str
+    log: bool = False
+
+    def as_parameter(self) -> CalibratedParameter:
+        """The effect's scalar as a searched parameter (its nominal is the neutral value)."""
+        lo, hi = self.bounds
+        return CalibratedParameter(self.name, self.neutral, lo, hi, self.unit, self.log)
+
+
+@runtime_checkable
+class Plant(Protocol):
+    """What the diagnosis knows of a plant (see the module docstring).
+
+    Attributes
+    ----------
+    name : str
+        Registry name (``--plant`` of the CLI, ``"plant"`` of the API).
+    loci : tuple of str
+        The parts of the plant where an effect may act.
+    channels : tuple of Channel
+        The measured signals, in order.
+    calibrated : tuple of CalibratedParameter
+        Parameters refitted with every candidate effect.
+    catalogue : mapping of str to CandidateEffect
+        The candidate effects.
+    """
+
+    name: str
+    loci: tuple[str, ...]
+    channels: tuple[Channel, ...]
+    calibrated: tuple[CalibratedParameter, ...]
+    catalogue: Mapping[str, CandidateEffect]
+
+    def measured(self, record: Any) -> dict[str, np.ndarray]:
+        """The record's measured channels, ``name -> samples`` in channel order and unit."""
+        ...
+
+    def simulate(self, record: Any, values: Mapping[str, float]) -> dict[str, np.ndarray]:
+        """The channels simulated on the record's grid with its inputs.
+
+        ``values`` holds calibrated parameters and effect scalars by name; a name not given keeps
+        its nominal (parameters) or neutral (effects) value. Raises on an unknown name and on
+        solver failure.
+        """
+        ...
+
+    def scored(self, record: Any) -> slice:
+        """The samples a comparison scores (e.g. without a filter's edge)."""
+        ...
+
+    def events(self, record: Any) -> np.ndarray:
+        """Instants [s] on the record's time axis where a known input changes abruptly (may be empty)."""
+        ...
+
+    def time(self, record: Any) -> np.ndarray:
+        """The record's sample instants [s]."""
+        ...
+
+
+def relative_error(measured: np.ndarray, simulated: np.ndarray) -> float:
+    """Relative error ``100 ||y - y_hat|| / ||y||`` [%] (Janot et al., EMPS report, eq. 11).
+
+    Raises
+    ------
+    ValueError
+        For arrays of different shapes or a measured signal of zero norm.
+    """
+    y = np.asarray(measured, dtype=float)
+    yh = np.asarray(simulated, dtype=float)
+    if y.shape != yh.shape:
+        raise ValueError(f"relative error of arrays of shapes {y.shape} and {yh.shape}")
+    norm = float(np.linalg.norm(y))
+    if norm == 0.0:
+        raise ValueError("relative error of a signal that is zero throughout")
+    return 100.0 * float(np.linalg.norm(y - yh)) / norm

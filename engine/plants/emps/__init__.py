@@ -1,0 +1,24 @@
+"""The EMPS benchmark as a plant: a real electro-mechanical positioning axis in its PD loop.
+
+Data and reference model: A. Janot, M. Gautier, M. Brunot, "Data Set and Reference Models of
+EMPS" (ONERA / LS2N), a nonlinear system identification benchmark; the two records ship in
+``engine/plants/emps/data/`` with that citation.
+"""
+
+from engine.plants.emps.catalogue import CATALOGUE, LOCI
+from engine.plants.emps.model import CALIBRATED, CHANNELS, PUBLISHED, EmpsParameters, EmpsPlant
+from engine.plants.emps.record import EmpsRecord, load_csv, load_mat, load_record
+
+__all__ = [
+    "CALIBRATED",
+    "CATALOGUE",
+    "CHANNELS",
+    "LOCI",
+    "PUBLISHED",
+    "EmpsParameters",
+    "EmpsPlant",
+    "EmpsRecord",
+    "load_csv",
+    "load_mat",
+    "load_record",
+]

@@ -1,0 +1,167 @@
+"""Numba kernel: the EMPS axis in its PD loop, sampled at the controller's rate.
+
+The closed loop transcribes the authors' Simulink model ``Simulink_EMPS_Rigide(_Pulse).slx``
+(block by block, see :mod:`engine.plants.emps.model`): at every sample k the controller reads the
+position q_k, filters it by ``[0.5 0.5]``, differences it over one sample, computes
+``u_k = kv (kp (qg_k - q_k) - dqf_k)``; the drive applies the *previous* sample's command
+(a unit delay), saturated at +-10 V, plus the pulse signal [V]; the force ``g_tau v`` is held
+over the sample interval while the mechanics are integrated by fixed-step RK4 sub-steps.
+
+Mechanics (rigid axis of the published model, with every candidate effect of the catalogue
+written in and neutral at its neutral value)::
+
+    m1 q1'' = g_tau (1 + eps_g) v(t - tau) - F_f(q1') - F_pos(q1) - (offset + d_offset) - f_s
+
+(the delay tau acts on the held command, linearly mixed within one RK4 sub-step)
+    m2 q2'' = f_s,        f_s = k (q1 - q2) + d (q1' - q2')     (flexible transmission only)
+
+    F_f(v) = (Fc + dFc sign v) sign v + (Fv + dFv sign v) v + Fs exp(-(v / v_s)^2) sign v
+    F_pos(q) = A_pos sin(2 pi q / p_pos) sign(q1')
+
+With the flexibility off (``f_flex <= 0``) m1 = M and m2 carries nothing: the published rigid
+model. The parameter vector layout is given by the ``P_*`` indices below; the module
+:mod:`engine.plants.emps.model` builds it and documents every entry with its unit.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# parameter vector layout
+P_M, P_FV, P_FC, P_OFFSET = 0, 1, 2, 3
+P_DFC, P_DFV, P_FS, P_VS = 4, 5, 6, 7
+P_F_FLEX, P_RHO_FLEX, P_ZETA_FLEX = 8, 9, 10
+P_GAIN_ERR, P_D_OFFSET, P_A_POS, P_PERIOD_POS, P_DELAY = 11, 12, 13, 14, 15
+P_KP, P_KV, P_GTAU, P_V_SAT, P_TS, P_NSUB = 16, 17, 18, 19, 20, 21
+N_P = 22
+
+
+@njit(cache=True)
+def _sign(x: float) -> float:
+    if x > 0.0:
+        return 1.0
+    if x < 0.0:
+        return -1.0
+    return 0.0
+
+
+@njit(cache=True)
+def _motor_force(p: np.ndarray, q1: float, v1: float) -> float:
+    """Friction, position-dependent friction and offset on the motor side [N] (opposing the drive)."""
+    s = _sign(v1)
+    f = (p[P_FC] + p[P_DFC] * s) * s + (p[P_FV] + p[P_DFV] * s) * v1
+    if p[P_FS] != 0.0:
+        f += p[P_FS] * math.exp(-((v1 / p[P_VS]) ** 2)) * s
+    if p[P_A_POS] != 0.0:
+        f += p[P_A_POS] * math.sin(2.0 * math.pi * q1 / p[P_PERIOD_POS]) * s
+    return f + p[P_OFFSET] + p[P_D_OFFSET]
+
+
+@njit(cache=True)
+def _rhs(p: np.ndarray, x: np.ndarray, force: float, m1: float, m2: float, k: float, d: float, out: np.ndarray) -> None:
+    q1, v1, q2, v2 = x[0], x[1], x[2], x[3]
+    f_s = 0.0
+    if k > 0.0:
+        f_s = k * (q1 - q2) + d * (v1 - v2)
+    out[0] = v1
+    out[1] = (force - _motor_force(p, q1, v1) - f_s) / m1
+    out[2] = v2
+    out[3] = f_s / m2 if k > 0.0 else 0.0
+
+
+@njit(cache=True)
+def simulate_loop(p: np.ndarray, qg: np.ndarray, pulse: np.ndarray) -> np.ndarray:
+    """Closed-loop response on the record's grid.
+
+    Parameters
+    ----------
+    p : ndarray, shape (N_P,)
+        Parameter vector (layout ``P_*``).
+    qg : ndarray, shape (n,)
+        Reference position at the samples [m].
+    pulse : ndarray, shape (n,)
+        Pulse signal added to the saturated command at the samples [V] (zeros without pulses).
+
+    Returns
+    -------
+    ndarray, shape (n, 4)
+        Per sample: motor position q1 [m], velocity [m/s], acceleration [m/s^2] (the right-hand
+        side at the sample instant) and the drive command v applied over the following interval [V]
+        (after delay, saturation and pulse: the signal ``vir`` the authors' model outputs).
+    """
+    n = qg.size
+    out = np.zeros((n, 4))
+    ts = p[P_TS]
+    nsub = int(p[P_NSUB])
+    h = ts / nsub
+    mass = p[P_M]
+    flex = p[P_F_FLEX] > 0.0
+    if flex:
+        m1 = mass * (1.0 - p[P_RHO_FLEX])
+        m2 = mass * p[P_RHO_FLEX]
+        m_red = m1 * m2 / mass
+        w = 2.0 * math.pi * p[P_F_FLEX]
+        k = m_red * w * w
+        d = 2.0 * p[P_ZETA_FLEX] * math.sqrt(k * m_red)
+    else:
+        m1, m2, k, d = mass, 1.0, 0.0, 0.0
+    gain = p[P_GTAU] * (1.0 + p[P_GAIN_ERR])
+    # extra actuator delay in sub-steps: whole part and fraction (the force over a sub-step is the
+    # mix of the two commands the delayed switch instant falls between, so the delay is continuous)
+    delay_sub = max(p[P_DELAY], 0.0) / h
+    delay_steps = int(delay_sub)  # floor: delay_sub >= 0
+    delay_frac = delay_sub - delay_steps
+    x = np.zeros(4)
+    k1 = np.zeros(4)
+    k2 = np.zeros(4)
+    k3 = np.zeros(4)
+    k4 = np.zeros(4)
+    tmp = np.zeros(4)
+    v_applied = np.zeros(n)  # drive command per sample interval [V] (after unit delay, saturation, pulse)
+    q_prev = 0.0
+    qf_prev = 0.0
+    u_prev = 0.0
+    vsat = p[P_V_SAT]
+    for i in range(n):
+        q = x[0]
+        qf = 0.5 * q + 0.5 * q_prev
+        dqf = (qf - qf_prev) / ts if i > 0 else 0.0
+        u_cmd = p[P_KV] * (p[P_KP] * (qg[i] - q) - dqf)
+        v = min(max(u_prev, -vsat), vsat) + pulse[i]
+        v_applied[i] = v
+        u_prev = u_cmd
+        q_prev = q
+        qf_prev = qf
+        for j in range(nsub):
+            # the command reaching the drive at this sub-step, delay_steps sub-steps late
+            s = i * nsub + j - delay_steps
+            v_now = v_applied[s // nsub] if s >= 0 else 0.0
+            if delay_frac > 0.0:
+                v_before = v_applied[(s - 1) // nsub] if s >= 1 else 0.0
+                v_now = (1.0 - delay_frac) * v_now + delay_frac * v_before
+            force = gain * v_now
+            if j == 0:
+                _rhs(p, x, force, m1, m2, k, d, k1)
+                out[i, 0] = x[0]
+                out[i, 1] = x[1]
+                out[i, 2] = k1[1]
+                out[i, 3] = v
+            else:
+                _rhs(p, x, force, m1, m2, k, d, k1)
+            for m in range(4):
+                tmp[m] = x[m] + 0.5 * h * k1[m]
+            _rhs(p, tmp, force, m1, m2, k, d, k2)
+            for m in range(4):
+                tmp[m] = x[m] + 0.5 * h * k2[m]
+            _rhs(p, tmp, force, m1, m2, k, d, k3)
+            for m in range(4):
+                tmp[m] = x[m] + h * k3[m]
+            _rhs(p, tmp, force, m1, m2, k, d, k4)
+            for m in range(4):
+                x[m] += h * (k1[m] + 2.0 * k2[m] + 2.0 * k3[m] + k4[m]) / 6.0
+            if not np.isfinite(x[0]) or not np.isfinite(x[1]):
+                raise FloatingPointError("EMPS integration diverged")
+    return out

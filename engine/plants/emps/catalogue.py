@@ -1,0 +1,123 @@
+"""Candidate unmodelled effects of the EMPS axis: each one scalar, each at one locus.
+
+Loci of this plant (:data:`LOCI`): ``drive`` (amplifier and motor: the force the command
+produces), ``guide`` (friction of the carriage on its guides and of the screw-nut),
+``transmission`` (the ball screw between motor and carriage), ``load`` (forces on the carriage
+from outside the drive, e.g. cables), ``sensors`` (the encoder chain).
+
+Each effect sets one field of :class:`~engine.plants.emps.model.EmpsParameters`; its neutral
+value is the published rigid model. The fixed parts of multi-parameter effects are documented
+choices (:data:`engine.plants.emps.model.STRIBECK_VELOCITY`, ``FLEX_MASS_RATIO``,
+``FLEX_DAMPING_RATIO``, ``POSITION_FRICTION_PERIOD``).
+"""
+
+from __future__ import annotations
+
+from engine.plants.base import CandidateEffect
+
+__all__ = ["CATALOGUE", "EFFECT_FIELDS", "LOCI"]
+
+#: The parts of the EMPS axis where an effect may act (module docstring).
+LOCI: tuple[str, ...] = ("drive", "guide", "transmission", "load", "sensors")
+
+#: name -> field of EmpsParameters the effect's scalar sets.
+EFFECT_FIELDS: dict[str, str] = {
+    "coulomb_asymmetry": "dFc",
+    "viscous_asymmetry": "dFv",
+    "stribeck": "Fs",
+    "flexibility": "f_flex",
+    "drive_gain": "gain_err",
+    "offset_change": "d_offset",
+    "position_friction": "A_pos",
+    "actuator_delay": "delay",
+    "command_limit": "v_sat",
+}
+
+#: The catalogue, in a fixed order.
+CATALOGUE: dict[str, CandidateEffect] = {
+    e.name: e
+    for e in (
+        CandidateEffect(
+            "coulomb_asymmetry",
+            "Coulomb friction that differs with the direction of motion: Fc + dFc moving forward, "
+            "Fc - dFc backward (Janot et al. 2017, the authors' eq. 12); scalar dFc [N].",
+            (-15.0, 15.0),
+            0.0,
+            "N",
+            "guide",
+        ),
+        CandidateEffect(
+            "viscous_asymmetry",
+            "Viscous friction that differs with the direction: Fv + dFv forward, Fv - dFv backward; scalar dFv [N s/m].",
+            (-80.0, 80.0),
+            0.0,
+            "N s/m",
+            "guide",
+        ),
+        CandidateEffect(
+            "stribeck",
+            "Stribeck friction: an extra Fs exp(-(v / v_s)^2) sign(v) at low speed (v_s fixed, see the model); "
+            "scalar Fs [N].",
+            (-20.0, 40.0),
+            0.0,
+            "N",
+            "guide",
+        ),
+        CandidateEffect(
+            "flexibility",
+            "A flexible transmission: the mass split into motor side and carriage behind a spring and damper "
+            "(mass ratio and damping ratio fixed, see the model); scalar: the natural frequency f [Hz] "
+            "(neutral 0 = rigid).",
+            (5.0, 200.0),
+            0.0,
+            "Hz",
+            "transmission",
+            log=True,
+        ),
+        CandidateEffect(
+            "drive_gain",
+            "Drive gain error: the force is g_tau (1 + eps) v while the force channel still reads g_tau v; "
+            "scalar eps [-].",
+            (-0.25, 0.25),
+            0.0,
+            "",
+            "drive",
+        ),
+        CandidateEffect(
+            "offset_change",
+            "A change of the constant force offset since the calibration; scalar d_offset [N]. "
+            "Indistinguishable from the calibrated offset when both are fitted to one record.",
+            (-15.0, 15.0),
+            0.0,
+            "N",
+            "load",
+        ),
+        CandidateEffect(
+            "position_friction",
+            "Friction that varies with position, once per screw revolution: A sin(2 pi q / p) sign(v) "
+            "(p fixed, see the model); scalar A [N].",
+            (-20.0, 20.0),
+            0.0,
+            "N",
+            "guide",
+        ),
+        CandidateEffect(
+            "actuator_delay",
+            "An extra delay between the command and the force, beyond the controller's one-sample delay; "
+            "scalar tau [s].",
+            (0.0, 0.004),
+            0.0,
+            "s",
+            "drive",
+        ),
+        CandidateEffect(
+            "command_limit",
+            "The level at which the controller's command saturates [V] (the published models clip it at "
+            "10 V before the pulses are added); scalar v_max [V], neutral 10.",
+            (5.0, 20.0),
+            10.0,
+            "V",
+            "drive",
+        ),
+    )
+}

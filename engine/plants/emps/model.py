@@ -1,0 +1,239 @@
+"""The EMPS plant: the published rigid model in its PD loop, with the candidate effects written in.
+
+Published model (Janot, Gautier, Brunot, "Data Set and Reference Models of EMPS", section 3 and
+the Simulink files ``Simulink_EMPS_Rigide(_Pulse).slx`` of the benchmark)::
+
+    M q'' = g_tau v - Fv q' - Fc sign(q') - offset
+
+with M = 95.1089 kg, Fv = 203.5034 N s/m, Fc = 20.3935 N, offset = -3.1648 N; the gains kp, kv,
+g_tau are read from each record. Controller, transcribed block by block from the Simulink
+diagram: ``u_k = kv (kp (qg_k - q_k) - (qf_k - qf_{k-1}) / Ts)`` with ``qf_k = (q_k + q_{k-1})/2``,
+a unit delay, saturation at +-10 V, then (pulse record) the pulse signal added in volts; the force
+``g_tau v`` is held over the sample interval. The Simulink model integrates with ode23tb
+(MaxStep Ts/10, zero crossings off); we integrate with fixed-step RK4, :data:`N_SUBSTEPS` steps per
+sample, which is what the kernel :mod:`engine.plants.emps._kernel` does.
+
+Simulated channels are the plant's states at the samples (position, velocity, acceleration as the
+right-hand side at the sample) and ``g_tau v`` with v the command after delay, saturation and
+pulse, as the authors' script compares them (``Force1_s = gtau*vir_s``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+
+import numpy as np
+
+from engine.plants.base import CalibratedParameter, CandidateEffect, Channel
+from engine.plants.emps import _kernel as k
+from engine.plants.emps.catalogue import CATALOGUE, EFFECT_FIELDS, LOCI
+from engine.plants.emps.channels import N_BORDER, measured_channels, process
+from engine.plants.emps.record import EmpsRecord, load_record
+
+__all__ = [
+    "CALIBRATED",
+    "CHANNELS",
+    "FLEX_DAMPING_RATIO",
+    "FLEX_MASS_RATIO",
+    "N_SUBSTEPS",
+    "POSITION_FRICTION_PERIOD",
+    "PUBLISHED",
+    "STRIBECK_VELOCITY",
+    "V_SATURATION",
+    "EmpsParameters",
+    "EmpsPlant",
+]
+
+#: The published rigid model (report, section 3): M [kg], Fv [N s/m], Fc [N], offset [N].
+PUBLISHED: dict[str, float] = {"M": 95.1089, "Fv": 203.5034, "Fc": 20.3935, "offset": -3.1648}
+#: Control saturation [V] (``viradm`` of the authors' script).
+V_SATURATION: float = 10.0
+#: RK4 sub-steps per sample (0.1 ms at 1 kHz, the Simulink model's MaxStep Ts/10).
+N_SUBSTEPS: int = 10
+#: Stribeck velocity v_s [m/s] of the ``stribeck`` effect: a documented choice, about a tenth of the
+#: record's typical constant-speed phases (0.1-0.2 m/s).
+STRIBECK_VELOCITY: float = 0.01
+#: Share of the mass behind the spring in the ``flexibility`` effect (carriage side): a documented
+#: choice, half the moving mass on each side.
+FLEX_MASS_RATIO: float = 0.5
+#: Damping ratio of the flexible mode in the ``flexibility`` effect: a documented choice (lightly
+#: damped steel transmission).
+FLEX_DAMPING_RATIO: float = 0.05
+#: Period of the ``position_friction`` effect [m]: one screw revolution on the load side, from the
+#: encoder's 50 000 counts per revolution (report, section 2.2) and the files' position quantum of
+#: 50 nm (the smallest step of qm): 50 000 x 50 nm = 2.5 mm.
+POSITION_FRICTION_PERIOD: float = 2.5e-3
+
+#: The channels of this plant.
+CHANNELS: tuple[Channel, ...] = (
+    Channel("position", "m", "qm, zero-phase Butterworth low-pass (4th order, 100 Hz)"),
+    Channel("velocity", "m/s", "central difference of the filtered position"),
+    Channel("acceleration", "m/s^2", "central difference of the velocity"),
+    Channel("force", "N", "g_tau times the controller output vir"),
+)
+
+#: The calibrated parameters: the published values and plausible intervals (about +-50 % and, for
+#: the offset, +-20 N).
+CALIBRATED: tuple[CalibratedParameter, ...] = (
+    CalibratedParameter("M", PUBLISHED["M"], 50.0, 150.0, "kg"),
+    CalibratedParameter("Fv", PUBLISHED["Fv"], 100.0, 300.0, "N s/m"),
+    CalibratedParameter("Fc", PUBLISHED["Fc"], 5.0, 40.0, "N"),
+    CalibratedParameter("offset", PUBLISHED["offset"], -20.0, 20.0, "N"),
+)
+
+
+@dataclass(frozen=True)
+class EmpsParameters:
+    """Every parameter of the EMPS model; the defaults are the published rigid model.
+
+    Parameters
+    ----------
+    M : float
+        Moving mass [kg].
+    Fv, Fc : float
+        Viscous [N s/m] and Coulomb [N] friction.
+    offset : float
+        Constant force offset [N].
+    dFc, dFv, Fs, f_flex, gain_err, d_offset, A_pos, delay : float
+        Scalars of the candidate effects (:mod:`engine.plants.emps.catalogue`), neutral at 0.
+    v_sat : float
+        Saturation of the controller's command [V] (effect ``command_limit``; published: 10 V).
+    rho_flex, zeta_flex : float
+        Carriage share of the mass [-] and damping ratio [-] of the ``flexibility`` effect (the
+        documented choices :data:`FLEX_MASS_RATIO`, :data:`FLEX_DAMPING_RATIO`).
+    """
+
+    M: float = PUBLISHED["M"]
+    Fv: float = PUBLISHED["Fv"]
+    Fc: float = PUBLISHED["Fc"]
+    offset: float = PUBLISHED["offset"]
+    dFc: float = 0.0
+    dFv: float = 0.0
+    Fs: float = 0.0
+    f_flex: float = 0.0
+    gain_err: float = 0.0
+    d_offset: float = 0.0
+    A_pos: float = 0.0
+    delay: float = 0.0
+    v_sat: float = V_SATURATION
+    rho_flex: float = FLEX_MASS_RATIO
+    zeta_flex: float = FLEX_DAMPING_RATIO
+
+    def vector(self, record: EmpsRecord, n_substeps: int = N_SUBSTEPS) -> np.ndarray:
+        """The kernel's parameter vector for a record (its gains and sample interval)."""
+        p = np.zeros(k.N_P)
+        p[k.P_M], p[k.P_FV], p[k.P_FC], p[k.P_OFFSET] = self.M, self.Fv, self.Fc, self.offset
+        p[k.P_DFC], p[k.P_DFV], p[k.P_FS], p[k.P_VS] = self.dFc, self.dFv, self.Fs, STRIBECK_VELOCITY
+        p[k.P_F_FLEX], p[k.P_RHO_FLEX], p[k.P_ZETA_FLEX] = self.f_flex, self.rho_flex, self.zeta_flex
+        p[k.P_GAIN_ERR], p[k.P_D_OFFSET] = self.gain_err, self.d_offset
+        p[k.P_A_POS], p[k.P_PERIOD_POS], p[k.P_DELAY] = self.A_pos, POSITION_FRICTION_PERIOD, self.delay
+        p[k.P_KP], p[k.P_KV], p[k.P_GTAU] = record.kp, record.kv, record.gtau
+        p[k.P_V_SAT], p[k.P_TS], p[k.P_NSUB] = self.v_sat, record.ts, n_substeps
+        return p
+
+
+class EmpsPlant:
+    """The EMPS positioning axis as a :class:`~engine.plants.base.Plant`.
+
+    Parameters
+    ----------
+    n_substeps : int
+        RK4 sub-steps per sample.
+    fixed : mapping of str to float, optional
+        Other values of :class:`EmpsParameters` fields that are neither calibrated nor effects
+        (e.g. ``rho_flex``, ``zeta_flex`` for a sensitivity study of the documented choices).
+    """
+
+    name: str = "emps"
+    loci: tuple[str, ...] = LOCI
+    channels: tuple[Channel, ...] = CHANNELS
+    calibrated: tuple[CalibratedParameter, ...] = CALIBRATED
+    catalogue: Mapping[str, CandidateEffect] = MappingProxyType(CATALOGUE)
+
+    def __init__(self, n_substeps: int = N_SUBSTEPS, fixed: Mapping[str, float] | None = None) -> None:
+        self.n_substeps = n_substeps
+        self.fixed = dict(fixed or {})
+        unknown = set(self.fixed) - {f.name for f in dataclasses.fields(EmpsParameters)}
+        if unknown:
+            raise KeyError(f"unknown EMPS parameter(s) {sorted(unknown)}")
+
+    def read(self, path: str | Path) -> EmpsRecord:
+        """Read a ``.mat`` (as distributed) or ``.csv`` record (:mod:`engine.plants.emps.record`)."""
+        return load_record(path)
+
+    def measured(self, record: EmpsRecord) -> dict[str, np.ndarray]:
+        """Measured channels (:func:`engine.plants.emps.channels.measured_channels`)."""
+        return measured_channels(record)
+
+    def scored(self, record: EmpsRecord) -> slice:
+        """The authors' comparison window: from sample 50 (1-based) to the end."""
+        return slice(N_BORDER - 1, None)
+
+    def time(self, record: EmpsRecord) -> np.ndarray:
+        """The record's sample instants [s]."""
+        return record.t
+
+    def events(self, record: EmpsRecord) -> np.ndarray:
+        """The instants [s] where the pulse signal switches (none in a record without pulses)."""
+        edges = np.flatnonzero(np.diff(record.pulses) != 0.0) + 1
+        return record.t[edges]
+
+    def parameters(self, values: Mapping[str, float]) -> EmpsParameters:
+        """The model's parameters with ``values`` (calibrated names and effect names) applied.
+
+        Raises
+        ------
+        KeyError
+            For a name that is neither a calibrated parameter nor an effect.
+        """
+        changes: dict[str, float] = {}
+        calibrated = {p.name for p in CALIBRATED}
+        for name, value in values.items():
+            if name in calibrated:
+                changes[name] = float(value)
+            elif name in EFFECT_FIELDS:
+                changes[EFFECT_FIELDS[name]] = float(value)
+            else:
+                raise KeyError(f"unknown EMPS parameter or effect {name!r}")
+        return dataclasses.replace(EmpsParameters(), **{**self.fixed, **changes})
+
+    def states(self, record: EmpsRecord, values: Mapping[str, float]) -> dict[str, np.ndarray]:
+        """The plant's states at the samples, as the authors' script compares them.
+
+        Position [m], velocity [m/s], acceleration [m/s^2] (the right-hand side at the sample) of
+        the motor side, and the force ``g_tau v`` [N] with v the command after delay, saturation
+        and pulse (``Force1_s = gtau*vir_s``).
+
+        Raises
+        ------
+        KeyError
+            For an unknown name in ``values``.
+        FloatingPointError
+            When the integration diverges.
+        """
+        params = self.parameters(values)
+        if not math.isfinite(params.M) or params.M <= 0.0:
+            raise ValueError(f"EMPS mass must be positive, got {params.M}")
+        out = k.simulate_loop(params.vector(record, self.n_substeps), record.qg, record.pulses)
+        return {
+            "position": out[:, 0],
+            "velocity": out[:, 1],
+            "acceleration": out[:, 2],
+            "force": record.gtau * out[:, 3],
+        }
+
+    def simulate(self, record: EmpsRecord, values: Mapping[str, float]) -> dict[str, np.ndarray]:
+        """Channels simulated as the record's would read them: the states through the measurement chain.
+
+        The simulated position passes the very filter and differences the measured one does
+        (:func:`~engine.plants.emps.channels.process`), so a residual holds no difference of
+        processing: a step of force is a step of the raw simulated acceleration but a 100 Hz-limited
+        ramp of the measured one. (The authors compare the raw states, :meth:`states`.)
+        """
+        x = self.states(record, values)
+        return process(x["position"], x["force"], record.ts)

@@ -1,0 +1,194 @@
+"""The plant interface (issue 11): both plants behind it, the EMPS reproduction on the shipped records, the reader.
+
+Reference data: the EMPS benchmark's two records as distributed (``engine/plants/emps/data``,
+Janot, Gautier, Brunot, "Data Set and Reference Models of EMPS"); the published figures are the
+report's (section 3.5, eq. 11), copied in :data:`PUBLISHED_ERRORS`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from engine.diagnosis.plant_gap import _Objective, calibrate, fit, rank_effects
+from engine.plants import Plant, get_plant, relative_error
+from engine.plants.backlash_drive import BacklashDrivePlant
+from engine.plants.emps import PUBLISHED, EmpsPlant, EmpsRecord, load_csv, load_mat
+from engine.plants.emps.reproduction import PUBLISHED_ERRORS, TOLERANCE, reproduce
+from engine.records import Record, RecordError
+from engine.simulation import PlantParameters, simulate
+
+DATA = Path(__file__).resolve().parents[1] / "engine" / "plants" / "emps" / "data"
+
+
+@pytest.fixture(scope="module")
+def emps() -> EmpsPlant:
+    return EmpsPlant()
+
+
+@pytest.fixture(scope="module")
+def records() -> dict[str, EmpsRecord]:
+    return {name: load_mat(DATA / f"{name}.mat") for name in PUBLISHED_ERRORS}
+
+
+@pytest.fixture(scope="module")
+def drive_record() -> Record:
+    sim = simulate(PlantParameters(J1=0.9))
+    return Record(dict(sim.channels), conditions={"K": PlantParameters().K, "c": 1.0, "c1": 0.2})
+
+
+def test_both_plants_implement_the_interface_and_their_catalogues_name_their_own_loci() -> None:
+    for plant in (get_plant("emps"), BacklashDrivePlant()):
+        assert isinstance(plant, Plant)
+        assert plant.catalogue
+        for e in plant.catalogue.values():
+            assert e.locus in plant.loci, (plant.name, e.name)
+            assert e.bounds[0] < e.bounds[1]
+        for p in plant.calibrated:
+            assert p.lo <= p.nominal <= p.hi, (plant.name, p.name)
+    with pytest.raises(KeyError, match="known plants"):
+        get_plant("nope")
+
+
+def test_the_emps_catalogue_holds_the_effects_the_issue_lists(emps: EmpsPlant) -> None:
+    assert {
+        "coulomb_asymmetry",
+        "viscous_asymmetry",
+        "stribeck",
+        "flexibility",
+        "drive_gain",
+        "offset_change",
+        "position_friction",
+        "actuator_delay",
+    } <= set(emps.catalogue)
+
+
+@pytest.mark.parametrize("plant_name", ["emps", "backlash_drive"])
+def test_a_plant_simulates_every_channel_on_the_record_grid_and_refuses_unknown_names(
+    plant_name: str, emps: EmpsPlant, records: dict[str, EmpsRecord], drive_record: Record
+) -> None:
+    plant: Plant = emps if plant_name == "emps" else BacklashDrivePlant()
+    record = records["DATA_EMPS"] if plant_name == "emps" else drive_record
+    measured = plant.measured(record)
+    sim = plant.simulate(record, {})
+    assert set(sim) == set(measured)
+    for name, y in sim.items():
+        assert y.shape == measured[name].shape and np.all(np.isfinite(y))
+    # every effect moves the simulation away from the nominal one somewhere in its range
+    for name, e in plant.catalogue.items():
+        ends = [plant.simulate(record, {name: v}) for v in e.bounds if v != e.neutral]
+        assert any(not np.allclose(moved[c], sim[c]) for moved in ends for c in sim), name
+    with pytest.raises(KeyError):
+        plant.simulate(record, {"no_such_parameter": 1.0})
+
+
+def test_the_backlash_drive_behind_the_interface_recovers_its_inertia(drive_record: Record) -> None:
+    plant = BacklashDrivePlant()
+    (J1,) = [p for p in plant.calibrated if p.name == "J1"]
+    out = fit(plant, drive_record, [J1])  # the record fixes K, c and c1
+    assert out.values["J1"] == pytest.approx(0.9, rel=2e-3)
+
+
+@pytest.mark.parametrize("name", list(PUBLISHED_ERRORS))
+def test_the_published_rigid_model_reproduces_the_published_errors(
+    name: str, emps: EmpsPlant, records: dict[str, EmpsRecord]
+) -> None:
+    ours = reproduce(emps, records[name])
+    for channel, published in PUBLISHED_ERRORS[name].items():
+        if channel == "position":
+            # below the published figure: see reproduction.TOLERANCE (the solvers differ at the 10 um level)
+            assert ours[channel] < published, (channel, ours[channel], published)
+        else:
+            assert ours[channel] == pytest.approx(published, rel=TOLERANCE), (channel, ours[channel], published)
+
+
+def test_calibration_on_the_estimation_record_improves_on_the_published_parameters(
+    emps: EmpsPlant, records: dict[str, EmpsRecord]
+) -> None:
+    """Our calibration minimises the simulation error, the authors' IDIM-LS an equation error: they
+    need not agree, but ours must fit the record at least as well, and the mass (the best
+    excited parameter) must agree closely."""
+    rec = records["DATA_EMPS"]
+    obj = _Objective(emps, rec)
+    cal = calibrate(emps, rec, objective=obj)
+    published = obj.vector(PUBLISHED)
+    assert cal.cost < float(published @ published)
+    assert cal.values["M"] == pytest.approx(PUBLISHED["M"], rel=0.02)
+    for k, v in PUBLISHED.items():
+        assert cal.values[k] == pytest.approx(v, rel=0.2, abs=1.0), k
+
+
+def test_the_diagnosis_names_a_known_effect_on_a_synthetic_emps_record(
+    emps: EmpsPlant, records: dict[str, EmpsRecord]
+) -> None:
+    """A record of the EMPS plant itself with viscous asymmetry: it must be the named effect."""
+    real = records["DATA_EMPS"]
+    n = 6000  # the first 6 s keep the test quick
+    short = dataclasses.replace(
+        real, t=real.t[:n], qm=real.qm[:n], qg=real.qg[:n], vir=real.vir[:n], pulses=real.pulses[:n]
+    )
+    truth = {**PUBLISHED, "viscous_asymmetry": 30.0}
+    x = emps.states(short, truth)
+    synthetic = dataclasses.replace(short, qm=x["position"], vir=x["force"] / short.gtau)
+    obj = _Objective(emps, synthetic)
+    cal = calibrate(emps, synthetic, objective=obj)
+    _, named = rank_effects(emps, synthetic, cal, objective=obj)
+    assert named is not None and named.effects[0] == "viscous_asymmetry"
+    assert named.fit.values["viscous_asymmetry"] == pytest.approx(30.0, rel=0.05)
+    assert named.share > 0.9
+
+
+def test_relative_error_is_the_authors_eq_11_and_refuses_a_zero_signal() -> None:
+    y = np.array([3.0, 4.0])
+    assert relative_error(y, np.array([3.0, 3.0])) == pytest.approx(20.0)
+    with pytest.raises(ValueError, match="zero"):
+        relative_error(np.zeros(3), np.ones(3))
+
+
+# -- the reader ------------------------------------------------------------------------
+
+
+def _csv(record: EmpsRecord, gains: bool = True, columns: str = "t,qm,qg,vir,pulses_N") -> str:
+    head = f"# kp = {record.kp!r}\n# kv = {record.kv!r}\n# gtau = {record.gtau!r}\n" if gains else ""
+    rows = np.column_stack([record.t, record.qm, record.qg, record.vir, record.pulses])
+    return head + columns + "\n" + "\n".join(",".join(repr(float(v)) for v in row) for row in rows)
+
+
+def test_the_csv_form_reads_the_same_record_as_the_mat_file(records: dict[str, EmpsRecord]) -> None:
+    mat = records["DATA_EMPS_PULSES"]
+    csv = load_csv(_csv(mat).encode(), name="pulses.csv")
+    for field in ("t", "qm", "qg", "vir", "pulses"):
+        np.testing.assert_array_equal(getattr(csv, field), getattr(mat, field))
+    assert (csv.kp, csv.kv, csv.gtau) == (mat.kp, mat.kv, mat.gtau)
+    assert csv.has_pulses and not records["DATA_EMPS"].has_pulses
+
+
+def test_a_record_that_cannot_be_read_correctly_is_refused_with_what_to_fix(records: dict[str, EmpsRecord]) -> None:
+    rec = records["DATA_EMPS"]
+    with pytest.raises(RecordError, match="missing gain"):
+        load_csv(_csv(rec, gains=False).encode())
+    with pytest.raises(RecordError, match="unknown column"):
+        load_csv(_csv(rec, columns="t,qm,qg,volts,pulses_N").encode())
+    text = _csv(rec).replace("\n0.002", "\n0.0035", 1)
+    with pytest.raises(RecordError, match="not uniform"):
+        load_csv(text.encode())
+    lines = _csv(rec).splitlines()
+    lines[10] = lines[10].split(",", 1)[0] + ",nan," + lines[10].split(",", 2)[2]
+    with pytest.raises(RecordError, match="not finite"):
+        load_csv("\n".join(lines).encode())
+    with pytest.raises(RecordError, match="not a readable MATLAB"):
+        load_mat(b"this is not a mat file")
+    with pytest.raises(RecordError, match=r"\.mat file"):
+        EmpsPlant().read("record.txt")
+
+
+def test_the_gap_budget_splits_a_set_share_along_the_forward_selection() -> None:
+    from engine.diagnosis.plant_gap import EffectFit, Fit, gap_budget
+
+    f = Fit({}, (), 0.0, {}, 0)
+    pair = EffectFit(("a", "b"), f, 0.45, ("guide", "guide"), (0.30, 0.45))
+    assert gap_budget(pair) == pytest.approx({"a": 0.30, "b": 0.15})
+    assert sum(gap_budget(pair).values()) == pytest.approx(pair.share)
