@@ -192,3 +192,28 @@ def test_the_gap_budget_splits_a_set_share_along_the_forward_selection() -> None
     pair = EffectFit(("a", "b"), f, 0.45, ("guide", "guide"), (0.30, 0.45))
     assert gap_budget(pair) == pytest.approx({"a": 0.30, "b": 0.15})
     assert sum(gap_budget(pair).values()) == pytest.approx(pair.share)
+
+
+def test_the_synthetic_check_draws_visible_effects_and_keeps_the_truth_apart(records: dict[str, EmpsRecord]) -> None:
+    from engine.plants.emps.model import ENCODER_QUANTUM
+    from engine.validation.plant_check import MIN_EFFECT, CheckRow, draw_cases, summary
+
+    plant = EmpsPlant()
+    head = records["DATA_EMPS_PULSES"].head(3.0)
+    assert head.n == 3001 and head.has_pulses
+    cases = draw_cases(plant, head, 4, seed=3)
+    assert cases == draw_cases(plant, head, 4, seed=3)  # reproducible from its seed
+    assert len({c.effect for c in cases}) == len(cases)  # the catalogue in turn
+    for c in cases:
+        assert c.strength >= MIN_EFFECT
+        lo, hi = plant.catalogue[c.effect].bounds
+        assert lo <= c.value <= hi
+    synthetic = plant.synthesize(
+        head, {**cases[0].calibration, cases[0].effect: cases[0].value}, np.random.default_rng(0)
+    )
+    np.testing.assert_array_equal(synthetic.t, head.t)
+    np.testing.assert_array_equal(synthetic.pulses, head.pulses)
+    steps = np.diff(synthetic.qm) / ENCODER_QUANTUM  # read by the encoder: whole counts
+    np.testing.assert_allclose(steps, np.round(steps), atol=1e-6)
+    row = CheckRow(cases[0], (cases[0].effect,), cases[0].value, "explained", 0.95, 1.0)
+    assert row.top1 and row.found and "1/1 = 100 %" in summary([row])

@@ -343,7 +343,7 @@ def fit(
     # the solver works on z = 1 + u in [1, 2]: its relative difference step is then the same share
     # of every interval wherever the point lies
     def values(z: np.ndarray) -> dict[str, float]:
-        return {**held, **{p.name: p.value(zi - 1.0) for p, zi in zip(free, z, strict=True)}}
+        return {**held, **{p.name: float(p.value(zi - 1.0)) for p, zi in zip(free, z, strict=True)}}
 
     u0 = np.array([p.unit_coord(start.get(p.name, p.nominal)) for p in free])
     if not free:
@@ -375,9 +375,8 @@ def fit(
             sd_u[~flat] = math.nan
     unc = {}
     for p, zi, su in zip(free, res.x, sd_u, strict=True):
-        ui = zi - 1.0
-        lo, hi = max(ui - 1e-6, 0.0), min(ui + 1e-6, 1.0)
-        unc[p.name] = float(abs((p.value(hi) - p.value(lo)) / (hi - lo)) * su)
+        ui = float(zi) - 1.0
+        unc[p.name] = float(abs(p.dvalue_du(ui)) * su)
     return Fit(values(res.x), tuple(p.name for p in free), cost, unc, obj.n_eval - n0)
 
 
@@ -404,7 +403,7 @@ def _fit_effects(
     base = {**calibration.values, **start}
     best_v, best_c = last.nominal, math.inf
     for u in np.linspace(0.0, 1.0, N_SCAN):
-        v = last.value(float(u))
+        v = float(last.value(float(u)))
         r = obj.vector({**base, last.name: v})
         c = float(r @ r)
         if c < best_c:

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.constants import PLAUSIBLE_RANGE
+from engine.plants.base import FreeParameter
 from engine.records import Record
 from engine.simulation import Case, Effect, EffectLibrary, ParameterError, PlantParameters, SensorParameters
 
@@ -102,49 +103,6 @@ def indistinguishable(name: str, value: float, library: EffectLibrary) -> tuple[
         for n in library
         if n != name and n in TIME_SHIFT_EFFECTS and library[n].bounds[0] <= value <= library[n].bounds[1]
     )
-
-
-@dataclass(frozen=True)
-class FreeParameter:
-    """One fitted parameter and its search interval.
-
-    Parameters
-    ----------
-    name : str
-        Plant field (``K``, ``J1``, ``c``, ``c1``) or effect name.
-    lo, hi : float
-        Search interval, in the parameter's unit.
-    unit : str
-        Unit of the value.
-    log : bool
-        Search on a logarithmic scale (needs ``lo > 0``).
-    """
-
-    name: str
-    lo: float
-    hi: float
-    unit: str = ""
-    log: bool = False
-
-    def value(self, u: np.ndarray | float) -> np.ndarray | float:
-        """Map unit-box coordinate(s) u in [0, 1] to value(s), in the parameter's unit."""
-        u = np.clip(u, 0.0, 1.0)
-        if self.log:
-            return self.lo * (self.hi / self.lo) ** u
-        return self.lo + (self.hi - self.lo) * u
-
-    def unit_coord(self, v: float) -> float:
-        """Inverse of :meth:`value`: the unit-box coordinate of value ``v`` (clipped to the interval)."""
-        v = min(max(float(v), self.lo), self.hi)
-        if self.log:
-            return math.log(v / self.lo) / math.log(self.hi / self.lo)
-        return (v - self.lo) / (self.hi - self.lo)
-
-    def dvalue_du(self, u: float) -> float:
-        """Derivative of :meth:`value` with respect to u, in the parameter's unit (for uncertainties)."""
-        if self.log:
-            return float(self.value(u)) * math.log(self.hi / self.lo)
-        return self.hi - self.lo
 
 
 @dataclass(frozen=True)

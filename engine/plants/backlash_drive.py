@@ -18,9 +18,20 @@ from engine.constants import CHANNEL_UNITS, CHANNELS
 from engine.diagnosis.space import DEFAULT_BOUNDS, LOG_SCALED_EFFECTS, LOG_SCALED_PARAMETERS, default_space
 from engine.plants.base import CalibratedParameter, CandidateEffect, Channel
 from engine.records import Record
-from engine.simulation import CATALOGUE, LOCI, PlantParameters, SimulationError, SolverSettings, run_cases
+from engine.simulation import (
+    CATALOGUE,
+    LOCI,
+    PlantParameters,
+    SimulationError,
+    SolverSettings,
+    add_white_noise,
+    run_cases,
+)
 
-__all__ = ["BacklashDrivePlant"]
+__all__ = ["SYNTHETIC_SNR_DB", "BacklashDrivePlant"]
+
+#: Signal-to-noise ratio of a synthetic record's white noise [dB] (the middle of MODEL.md's 30-50 dB).
+SYNTHETIC_SNR_DB: float = 40.0
 
 
 def _nominal(name: str) -> float:
@@ -36,7 +47,7 @@ class BacklashDrivePlant:
     loci: tuple[str, ...] = LOCI
     channels: tuple[Channel, ...] = tuple(Channel(c, CHANNEL_UNITS[c]) for c in CHANNELS)
     calibrated: tuple[CalibratedParameter, ...] = tuple(
-        CalibratedParameter(n, _nominal(n), lo, hi, unit, n in LOG_SCALED_PARAMETERS)
+        CalibratedParameter(n, lo, hi, unit, n in LOG_SCALED_PARAMETERS, nominal=_nominal(n))
         for n, (lo, hi, unit) in DEFAULT_BOUNDS.items()
     )
     catalogue: Mapping[str, CandidateEffect] = MappingProxyType(
@@ -64,6 +75,11 @@ class BacklashDrivePlant:
     def events(self, record: Record) -> np.ndarray:
         """The record's event instant t_e (MODEL.md's backlash test; 0 on the record's time axis)."""
         return np.array([record.time[record.event_index]])
+
+    def synthesize(self, record: Record, values: Mapping[str, float], rng: np.random.Generator) -> Record:
+        """The record's channels simulated at ``values`` plus white noise at :data:`SYNTHETIC_SNR_DB`."""
+        sim = self.simulate(record, values)
+        return record.with_channels({n: add_white_noise(v, SYNTHETIC_SNR_DB, rng) for n, v in sim.items()})
 
     def simulate(self, record: Record, values: Mapping[str, float]) -> dict[str, np.ndarray]:
         """The record's channels simulated on its grid (names not given: nominal or neutral).

@@ -23,7 +23,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["CalibratedParameter", "CandidateEffect", "Channel", "Plant", "relative_error"]
+__all__ = ["CalibratedParameter", "CandidateEffect", "Channel", "FreeParameter", "Plant", "relative_error"]
 
 
 @dataclass(frozen=True)
@@ -46,47 +46,67 @@ class Channel:
 
 
 @dataclass(frozen=True)
-class CalibratedParameter:
-    """A plant parameter the diagnosis refits, with its search interval.
+class FreeParameter:
+    """One fitted parameter and its search interval.
 
     Parameters
     ----------
     name : str
-        Parameter name.
-    nominal : float
-        Its nominal value, in ``unit`` (the start of a calibration).
+        Parameter or effect name (e.g. the backlash drive's ``K``, ``J1``, ``c``, ``c1``).
     lo, hi : float
-        Plausible search interval, in ``unit``.
+        Search interval, in the parameter's unit.
     unit : str
-        Unit.
+        Unit of the value.
     log : bool
         Search on a logarithmic scale (needs ``lo > 0``).
     """
 
     name: str
-    nominal: float
     lo: float
     hi: float
-    unit: str
+    unit: str = ""
     log: bool = False
 
-    def __post_init__(self) -> None:
-        if not (self.lo < self.hi) or (self.log and self.lo <= 0.0):
-            raise ValueError(f"parameter {self.name!r}: bad search interval [{self.lo}, {self.hi}]")
-
-    def value(self, u: float) -> float:
-        """Value at unit-box coordinate u in [0, 1], in ``unit``."""
-        u = min(max(float(u), 0.0), 1.0)
+    def value(self, u: np.ndarray | float) -> np.ndarray | float:
+        """Map unit-box coordinate(s) u in [0, 1] to value(s), in the parameter's unit."""
+        u = np.clip(u, 0.0, 1.0)
         if self.log:
             return self.lo * (self.hi / self.lo) ** u
         return self.lo + (self.hi - self.lo) * u
 
     def unit_coord(self, v: float) -> float:
-        """Unit-box coordinate of value v (clipped to the interval)."""
+        """Inverse of :meth:`value`: the unit-box coordinate of value ``v`` (clipped to the interval)."""
         v = min(max(float(v), self.lo), self.hi)
         if self.log:
             return math.log(v / self.lo) / math.log(self.hi / self.lo)
         return (v - self.lo) / (self.hi - self.lo)
+
+    def dvalue_du(self, u: float) -> float:
+        """Derivative of :meth:`value` with respect to u, in the parameter's unit (for uncertainties)."""
+        if self.log:
+            return float(self.value(u)) * math.log(self.hi / self.lo)
+        return self.hi - self.lo
+
+
+@dataclass(frozen=True)
+class CalibratedParameter(FreeParameter):
+    """A plant parameter the diagnosis refits: a :class:`FreeParameter` with a nominal value.
+
+    Parameters
+    ----------
+    name, lo, hi, unit, log
+        As :class:`FreeParameter` (``lo``, ``hi``: the plausible search interval).
+    nominal : float
+        Its nominal value, in ``unit`` (the start of a calibration), within the interval.
+    """
+
+    nominal: float = math.nan
+
+    def __post_init__(self) -> None:
+        if not (self.lo < self.hi) or (self.log and self.lo <= 0.0):
+            raise ValueError(f"parameter {self.name!r}: bad search interval [{self.lo}, {self.hi}]")
+        if not math.isfinite(self.nominal):
+            raise ValueError(f"parameter {self.name!r}: give its nominal value")
 
 
 @dataclass(frozen=True)
@@ -122,7 +142,7 @@ class CandidateEffect:
     def as_parameter(self) -> CalibratedParameter:
         """The effect's scalar as a searched parameter (its nominal is the neutral value)."""
         lo, hi = self.bounds
-        return CalibratedParameter(self.name, self.neutral, lo, hi, self.unit, self.log)
+        return CalibratedParameter(self.name, lo, hi, self.unit, self.log, nominal=self.neutral)
 
 
 @runtime_checkable
@@ -164,6 +184,15 @@ class Plant(Protocol):
 
     def scored(self, record: Any) -> slice:
         """The samples a comparison scores (e.g. without a filter's edge)."""
+        ...
+
+    def synthesize(self, record: Any, values: Mapping[str, float], rng: np.random.Generator) -> Any:
+        """A record as the plant's sensors would give it, simulated at ``values`` on ``record``'s inputs and grid.
+
+        For a synthetic check of the diagnosis (:mod:`engine.validation.plant_check`): the
+        answer is a record like ``record`` (same grid, same inputs) whose measured signals are the
+        simulation's, with the plant's own measurement imperfections drawn from ``rng``.
+        """
         ...
 
     def events(self, record: Any) -> np.ndarray:

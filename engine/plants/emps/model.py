@@ -38,6 +38,7 @@ from engine.plants.emps.record import EmpsRecord, load_record
 __all__ = [
     "CALIBRATED",
     "CHANNELS",
+    "ENCODER_QUANTUM",
     "FLEX_DAMPING_RATIO",
     "FLEX_MASS_RATIO",
     "N_SUBSTEPS",
@@ -69,6 +70,9 @@ FLEX_DAMPING_RATIO: float = 0.05
 #: 50 nm (the smallest step of qm): 50 000 x 50 nm = 2.5 mm.
 POSITION_FRICTION_PERIOD: float = 2.5e-3
 
+#: The encoder's position quantum, load side [m]: the smallest step of qm in the files.
+ENCODER_QUANTUM: float = 5e-8
+
 #: The channels of this plant.
 CHANNELS: tuple[Channel, ...] = (
     Channel("position", "m", "qm, zero-phase Butterworth low-pass (4th order, 100 Hz)"),
@@ -80,10 +84,10 @@ CHANNELS: tuple[Channel, ...] = (
 #: The calibrated parameters: the published values and plausible intervals (about +-50 % and, for
 #: the offset, +-20 N).
 CALIBRATED: tuple[CalibratedParameter, ...] = (
-    CalibratedParameter("M", PUBLISHED["M"], 50.0, 150.0, "kg"),
-    CalibratedParameter("Fv", PUBLISHED["Fv"], 100.0, 300.0, "N s/m"),
-    CalibratedParameter("Fc", PUBLISHED["Fc"], 5.0, 40.0, "N"),
-    CalibratedParameter("offset", PUBLISHED["offset"], -20.0, 20.0, "N"),
+    CalibratedParameter("M", 50.0, 150.0, "kg", nominal=PUBLISHED["M"]),
+    CalibratedParameter("Fv", 100.0, 300.0, "N s/m", nominal=PUBLISHED["Fv"]),
+    CalibratedParameter("Fc", 5.0, 40.0, "N", nominal=PUBLISHED["Fc"]),
+    CalibratedParameter("offset", -20.0, 20.0, "N", nominal=PUBLISHED["offset"]),
 )
 
 
@@ -182,6 +186,18 @@ class EmpsPlant:
         """The instants [s] where the pulse signal switches (none in a record without pulses)."""
         edges = np.flatnonzero(np.diff(record.pulses) != 0.0) + 1
         return record.t[edges]
+
+    def synthesize(self, record: EmpsRecord, values: Mapping[str, float], rng: np.random.Generator) -> EmpsRecord:
+        """A record like ``record`` whose qm and vir are simulated at ``values``.
+
+        qm is the simulated position read by the encoder (rounded to its :data:`ENCODER_QUANTUM`,
+        with a random phase of the count grid); vir is the drive command the simulation applied,
+        pulses included, as the measured vir holds them (``docs/real-data.md``).
+        """
+        x = self.states(record, values)
+        phase = float(rng.uniform(0.0, ENCODER_QUANTUM))
+        qm = np.round((x["position"] + phase) / ENCODER_QUANTUM) * ENCODER_QUANTUM - phase
+        return dataclasses.replace(record, qm=qm, vir=x["force"] / record.gtau, name=f"synthetic({record.name})")
 
     def parameters(self, values: Mapping[str, float]) -> EmpsParameters:
         """The model's parameters with ``values`` (calibrated names and effect names) applied.

@@ -80,6 +80,13 @@ class EmpsRecord:
         """Sample interval [s] (the mean of the stored instants' spacing)."""
         return float((self.t[-1] - self.t[0]) / (self.n - 1))
 
+    def head(self, seconds: float) -> EmpsRecord:
+        """The first ``seconds`` of the record (at least :data:`MIN_SAMPLES`)."""
+        n = max(MIN_SAMPLES, min(self.n, round(seconds / self.ts) + 1))
+        return EmpsRecord(
+            self.t[:n], self.qm[:n], self.qg[:n], self.vir[:n], self.pulses[:n], self.kp, self.kv, self.gtau, self.name
+        )
+
     @property
     def has_pulses(self) -> bool:
         """Whether pulses were applied."""
