@@ -96,6 +96,11 @@ class CheckRow:
         return bool(self.named) and self.named[0] == self.case.effect
 
     @property
+    def exact(self) -> bool:
+        """The named set is the true effect alone."""
+        return self.named == (self.case.effect,)
+
+    @property
     def found(self) -> bool:
         """The true effect is in the named set."""
         return self.case.effect in self.named
@@ -163,15 +168,17 @@ def summary(rows: Sequence[CheckRow]) -> str:
     measures = (
         ("first named effect is the true one", open_, lambda r: r.top1),
         ("true effect in the named set", open_, lambda r: r.found),
+        ("named set is the true effect alone", open_, lambda r: r.exact),
         ("no effect named (unexplained)", open_, lambda r: not r.named),
         ("true effect reported as absorbed by the calibration", rows, lambda r: r.truth_absorbed),
+        ("another effect named where the truth was absorbed", [r for r in rows if r.truth_absorbed], lambda r: r.named),
     )
     for label, group, hit in measures:
         if not group:
             continue
         k, m = sum(bool(hit(r)) for r in group), len(group)
         lo, hi = wilson_interval(k, m)
-        which = "not absorbed" if group is open_ else "all"
+        which = "not absorbed" if group is open_ else "all" if group is rows else "absorbed"
         out.append(f"| {label} | {which} | {k}/{m} = {100 * k / m:.0f} % | [{100 * lo:.1f}, {100 * hi:.1f}] % |")
     times = sorted(r.seconds for r in rows)
     out.append(f"\nseconds per diagnosis: median {times[n // 2]:.0f}, max {times[-1]:.0f}\n")
