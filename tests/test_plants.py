@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from engine.diagnosis.plant_gap import _Objective, absorbed_effects, calibrate, fit, rank_effects
+from engine.diagnosis.plant_gap import PlantObjective, absorbed_effects, calibrate, fit, rank_effects
 from engine.plants import Plant, get_plant, relative_error
 from engine.plants.backlash_drive import BacklashDrivePlant
 from engine.plants.emps import PUBLISHED, EmpsPlant, EmpsRecord, load_csv, load_mat
@@ -112,7 +112,7 @@ def test_calibration_on_the_estimation_record_improves_on_the_published_paramete
     need not agree, but ours must fit the record at least as well, and the mass (the best
     excited parameter) must agree closely."""
     rec = records["DATA_EMPS"]
-    obj = _Objective(emps, rec)
+    obj = PlantObjective(emps, rec)
     cal = calibrate(emps, rec, objective=obj)
     published = obj.vector(PUBLISHED)
     assert cal.cost < float(published @ published)
@@ -133,7 +133,7 @@ def test_the_diagnosis_names_a_known_effect_on_a_synthetic_emps_record(
     truth = {**PUBLISHED, "viscous_asymmetry": 30.0}
     x = emps.states(short, truth)
     synthetic = dataclasses.replace(short, qm=x["position"], vir=x["force"] / short.gtau)
-    obj = _Objective(emps, synthetic)
+    obj = PlantObjective(emps, synthetic)
     cal = calibrate(emps, synthetic, objective=obj)
     # a drive gain error is the calibration scaled by 1 / (1 + eps); a Coulomb asymmetry and an offset
     # change are constant forces while moving: a refitted calibration absorbs all three

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.diagnosis.plant_gap import _Objective, calibrate
+from engine.diagnosis.plant_gap import PlantObjective, calibrate
 from engine.plants.emps import EmpsPlant, load_mat
 
 DATA = Path(__file__).resolve().parents[2] / "engine" / "plants" / "emps" / "data"
@@ -32,7 +32,7 @@ def main() -> None:
     )
     for rho in (0.1, 0.3, 0.5, 0.7, 0.9):
         for zeta in (0.01, 0.05, 0.2):
-            obj = _Objective(EmpsPlant(fixed={"rho_flex": rho, "zeta_flex": zeta}), pulses)
+            obj = PlantObjective(EmpsPlant(fixed={"rho_flex": rho, "zeta_flex": zeta}), pulses)
             r0 = obj.vector(cal)
             costs = []
             for f in np.geomspace(5.0, 200.0, 25):

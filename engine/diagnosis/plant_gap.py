@@ -56,6 +56,7 @@ __all__ = [
     "EffectFit",
     "Fit",
     "PlantGapReport",
+    "PlantObjective",
     "absorbed_effects",
     "calibrate",
     "diagnose_plant",
@@ -295,8 +296,20 @@ def _finite(x: float | None) -> float | None:
     return x if x is not None and math.isfinite(x) else None
 
 
-class _Objective:
-    """Stacked, channel-normalised residual of a plant on a record."""
+class PlantObjective:
+    """Stacked, channel-normalised residual of a plant on a record (module docstring, Objective).
+
+    Parameters
+    ----------
+    plant : Plant
+    record
+        One of the plant's records; its measured channels are computed once.
+
+    Attributes
+    ----------
+    n_eval : int
+        Simulations run so far.
+    """
 
     def __init__(self, plant: Plant, record: Any) -> None:
         self.plant = plant
@@ -333,7 +346,7 @@ def fit(
     free: Sequence[CalibratedParameter],
     held: Mapping[str, float] | None = None,
     start: Mapping[str, float] | None = None,
-    objective: _Objective | None = None,
+    objective: PlantObjective | None = None,
 ) -> Fit:
     """Bounded least squares of ``free`` with ``held`` fixed (module docstring).
 
@@ -353,7 +366,7 @@ def fit(
     RuntimeError
         When the solver fails.
     """
-    obj = objective or _Objective(plant, record)
+    obj = objective or PlantObjective(plant, record)
     held = dict(held or {})
     start = dict(start or {})
     n0 = obj.n_eval
@@ -398,7 +411,7 @@ def fit(
     return Fit(values(res.x), tuple(p.name for p in free), cost, unc, obj.n_eval - n0)
 
 
-def calibrate(plant: Plant, record: Any, objective: _Objective | None = None) -> Fit:
+def calibrate(plant: Plant, record: Any, objective: PlantObjective | None = None) -> Fit:
     """Fit the plant's calibrated parameters to a record, from their nominal values."""
     out = fit(plant, record, plant.calibrated, objective=objective)
     logger.info("calibrated %s on %s: %s (cost %.4g)", plant.name, getattr(record, "name", ""), out.values, out.cost)
@@ -411,7 +424,7 @@ def _fit_effects(
     names: Sequence[str],
     calibration: Fit,
     refit: bool,
-    obj: _Objective,
+    obj: PlantObjective,
     start: Mapping[str, float] | None = None,
 ) -> Fit:
     """Joint fit of effects ``names`` (the last one scanned first) with the calibration refitted or held."""
@@ -432,7 +445,7 @@ def _fit_effects(
     return fit(plant, record, free, held=held, start={**calibration.values, **start}, objective=obj)
 
 
-def absorbed_effects(plant: Plant, calibration: Fit, objective: _Objective) -> dict[str, float]:
+def absorbed_effects(plant: Plant, calibration: Fit, objective: PlantObjective) -> dict[str, float]:
     """Effects the calibrated parameters absorb locally: their residual change lies in the calibration's span.
 
     At the calibrated point, the residual's Jacobian J with respect to the calibrated parameters
@@ -481,7 +494,7 @@ def rank_effects(
     record: Any,
     calibration: Fit,
     refit: bool = True,
-    objective: _Objective | None = None,
+    objective: PlantObjective | None = None,
     absorbed: Mapping[str, float] | None = None,
 ) -> tuple[list[EffectFit], EffectFit | None]:
     """Fit every catalogue effect; name the best set (module docstring).
@@ -496,7 +509,7 @@ def rank_effects(
     named : EffectFit or None
         The named set, or None when no effect removes :data:`MIN_SHARE` of the gap.
     """
-    obj = objective or _Objective(plant, record)
+    obj = objective or PlantObjective(plant, record)
     c0 = calibration.cost
     skip = set(absorbed or ()) if refit else set()
     singles = []
@@ -550,7 +563,7 @@ def gap_budget(named: EffectFit) -> dict[str, float]:
 
 def localise(plant: Plant, record: Any, values: Mapping[str, float], top: int | None = TOP_CELLS) -> list[Cell]:
     """The largest cells of residual energy: channel x band x time window (module docstring); all with ``top=None``."""
-    obj = _Objective(plant, record)
+    obj = PlantObjective(plant, record)
     res = obj.residuals(values)
     t = np.asarray(plant.time(record), dtype=float)[obj.window]
     nyq = 0.5 / float(t[1] - t[0])
@@ -583,7 +596,7 @@ def event_shares(plant: Plant, record: Any, values: Mapping[str, float]) -> tupl
         The share of the scored samples within those spans (what the energy share would be if
         the residual ignored the events).
     """
-    obj = _Objective(plant, record)
+    obj = PlantObjective(plant, record)
     t = np.asarray(plant.time(record), dtype=float)[obj.window]
     events = np.asarray(plant.events(record), dtype=float)
     if events.size == 0:
@@ -617,7 +630,7 @@ def diagnose_plant(
     calibrated_on : str, optional
         Name of the record ``calibration`` came from (reported).
     """
-    obj = _Objective(plant, record)
+    obj = PlantObjective(plant, record)
     if calibration is None:
         calibration = calibrate(plant, record, objective=obj)
     else:
