@@ -45,6 +45,9 @@ logger = logging.getLogger(__name__)
 PERTURBATION: float = 0.1
 #: Smallest change an effect must make to the channels, relative error [%] in quadrature.
 MIN_EFFECT: float = 1.0
+#: Strength [%] above which a case is reported apart: the effect changes the record by more than
+#: the record itself (e.g. a delay that sets the loop oscillating), a different machine more than a gap.
+STRONG: float = 100.0
 #: Draws of an effect's value before the case gives up on that effect and draws another.
 MAX_REDRAWS: int = 20
 
@@ -172,13 +175,23 @@ def summary(rows: Sequence[CheckRow]) -> str:
         ("no effect named (unexplained)", open_, lambda r: not r.named),
         ("true effect reported as absorbed by the calibration", rows, lambda r: r.truth_absorbed),
         ("another effect named where the truth was absorbed", [r for r in rows if r.truth_absorbed], lambda r: r.named),
+        (
+            f"first named effect true, strength <= {STRONG:g} %",
+            [r for r in open_ if r.case.strength <= STRONG],
+            lambda r: r.top1,
+        ),
+        (
+            f"first named effect true, strength > {STRONG:g} %",
+            [r for r in open_ if r.case.strength > STRONG],
+            lambda r: r.top1,
+        ),
     )
     for label, group, hit in measures:
         if not group:
             continue
         k, m = sum(bool(hit(r)) for r in group), len(group)
         lo, hi = wilson_interval(k, m)
-        which = "not absorbed" if group is open_ else "all" if group is rows else "absorbed"
+        which = "not absorbed" if group is open_ else "all" if group is rows else "subset"
         out.append(f"| {label} | {which} | {k}/{m} = {100 * k / m:.0f} % | [{100 * lo:.1f}, {100 * hi:.1f}] % |")
     times = sorted(r.seconds for r in rows)
     out.append(f"\nseconds per diagnosis: median {times[n // 2]:.0f}, max {times[-1]:.0f}\n")
