@@ -46,6 +46,9 @@ USER app
 # (one case runs the serial kernel, a batch the parallel one)
 RUN python -c "from engine.simulation import PlantParameters, simulate, simulate_batch; \
 simulate(PlantParameters()); simulate_batch([PlantParameters(), PlantParameters(K=0.005)])"
+# and the EMPS plant's loop, on the shipped record (which also proves the records are in the package)
+RUN python -c "from importlib.resources import files; from engine.plants.emps import EmpsPlant, load_mat; \
+EmpsPlant().simulate(load_mat(str(files('engine.plants.emps') / 'data' / 'DATA_EMPS.mat')).head(1.0), {})"
 
 VOLUME ["/data"]
 EXPOSE 8000

@@ -137,3 +137,12 @@ def test_the_kernel_warm_up_step_runs(dockerfile: list[tuple[str, str]], tmp_pat
     assert argv[:2] == ["python", "-c"], args
     done = subprocess.run([sys.executable, "-c", argv[2]], cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
+
+
+def test_the_emps_warm_up_step_runs(dockerfile: list[tuple[str, str]], tmp_path: Path) -> None:
+    """The build step that compiles the EMPS loop runs as written, reading the record shipped in the package."""
+    args = dockerfile[_index(dockerfile, "RUN", "EmpsPlant")][1]
+    argv = shlex.split(args)
+    assert argv[:2] == ["python", "-c"], args
+    done = subprocess.run([sys.executable, "-c", argv[2]], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
