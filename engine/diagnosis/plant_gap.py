@@ -46,7 +46,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import butter, sosfiltfilt
 
-from engine.plants.base import CalibratedParameter, Plant, relative_error
+from engine.plants.base import CalibratedParameter, Plant
 
 __all__ = [
     "BANDS",
@@ -320,24 +320,40 @@ class PlantObjective:
         self.y = {c: meas[c][self.window] for c in self.channels}
         self.scale = {c: 1.0 / float(np.linalg.norm(self.y[c])) for c in self.channels}
         self.n_eval = 0
+        self._recent: dict[tuple[tuple[str, float], ...], dict[str, np.ndarray]] = {}
 
     def residuals(self, values: Mapping[str, float]) -> dict[str, np.ndarray]:
-        """Per-channel residual (simulated - measured) over the scored samples, in channel units."""
+        """Per-channel residual (simulated - measured) over the scored samples, in channel units.
+
+        The last few points are kept: a report asks for the calibrated and the named model's
+        residuals several times (localisation, event shares, relative errors).
+        """
+        key = tuple(sorted(values.items()))
+        if key in self._recent:
+            return self._recent[key]
         self.n_eval += 1
         sim = self.plant.simulate(self.record, values)
-        return {c: sim[c][self.window] - self.y[c] for c in self.channels}
+        out = {c: sim[c][self.window] - self.y[c] for c in self.channels}
+        self._recent[key] = out
+        if len(self._recent) > 4:
+            del self._recent[next(iter(self._recent))]
+        return out
+
+    def relative_errors(self, values: Mapping[str, float]) -> dict[str, float]:
+        """Relative error [%] per channel at ``values`` (authors' eq. 11, on the scored samples)."""
+        res = self.residuals(values)
+        return {c: 100.0 * float(np.linalg.norm(res[c])) * self.scale[c] for c in self.channels}
 
     def vector(self, values: Mapping[str, float]) -> np.ndarray:
         r = self.residuals(values)
         return np.concatenate([r[c] * self.scale[c] for c in self.channels])
 
 
-def relative_errors(plant: Plant, record: Any, values: Mapping[str, float]) -> dict[str, float]:
+def relative_errors(
+    plant: Plant, record: Any, values: Mapping[str, float], objective: PlantObjective | None = None
+) -> dict[str, float]:
     """Relative error [%] per channel of the model at ``values`` (authors' eq. 11, on the scored samples)."""
-    sl = plant.scored(record)
-    meas = plant.measured(record)
-    sim = plant.simulate(record, values)
-    return {c.name: relative_error(meas[c.name][sl], sim[c.name][sl]) for c in plant.channels}
+    return (objective or PlantObjective(plant, record)).relative_errors(values)
 
 
 def fit(
@@ -570,9 +586,15 @@ def gap_budget(named: EffectFit) -> dict[str, float]:
     return out
 
 
-def localise(plant: Plant, record: Any, values: Mapping[str, float], top: int | None = TOP_CELLS) -> list[Cell]:
+def localise(
+    plant: Plant,
+    record: Any,
+    values: Mapping[str, float],
+    top: int | None = TOP_CELLS,
+    objective: PlantObjective | None = None,
+) -> list[Cell]:
     """The largest cells of residual energy: channel x band x time window (module docstring); all with ``top=None``."""
-    obj = PlantObjective(plant, record)
+    obj = objective or PlantObjective(plant, record)
     res = obj.residuals(values)
     t = np.asarray(plant.time(record), dtype=float)[obj.window]
     nyq = 0.5 / float(t[1] - t[0])
@@ -593,7 +615,9 @@ def localise(plant: Plant, record: Any, values: Mapping[str, float], top: int | 
     return [Cell(c, band, win, e / total) for c, band, win, e in (cells if top is None else cells[:top])]
 
 
-def event_shares(plant: Plant, record: Any, values: Mapping[str, float]) -> tuple[dict[str, float], float]:
+def event_shares(
+    plant: Plant, record: Any, values: Mapping[str, float], objective: PlantObjective | None = None
+) -> tuple[dict[str, float], float]:
     """Share of each channel's residual energy near the plant's input events, and the share of samples there.
 
     Returns
@@ -605,7 +629,7 @@ def event_shares(plant: Plant, record: Any, values: Mapping[str, float]) -> tupl
         The share of the scored samples within those spans (what the energy share would be if
         the residual ignored the events).
     """
-    obj = PlantObjective(plant, record)
+    obj = objective or PlantObjective(plant, record)
     t = np.asarray(plant.time(record), dtype=float)[obj.window]
     events = np.asarray(plant.events(record), dtype=float)
     if events.size == 0:
@@ -645,7 +669,7 @@ def diagnose_plant(
     else:
         r = obj.vector(calibration.values)
         calibration = Fit(dict(calibration.values), calibration.free, float(r @ r), calibration.uncertainty, 1)
-    cells = localise(plant, record, calibration.values, top=None)
+    cells = localise(plant, record, calibration.values, top=None, objective=obj)
     where = cells[:TOP_CELLS]
     summary: dict[str, dict[str, float]] = {"channel": {}, "band_hz": {}}
     for cell in cells:
@@ -656,15 +680,15 @@ def diagnose_plant(
     ranking, named = rank_effects(plant, record, calibration, refit=refit, objective=obj, absorbed=absorbed)
     after_values = named.fit.values if named else calibration.values
     budget = gap_budget(named) if named else {}
-    before_share, samples = event_shares(plant, record, calibration.values)
-    after_share, _ = event_shares(plant, record, after_values)
+    before_share, samples = event_shares(plant, record, calibration.values, objective=obj)
+    after_share, _ = event_shares(plant, record, after_values, objective=obj)
     return PlantGapReport(
         plant=plant.name,
         record=getattr(record, "name", ""),
         calibration=calibration,
         relative_error={
-            "before": relative_errors(plant, record, calibration.values),
-            "after": relative_errors(plant, record, after_values),
+            "before": obj.relative_errors(calibration.values),
+            "after": obj.relative_errors(after_values),
         },
         where=where,
         where_summary=summary,

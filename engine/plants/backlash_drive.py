@@ -84,12 +84,15 @@ class BacklashDrivePlant:
     def simulate(self, record: Record, values: Mapping[str, float]) -> dict[str, np.ndarray]:
         """The record's channels simulated on its grid (names not given: nominal or neutral).
 
-        A calibrated parameter the record's conditions fix keeps the record's value.
+        A calibrated parameter the record's conditions fix keeps the record's value; another value
+        for it is refused, not silently replaced.
 
         Raises
         ------
         KeyError
             For an unknown name.
+        ValueError
+            For a value of a parameter the record's conditions fix at another value.
         SimulationError
             When the simulation fails (no event, divergence).
         """
@@ -97,6 +100,12 @@ class BacklashDrivePlant:
         unknown = [n for n in values if n not in space.names and n not in DEFAULT_BOUNDS and n not in CATALOGUE]
         if unknown:
             raise KeyError(f"unknown backlash-drive parameter or effect(s) {unknown}")
+        fixed = [n for n in values if n in record.conditions and values[n] != record.conditions[n]]
+        if fixed:
+            raise ValueError(
+                f"the record's conditions fix {fixed} at {[record.conditions[n] for n in fixed]}; "
+                "leave them out of the values or give the record's own"
+            )
         effects = [CATALOGUE[n] for n in values if n in CATALOGUE]
         space = space.with_effects(effects)
         full = {n: _nominal(n) for n in DEFAULT_BOUNDS} | {e.name: e.neutral for e in effects} | dict(values)

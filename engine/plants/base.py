@@ -23,7 +23,15 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["CalibratedParameter", "CandidateEffect", "Channel", "FreeParameter", "Plant", "relative_error"]
+__all__ = [
+    "CalibratedParameter",
+    "CandidateEffect",
+    "Channel",
+    "FreeParameter",
+    "Plant",
+    "relative_error",
+    "relative_errors",
+]
 
 
 @dataclass(frozen=True)
@@ -220,3 +228,10 @@ def relative_error(measured: np.ndarray, simulated: np.ndarray) -> float:
     if norm == 0.0:
         raise ValueError("relative error of a signal that is zero throughout")
     return 100.0 * float(np.linalg.norm(y - yh)) / norm
+
+
+def relative_errors(
+    measured: Mapping[str, np.ndarray], simulated: Mapping[str, np.ndarray], window: slice = slice(None)
+) -> dict[str, float]:
+    """:func:`relative_error` [%] of every measured channel over the samples ``window``."""
+    return {name: relative_error(y[window], simulated[name][window]) for name, y in measured.items()}

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from engine.diagnosis.plant_gap import diagnose_plant
-from engine.plants.base import Plant, relative_error
+from engine.plants.base import Plant, relative_errors
 from engine.validation.stats import wilson_interval
 
 __all__ = ["MIN_EFFECT", "PERTURBATION", "CheckCase", "CheckRow", "draw_cases", "run_check", "summary"]
@@ -113,7 +113,7 @@ def _strength(plant: Plant, record: Any, base: dict[str, float], effect: str, va
     sl = plant.scored(record)
     a = plant.simulate(record, base)
     b = plant.simulate(record, {**base, effect: value})
-    return math.sqrt(sum(relative_error(a[c.name][sl], b[c.name][sl]) ** 2 for c in plant.channels))
+    return math.sqrt(sum(e**2 for e in relative_errors(a, b, sl).values()))
 
 
 def draw_cases(plant: Plant, record: Any, n: int, seed: int) -> list[CheckCase]:
