@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from engine.diagnosis.plant_gap import PlantObjective, absorbed_effects, calibrate, fit, rank_effects
+from engine.diagnosis.plant_gap import PlantObjective, absorbed_effects, calibrate, diagnose_plant, fit, rank_effects
 from engine.plants import Plant, get_plant, relative_error
 from engine.plants.backlash_drive import BacklashDrivePlant
 from engine.plants.emps import PUBLISHED, EmpsPlant, EmpsRecord, load_csv, load_mat
@@ -41,7 +41,7 @@ def drive_record() -> Record:
 
 
 def test_both_plants_implement_the_interface_and_their_catalogues_name_their_own_loci() -> None:
-    for plant in (get_plant("emps"), BacklashDrivePlant()):
+    for plant in (get_plant("emps"), get_plant("backlash_drive")):
         assert isinstance(plant, Plant)
         assert plant.catalogue
         for e in plant.catalogue.values():
@@ -90,6 +90,42 @@ def test_the_backlash_drive_behind_the_interface_recovers_its_inertia(drive_reco
     (J1,) = [p for p in plant.calibrated if p.name == "J1"]
     out = fit(plant, drive_record, [J1])  # the record fixes K, c and c1
     assert out.values["J1"] == pytest.approx(0.9, rel=2e-3)
+
+
+def test_the_generic_diagnosis_names_an_effect_on_the_backlash_drive(drive_record: Record) -> None:
+    """The diagnosis of the interface on the other plant: calibrate, where, which, how far.
+
+    Four catalogue effects at four loci keep the test quick; the record is the reference test at
+    J1 = 0.9 with a rotor resistance 30 % high and the record's own conditions fixing K, c, c1."""
+    plant = BacklashDrivePlant()
+    keep = ("rotor_resistance_drift", "load_inertia", "sensor_gain", "measurement_delay")
+    plant.catalogue = {n: plant.catalogue[n] for n in keep}  # type: ignore[misc]
+    truth = {"J1": 0.9, "rotor_resistance_drift": 1.3}
+    record = plant.synthesize(drive_record, truth, np.random.default_rng(3))
+    report = diagnose_plant(plant, record)
+    answer = report.to_dict(plant)
+    assert answer["plant"] == "backlash_drive"
+    assert answer["verdict"]["effect"] == "rotor_resistance_drift"
+    assert answer["verdict"]["locus"] == "motor_electrical"
+    assert answer["verdict"]["value"] == pytest.approx(1.3, abs=0.05)
+    assert report.named is not None and report.named.fit.values["J1"] == pytest.approx(0.9, rel=0.02)
+    assert set(answer["calibration"]["values"]) == {"J1"}  # the record's conditions fix K, c and c1
+    before, after = answer["relative_error"]["before"], answer["relative_error"]["after"]
+    assert set(before) == set(plant.measured(record))
+    assert max(after.values()) < 0.2 * max(before.values())
+    assert answer["where"] and answer["where"][0]["channel"] in before
+    assert 0.0 <= answer["event_share"]["samples"]["share"] <= 1.0
+
+
+def test_every_plant_ships_an_example_record_it_can_simulate() -> None:
+    for name in ("backlash_drive", "emps"):
+        plant = get_plant(name)
+        assert plant.examples
+        record = plant.example(seconds=2.0)
+        sim = plant.simulate(record, {})
+        assert set(sim) == {c.name for c in plant.channels}
+        with pytest.raises(KeyError):
+            plant.example("no_such_record")
 
 
 @pytest.mark.parametrize("name", list(PUBLISHED_ERRORS))

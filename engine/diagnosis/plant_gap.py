@@ -46,7 +46,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import butter, sosfiltfilt
 
-from engine.plants.base import CalibratedParameter, Plant
+from engine.plants.base import CalibratedParameter, Plant, free_parameters
 
 __all__ = [
     "BANDS",
@@ -94,13 +94,9 @@ EVENT_SPAN: tuple[float, float] = (-0.02, 0.08)
 TOP_CELLS: int = 8
 #: Largest number of effects in a set.
 MAX_SET: int = 3
-#: Least-squares settings: function evaluations per fit; step of the finite differences, as a share
-#: of each parameter's search interval. The step is coarse on purpose: a simulation with Coulomb
-#: friction chatters at standstill, so its cost is rough on scales of 1e-3 of an interval and
-#: finer differences send the solver the roughness, not the slope (an EMPS fit stopped at its start
-#: with 1e-3).
+#: Function evaluations per least-squares fit (the step of its finite differences is the plant's
+#: own :attr:`~engine.plants.base.Plant.diff_step`: how rough its simulation is depends on the plant).
 MAX_NFEV: int = 60
-DIFF_STEP: float = 1e-2
 
 
 @dataclass(frozen=True)
@@ -237,7 +233,7 @@ class PlantGapReport:
     def to_dict(self, plant: Plant) -> dict[str, Any]:
         """JSON-ready form (the CLI's and the API's response); values in the units the plant declares."""
         cat = plant.catalogue
-        units = {p.name: p.unit for p in plant.calibrated}
+        units = {p.name: p.unit for p in plant.calibrated if p.name in self.calibration.values}
         effects = []
         if self.named is not None:
             for name in sorted(self.named.effects, key=lambda n: -self.budget.get(n, 0.0)):
@@ -401,7 +397,7 @@ def fit(
         1.0 + u0,
         bounds=(1.0, 2.0),
         method="trf",
-        diff_step=DIFF_STEP,
+        diff_step=plant.diff_step,
         x_scale=1.0,
         max_nfev=MAX_NFEV,
     )
@@ -429,7 +425,7 @@ def fit(
 
 def calibrate(plant: Plant, record: Any, objective: PlantObjective | None = None) -> Fit:
     """Fit the plant's calibrated parameters to a record, from their nominal values."""
-    out = fit(plant, record, plant.calibrated, objective=objective)
+    out = fit(plant, record, free_parameters(plant, record), objective=objective)
     logger.info("calibrated %s on %s: %s (cost %.4g)", plant.name, getattr(record, "name", ""), out.values, out.cost)
     return out
 
@@ -452,11 +448,12 @@ def _fit_effects(
     calibration can miss the effect's basin (synthetic check, seeds 4 and 5).
     """
     effects = [plant.catalogue[n].as_parameter() for n in names]
+    calibrated = free_parameters(plant, record)
     start = dict(start or {})
     last = effects[-1]
     bases = [{**calibration.values, **start}]
     if refit:
-        bases.append({**{p.name: p.nominal for p in plant.calibrated}, **start})
+        bases.append({**{p.name: p.nominal for p in calibrated}, **start})
     best_v, best_c, best_base = last.nominal, math.inf, bases[0]
     for base in bases:
         for u in np.linspace(0.0, 1.0, N_SCAN):
@@ -465,7 +462,7 @@ def _fit_effects(
             c = float(r @ r)
             if c < best_c:
                 best_v, best_c, best_base = v, c, base
-    free = [*effects, *(plant.calibrated if refit else ())]
+    free = [*effects, *(calibrated if refit else ())]
     held = {} if refit else dict(calibration.values)
     return fit(plant, record, free, held=held, start={**best_base, last.name: best_v}, objective=obj)
 
@@ -474,8 +471,8 @@ def absorbed_effects(plant: Plant, calibration: Fit, objective: PlantObjective) 
     """Effects the calibrated parameters absorb locally: their residual change lies in the calibration's span.
 
     At the calibrated point, the residual's Jacobian J with respect to the calibrated parameters
-    (forward differences of :data:`DIFF_STEP` of each interval) and, per effect, the change j of
-    the residual when the effect steps :data:`DIFF_STEP` of its interval away from its neutral
+    (forward differences of the plant's ``diff_step`` of each interval) and, per effect, the change j
+    of the residual when the effect steps ``diff_step`` of its interval away from its neutral
     value. The effect is absorbed when ``||j - P j|| <= ABSORBED_RATIO ||j||``, P the projector on
     the columns of J: a refit of the calibration then cancels it, so no record can name it beside a
     refitted calibration (e.g. an EMPS drive gain error: scaling M, Fv, Fc and the offset by
@@ -488,12 +485,15 @@ def absorbed_effects(plant: Plant, calibration: Fit, objective: PlantObjective) 
         Absorbed effect -> its ratio ``||j - P j|| / ||j||``.
     """
     base = dict(calibration.values)
+    h = plant.diff_step
     r0 = objective.vector(base)
     cols = []
-    for p in plant.calibrated:
+    for p in free_parameters(plant, objective.record):
         u = p.unit_coord(base[p.name])
-        step = DIFF_STEP if u + DIFF_STEP <= 1.0 else -DIFF_STEP
+        step = h if u + h <= 1.0 else -h
         cols.append((objective.vector({**base, p.name: float(p.value(u + step))}) - r0) / step)
+    if not cols:
+        return {}  # the record fixes every calibrated parameter: nothing can absorb an effect
     J = np.column_stack(cols)
     Q, _ = np.linalg.qr(J)
     out = {}
@@ -503,7 +503,7 @@ def absorbed_effects(plant: Plant, calibration: Fit, objective: PlantObjective) 
             continue
         q = e.as_parameter()
         u = q.unit_coord(e.neutral)
-        step = DIFF_STEP if u + DIFF_STEP <= 1.0 else -DIFF_STEP
+        step = h if u + h <= 1.0 else -h
         j = objective.vector({**base, name: float(q.value(u + step))}) - r0
         norm = float(np.linalg.norm(j))
         if norm == 0.0:

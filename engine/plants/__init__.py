@@ -25,6 +25,12 @@ __all__ = [
 DEFAULT_PLANT: str = "backlash_drive"
 
 
+def _backlash_drive() -> Plant:
+    from engine.plants.backlash_drive import BacklashDrivePlant
+
+    return BacklashDrivePlant()
+
+
 def _emps() -> Plant:
     from engine.plants.emps import EmpsPlant
 
@@ -32,7 +38,7 @@ def _emps() -> Plant:
 
 
 #: Registry: plant name -> constructor (imported lazily, so one plant's kernel is compiled only when used).
-PLANTS: dict[str, Callable[[], Plant]] = {"emps": _emps}
+PLANTS: dict[str, Callable[[], Plant]] = {"backlash_drive": _backlash_drive, "emps": _emps}
 
 
 def get_plant(name: str) -> Plant:

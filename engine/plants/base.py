@@ -8,6 +8,8 @@ A plant (in the manner of motulator's subsystems, reduced to what a diagnosis re
 - its **catalogue** of candidate effects: named one-scalar extensions of the model (the shape of
   pysindy's feature libraries), each acting at one **locus**, a part of the plant;
 - the record's sample instants and the instants of its known input **events** (a pulse, a switch-off);
+- its **example records**: records shipped with the package (real or of its reference test), on
+  whose inputs the synthetic check of the diagnosis (:mod:`engine.validation.plant_check`) runs;
 - how to obtain the **measured** channels from one of its records, and how to **simulate** the record's channels on the record's own grid for given parameter and effect
   values (names not given keep their nominal or neutral value).
 
@@ -29,6 +31,7 @@ __all__ = [
     "Channel",
     "FreeParameter",
     "Plant",
+    "free_parameters",
     "relative_error",
     "relative_errors",
 ]
@@ -169,6 +172,10 @@ class Plant(Protocol):
         Parameters refitted with every candidate effect.
     catalogue : mapping of str to CandidateEffect
         The candidate effects.
+    diff_step : float
+        Step of the diagnosis' finite differences, as a share of each parameter's search interval:
+        the smallest step at which the plant's simulated channels change smoothly (a simulation
+        with stick-slip friction is rough on fine scales; a smooth one wants a fine step).
     """
 
     name: str
@@ -176,6 +183,7 @@ class Plant(Protocol):
     channels: tuple[Channel, ...]
     calibrated: tuple[CalibratedParameter, ...]
     catalogue: Mapping[str, CandidateEffect]
+    diff_step: float
 
     def measured(self, record: Any) -> dict[str, np.ndarray]:
         """The record's measured channels, ``name -> samples`` in channel order and unit."""
@@ -194,6 +202,13 @@ class Plant(Protocol):
         """The samples a comparison scores (e.g. without a filter's edge)."""
         ...
 
+    def fixed_by(self, record: Any) -> Mapping[str, float]:
+        """Calibrated parameters whose values the record itself fixes (its known conditions).
+
+        The diagnosis neither fits them nor passes them to :meth:`simulate`; see :func:`free_parameters`.
+        """
+        ...
+
     def synthesize(self, record: Any, values: Mapping[str, float], rng: np.random.Generator) -> Any:
         """A record as the plant's sensors would give it, simulated at ``values`` on ``record``'s inputs and grid.
 
@@ -210,6 +225,30 @@ class Plant(Protocol):
     def time(self, record: Any) -> np.ndarray:
         """The record's sample instants [s]."""
         ...
+
+    @property
+    def examples(self) -> tuple[str, ...]:
+        """Names of the records :meth:`example` gives, the first one the default."""
+        ...
+
+    def example(self, name: str | None = None, seconds: float | None = None) -> Any:
+        """A record shipped with the package (default the first of :attr:`examples`).
+
+        ``seconds`` keeps the record's first seconds where the plant's records can be cut (a long
+        real record); a plant whose records are one short test ignores it.
+
+        Raises
+        ------
+        KeyError
+            For a name not in :attr:`examples`.
+        """
+        ...
+
+
+def free_parameters(plant: Plant, record: Any) -> tuple[CalibratedParameter, ...]:
+    """The plant's calibrated parameters the record leaves free (not in :meth:`Plant.fixed_by`)."""
+    fixed = plant.fixed_by(record)
+    return tuple(p for p in plant.calibrated if p.name not in fixed)
 
 
 def relative_error(measured: np.ndarray, simulated: np.ndarray) -> float:

@@ -18,6 +18,7 @@ measures whether the catalogue's effects can be told apart on this excitation, w
 verdict on the real record rests on.
 
     .venv/bin/python -m engine.validation.plant_check --plant emps --cases 40 --seed 2 --seconds 12
+    .venv/bin/python -m engine.validation.plant_check --plant backlash_drive --cases 40 --seed 2
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from engine.diagnosis.plant_gap import diagnose_plant
-from engine.plants.base import Plant, relative_errors
+from engine.plants.base import Plant, free_parameters, relative_errors
 from engine.validation.stats import wilson_interval
 
 __all__ = ["MIN_EFFECT", "PERTURBATION", "CheckCase", "CheckRow", "draw_cases", "run_check", "summary"]
@@ -127,7 +128,7 @@ def draw_cases(plant: Plant, record: Any, n: int, seed: int) -> list[CheckCase]:
         for _ in range(MAX_REDRAWS):
             cal = {
                 p.name: float(np.clip(p.nominal + PERTURBATION * abs(p.nominal) * rng.uniform(-1, 1), p.lo, p.hi))
-                for p in plant.calibrated
+                for p in free_parameters(plant, record)
             }
             value = float(effect.value(float(rng.uniform(0.0, 1.0))))
             strength = _strength(plant, record, cal, name, value)
@@ -209,27 +210,27 @@ def summary(rows: Sequence[CheckRow]) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: ``--plant emps --cases N --seed S --seconds T --record NAME`` (the first T s of a shipped record)."""
-    from engine.plants import get_plant
+    """Command line: ``--plant NAME --cases N --seed S --record NAME --seconds T`` (a shipped record's inputs)."""
+    from engine.plants import PLANTS, get_plant
 
     p = argparse.ArgumentParser(prog="python -m engine.validation.plant_check", description=__doc__.splitlines()[0])
-    p.add_argument("--plant", default="emps", choices=["emps"])
+    p.add_argument("--plant", default="emps", choices=sorted(PLANTS))
     p.add_argument("--cases", type=int, default=20)
     p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--seconds", type=float, default=12.0, help="length of the record's head the cases use [s]")
     p.add_argument(
-        "--record", default="DATA_EMPS", choices=["DATA_EMPS", "DATA_EMPS_PULSES"], help="whose inputs the cases use"
+        "--seconds",
+        type=float,
+        default=12.0,
+        help="length of the record's head the cases use [s], where the plant's records can be cut",
     )
+    p.add_argument("--record", help="the shipped record whose inputs the cases use (default the plant's first)")
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     logging.getLogger("engine.diagnosis.plant_gap").setLevel(logging.WARNING)
-    from pathlib import Path
-
-    from engine.plants.emps import load_mat
-
     plant = get_plant(args.plant)
-    data = Path(__file__).resolve().parents[1] / "plants" / "emps" / "data" / f"{args.record}.mat"
-    record = load_mat(data).head(args.seconds)
+    if args.record is not None and args.record not in plant.examples:
+        p.error(f"plant {args.plant} ships the records {', '.join(plant.examples)}, not {args.record!r}")
+    record = plant.example(args.record, args.seconds)
     cases = draw_cases(plant, record, args.cases, args.seed)
     sys.stdout.write(summary(run_check(plant, record, cases, args.seed)))
     return 0

@@ -33,7 +33,7 @@ from engine.plants.base import CalibratedParameter, CandidateEffect, Channel
 from engine.plants.emps import _kernel as k
 from engine.plants.emps.catalogue import CATALOGUE, EFFECT_FIELDS, LOCI
 from engine.plants.emps.channels import N_BORDER, measured_channels, process
-from engine.plants.emps.record import EmpsRecord, load_record
+from engine.plants.emps.record import EmpsRecord, load_mat, load_record
 
 __all__ = [
     "CALIBRATED",
@@ -69,6 +69,16 @@ FLEX_DAMPING_RATIO: float = 0.05
 #: encoder's 50 000 counts per revolution (report, section 2.2) and the files' position quantum of
 #: 50 nm (the smallest step of qm): 50 000 x 50 nm = 2.5 mm.
 POSITION_FRICTION_PERIOD: float = 2.5e-3
+
+#: Step of the diagnosis' finite differences, as a share of a parameter's interval. Coarse on
+#: purpose: the simulation with Coulomb friction chatters at standstill, so its cost is rough on
+#: scales of 1e-3 of an interval and finer differences send the solver the roughness, not the slope
+#: (a fit of DATA_EMPS stopped at its start with 1e-3).
+DIFF_STEP: float = 1e-2
+
+#: The benchmark's records shipped with the package (estimation, validation) and where they are.
+EXAMPLES: tuple[str, ...] = ("DATA_EMPS", "DATA_EMPS_PULSES")
+DATA_DIR: Path = Path(__file__).resolve().parent / "data"
 
 #: The encoder's position quantum, load side [m]: the smallest step of qm in the files.
 ENCODER_QUANTUM: float = 5e-8
@@ -158,6 +168,7 @@ class EmpsPlant:
     channels: tuple[Channel, ...] = CHANNELS
     calibrated: tuple[CalibratedParameter, ...] = CALIBRATED
     catalogue: Mapping[str, CandidateEffect] = MappingProxyType(CATALOGUE)
+    diff_step: float = DIFF_STEP
 
     def __init__(self, n_substeps: int = N_SUBSTEPS, fixed: Mapping[str, float] | None = None) -> None:
         self.n_substeps = n_substeps
@@ -166,6 +177,19 @@ class EmpsPlant:
         if unknown:
             raise KeyError(f"unknown EMPS parameter(s) {sorted(unknown)}")
 
+    @property
+    def examples(self) -> tuple[str, ...]:
+        """The benchmark's two records as distributed: estimation, then validation (pulses)."""
+        return EXAMPLES
+
+    def example(self, name: str | None = None, seconds: float | None = None) -> EmpsRecord:
+        """A shipped record (``engine/plants/emps/data``), its first ``seconds`` if given."""
+        name = name or EXAMPLES[0]
+        if name not in EXAMPLES:
+            raise KeyError(f"unknown EMPS record {name!r}; shipped: {', '.join(EXAMPLES)}")
+        record = load_mat(DATA_DIR / f"{name}.mat")
+        return record if seconds is None else record.head(seconds)
+
     def read(self, path: str | Path) -> EmpsRecord:
         """Read a ``.mat`` (as distributed) or ``.csv`` record (:mod:`engine.plants.emps.record`)."""
         return load_record(path)
@@ -173,6 +197,10 @@ class EmpsPlant:
     def measured(self, record: EmpsRecord) -> dict[str, np.ndarray]:
         """Measured channels (:func:`engine.plants.emps.channels.measured_channels`)."""
         return measured_channels(record)
+
+    def fixed_by(self, record: EmpsRecord) -> dict[str, float]:
+        """None: a record fixes the loop's gains, which are not calibrated parameters."""
+        return {}
 
     def scored(self, record: EmpsRecord) -> slice:
         """The authors' comparison window: from sample 50 (1-based) to the end."""

@@ -50,18 +50,13 @@ def reproduce(plant: EmpsPlant, record: EmpsRecord, through_chain: bool = False)
 
 def table() -> str:
     """Markdown table of ours beside the published errors, on the shipped records (and like with like)."""
-    from pathlib import Path
-
-    from engine.plants.emps.record import load_mat
-
-    data = Path(__file__).resolve().parent / "data"
     plant = EmpsPlant()
     lines = [
         "| record | channel | published [%] | ours [%] | ours, simulation through the measurement chain [%] |",
         "| --- | --- | ---: | ---: | ---: |",
     ]
     for name, published in PUBLISHED_ERRORS.items():
-        record = load_mat(data / f"{name}.mat")
+        record = plant.example(name)
         ours, chain = reproduce(plant, record), reproduce(plant, record, through_chain=True)
         lines += [f"| {name} | {c} | {published[c]:.4g} | {ours[c]:.4g} | {chain[c]:.4g} |" for c in published]
     return "\n".join(lines) + "\n"
