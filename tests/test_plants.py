@@ -13,7 +13,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from engine.diagnosis.plant_gap import PlantObjective, absorbed_effects, calibrate, diagnose_plant, fit, rank_effects
+from engine.diagnosis.plant_gap import (
+    PlantObjective,
+    absorbed_effects,
+    calibrate,
+    correlation_time,
+    diagnose_plant,
+    fit,
+    integrated_time,
+    rank_effects,
+)
 from engine.plants import Plant, get_plant, relative_error
 from engine.plants.backlash_drive import BacklashDrivePlant
 from engine.plants.emps import PUBLISHED, EmpsPlant, EmpsRecord, load_csv, load_mat
@@ -115,6 +124,18 @@ def test_the_generic_diagnosis_names_an_effect_on_the_backlash_drive(drive_recor
     assert max(after.values()) < 0.2 * max(before.values())
     assert answer["where"] and answer["where"][0]["channel"] in before
     assert 0.0 <= answer["event_share"]["samples"]["share"] <= 1.0
+
+
+def test_the_integrated_time_is_one_on_white_noise_and_the_ar1_value_on_correlated_noise() -> None:
+    """AR(1) with coefficient phi has tau = (1 + phi) / (1 - phi) (19 for phi = 0.9)."""
+    rng = np.random.default_rng(5)
+    white = rng.standard_normal(20_000)
+    assert integrated_time(white) == pytest.approx(1.0, abs=0.15)
+    ar = np.zeros_like(white)
+    for i in range(1, ar.size):
+        ar[i] = 0.9 * ar[i - 1] + white[i]
+    assert integrated_time(ar) == pytest.approx(19.0, rel=0.2)
+    assert correlation_time([white, 3.0 * ar]) > 0.9 * integrated_time(ar)  # weighted by energy
 
 
 def test_every_plant_ships_an_example_record_it_can_simulate() -> None:

@@ -29,9 +29,14 @@ Method
   named, and the answer lists them as ``absorbed_by_calibration``.
 - **How far**: the relative error per channel before and after.
 
-Uncertainties are the linearised least-squares ones, scaled by the residual's own RMS. On a real
-record the residual is model error, correlated in time, so they are lower bounds; the cross-record
-check (calibrate on one record, score the other) is the better measure of what holds.
+Uncertainties are the linearised least-squares ones, scaled by the residual's own RMS and by its
+integrated autocorrelation time tau (:func:`correlation_time`): n samples of a residual correlated
+over tau samples carry about n / tau independent ones. On white noise tau is 1 and nothing changes;
+on a real record the residual is model error, correlated over many samples, and the inflation is
+large (DATA_EMPS: see ``docs/real-data.md``). This assumes a stationary residual and columns of the
+Jacobian no rougher than it (a scalar inflation, not a full sandwich estimate): a better figure than
+the plain least-squares one, still not an interval to bet on; the cross-record check (calibrate on
+one record, score the other) is the better measure of what holds.
 """
 
 from __future__ import annotations
@@ -44,7 +49,7 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import butter, correlate, sosfiltfilt
 
 from engine.plants.base import CalibratedParameter, Plant, free_parameters
 
@@ -61,8 +66,10 @@ __all__ = [
     "calibrate",
     "diagnose_plant",
     "event_shares",
+    "correlation_time",
     "fit",
     "gap_budget",
+    "integrated_time",
     "localise",
     "rank_effects",
     "relative_errors",
@@ -97,6 +104,9 @@ MAX_SET: int = 3
 #: Function evaluations per least-squares fit (the step of its finite differences is the plant's
 #: own :attr:`~engine.plants.base.Plant.diff_step`: how rough its simulation is depends on the plant).
 MAX_NFEV: int = 60
+#: Window constant of the integrated autocorrelation time (:func:`integrated_time`; Sokal's c, 5 for
+#: a residual whose correlation decays roughly exponentially).
+SOKAL_WINDOW: float = 5.0
 
 
 @dataclass(frozen=True)
@@ -405,7 +415,8 @@ def fit(
         raise RuntimeError(f"least squares failed on {[p.name for p in free]}: {res.message}")
     cost = float(res.fun @ res.fun)
     dof = max(res.fun.size - len(free), 1)
-    s2 = cost / dof
+    # correlated residuals carry fewer independent samples than they have: inflate by tau
+    s2 = cost / dof * correlation_time(np.split(res.fun, len(obj.channels)))
     jac = np.asarray(res.jac)
     scale = np.linalg.norm(jac, axis=0)
     flat = scale <= 1e-9 * max(float(scale.max()), 1e-300)  # the record does not move the cost along it
@@ -421,6 +432,35 @@ def fit(
         ui = float(zi) - 1.0
         unc[p.name] = float(abs(p.dvalue_du(ui)) * su)
     return Fit(values(res.x), tuple(p.name for p in free), cost, unc, obj.n_eval - n0)
+
+
+def integrated_time(x: np.ndarray, c: float = SOKAL_WINDOW) -> float:
+    """Integrated autocorrelation time of a residual, in samples (1 for white noise).
+
+    ``tau = 1 + 2 sum_{k=1}^{M} rho_k``, with rho the sample autocorrelation (scipy's FFT
+    correlation of the mean-removed signal) and M the smallest lag with ``M >= c tau(M)``
+    (Sokal's automatic window; A. Sokal, "Monte Carlo methods in statistical mechanics", 1997,
+    section 3). Never below 1.
+    """
+    x = np.asarray(x, dtype=float) - float(np.mean(x))
+    n = x.size
+    if n < 4 or not np.any(x):
+        return 1.0
+    acf = correlate(x, x, mode="full", method="fft")[n - 1 :]
+    rho = acf / acf[0]
+    taus = 1.0 + 2.0 * np.cumsum(rho[1:])
+    ok = np.flatnonzero(np.arange(1, n) >= c * taus)
+    tau = float(taus[ok[0]]) if ok.size else float(taus[-1])
+    return max(tau, 1.0)
+
+
+def correlation_time(residuals: Sequence[np.ndarray]) -> float:
+    """:func:`integrated_time` of several channels' residuals, weighted by their squared norms."""
+    weights = np.array([float(r @ r) for r in residuals])
+    if weights.sum() == 0.0:
+        return 1.0
+    taus = np.array([integrated_time(r) for r in residuals])
+    return float(weights @ taus / weights.sum())
 
 
 def calibrate(plant: Plant, record: Any, objective: PlantObjective | None = None) -> Fit:
