@@ -7,6 +7,8 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, FiniteFloat
 
 from app.schemas.common import RecordIn
+from engine.plants.brfd import BrfdRecord
+from engine.plants.brfd.record import from_json_object
 from engine.plants.emps import EmpsRecord
 from engine.plants.emps.record import record_from_arrays
 
@@ -17,7 +19,8 @@ class DiagnoseCreate(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     plant: Literal["backlash_drive"] = Field(
-        default="backlash_drive", description="The plant the record is of; `emps` takes an EMPS record instead."
+        default="backlash_drive",
+        description="The plant the record is of; `emps` and `brfd` take their own records instead.",
     )
     record: RecordIn
     effects: list[str] | None = Field(
@@ -61,8 +64,46 @@ class EmpsRecordIn(BaseModel):
         return record_from_arrays(arrays, {"kp": self.kp, "kv": self.kv, "gtau": self.gtau}, self.name)
 
 
+class BrfdRecordIn(BaseModel):
+    """One BRFD record as the data set's JSON file holds it (inches and kips, converted once by the engine)."""
+
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+
+    name: str = Field(default="record", max_length=200, description="Name of the record (echoed in the answer).")
+    data: list[list[FiniteFloat]] = Field(
+        description="One row per sample: time [s], displacement, friction force (then velocity and the actuator "
+        "forces, which are not used)."
+    )
+    dt: FiniteFloat | None = Field(default=None, description="Sample interval [s] (checked against the time column).")
+    sampling_freq: FiniteFloat | None = Field(default=None, alias="sampling freq", description="[Hz], informative.")
+    time_units: str = Field(default="s", alias="time units")
+    displacement_units: str = Field(default="in", alias="displacement units", description="in, mm or m.")
+    friction_force_units: str = Field(default="kip", alias="friction force units", description="kip, lb, kN or N.")
+    actuator_force_units: str | None = Field(default=None, alias="actuator force units", description="Not used.")
+
+    def to_record(self) -> BrfdRecord:
+        """The engine's record, in SI units and checked (RecordError, 422, says what to fix)."""
+        obj = self.model_dump(by_alias=True, exclude_none=True, exclude={"name"})
+        return from_json_object(obj, self.name)
+
+
+class BrfdDiagnoseCreate(BaseModel):
+    """Diagnose a record of the BRFD friction damper (``"plant": "brfd"``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    plant: Literal["brfd"] = Field(description="The plant the record is of.")
+    record: BrfdRecordIn
+    calibrate_on: BrfdRecordIn | None = Field(
+        default=None, description="Calibrate on this record of the same plant instead (the cross-record check)."
+    )
+    hold_calibration: bool = Field(
+        default=False, description="Hold the calibrated parameters while fitting effects (default: refit them)."
+    )
+
+
 class PlantDiagnoseCreate(BaseModel):
-    """Diagnose a record of another plant than the backlash drive (``"plant": "emps"``)."""
+    """Diagnose a record of the EMPS benchmark (``"plant": "emps"``)."""
 
     model_config = ConfigDict(extra="forbid")
 

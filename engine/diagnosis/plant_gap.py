@@ -94,9 +94,6 @@ ABSORBED_RATIO: float = 0.25
 BANDS: tuple[tuple[float, float], ...] = ((0.0, 2.0), (2.0, 10.0), (10.0, 30.0), (30.0, 100.0))
 #: Length of a time window of the localisation [s].
 WINDOW: float = 0.1
-#: Span around each of the plant's input events within which residual energy is counted as the
-#: event's [s]: from 20 ms before to 80 ms after (a closed-loop transient of the EMPS rings ~60 ms).
-EVENT_SPAN: tuple[float, float] = (-0.02, 0.08)
 #: Cells of the localisation reported.
 TOP_CELLS: int = 8
 #: Largest number of effects in a set.
@@ -203,7 +200,7 @@ class PlantGapReport:
         over the other two axes of the localisation.
     event_share : dict
         ``{"before": {channel: share}, "after": {...}, "samples": {"share": s}}``: the share of each
-        channel's residual energy within :data:`EVENT_SPAN` of the plant's input events, before and
+        channel's residual energy within the plant's ``event_span`` of the plant's input events, before and
         after, beside the share of samples there (empty dicts without events).
     ranking : list of EffectFit
         Every single effect, best first.
@@ -663,7 +660,7 @@ def event_shares(
     Returns
     -------
     shares : dict of str to float
-        Per channel, the share of its residual energy within :data:`EVENT_SPAN` of an event
+        Per channel, the share of its residual energy within the plant's ``event_span`` of an event
         (empty when the record has no events).
     samples : float
         The share of the scored samples within those spans (what the energy share would be if
@@ -676,7 +673,7 @@ def event_shares(
         return {}, 0.0
     near = np.zeros(t.size, dtype=bool)
     for te in events:
-        near |= (t >= te + EVENT_SPAN[0]) & (t < te + EVENT_SPAN[1])
+        near |= (t >= te + plant.event_span[0]) & (t < te + plant.event_span[1])
     res = obj.residuals(values)
     shares = {c: float(res[c][near] @ res[c][near] / max(res[c] @ res[c], 1e-300)) for c in obj.channels}
     return shares, float(near.mean())

@@ -1,7 +1,8 @@
 """Plants the gap diagnosis can work on, behind one interface (:mod:`engine.plants.base`).
 
 ``backlash_drive`` is the reference plant of MODEL.md; ``emps`` is the EMPS benchmark's
-positioning axis, real measurements (:mod:`engine.plants.emps`).
+positioning axis, real measurements (:mod:`engine.plants.emps`); ``brfd`` a friction damper with
+a real play, real measurements (:mod:`engine.plants.brfd`).
 """
 
 from __future__ import annotations
@@ -31,6 +32,12 @@ def _backlash_drive() -> Plant:
     return BacklashDrivePlant()
 
 
+def _brfd() -> Plant:
+    from engine.plants.brfd import BrfdPlant
+
+    return BrfdPlant()
+
+
 def _emps() -> Plant:
     from engine.plants.emps import EmpsPlant
 
@@ -38,7 +45,7 @@ def _emps() -> Plant:
 
 
 #: Registry: plant name -> constructor (imported lazily, so one plant's kernel is compiled only when used).
-PLANTS: dict[str, Callable[[], Plant]] = {"backlash_drive": _backlash_drive, "emps": _emps}
+PLANTS: dict[str, Callable[[], Plant]] = {"backlash_drive": _backlash_drive, "brfd": _brfd, "emps": _emps}
 
 
 def get_plant(name: str) -> Plant:

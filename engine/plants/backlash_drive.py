@@ -65,6 +65,8 @@ class BacklashDrivePlant:
     )
 
     diff_step: float = DIFF_STEP
+    #: the backlash test's transient: from 5 ms before the event t_e to 50 ms after it
+    event_span: tuple[float, float] = (-0.005, 0.05)
 
     def __init__(self, solver: SolverSettings | None = None) -> None:
         self.solver = solver or SolverSettings()

@@ -172,6 +172,9 @@ class Plant(Protocol):
         Parameters refitted with every candidate effect.
     catalogue : mapping of str to CandidateEffect
         The candidate effects.
+    event_span : tuple of float
+        From when to when around each input event (:meth:`events`) residual energy counts as the
+        event's [s] (the plant's transient after an event).
     diff_step : float
         Step of the diagnosis' finite differences, as a share of each parameter's search interval:
         the smallest step at which the plant's simulated channels change smoothly (a simulation
@@ -184,6 +187,7 @@ class Plant(Protocol):
     calibrated: tuple[CalibratedParameter, ...]
     catalogue: Mapping[str, CandidateEffect]
     diff_step: float
+    event_span: tuple[float, float]
 
     def measured(self, record: Any) -> dict[str, np.ndarray]:
         """The record's measured channels, ``name -> samples`` in channel order and unit."""

@@ -409,6 +409,28 @@ def test_unit_help_lists_the_engines_units() -> None:
         assert all(u in section for u in units), (channel, section)
 
 
+def test_diagnose_a_brfd_record_as_distributed(env: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--plant brfd`` reads the data set's JSON file as it is and writes the force overlay."""
+    path = (
+        Path(__file__).resolve().parents[2]
+        / "engine"
+        / "plants"
+        / "brfd"
+        / "data"
+        / "dataset-2_2Hz30lbtension0.5amplitude.json"
+    )
+    code, out, err = run(capsys, "diagnose", "--plant", "brfd", str(path), "--plots", str(tmp_path / "plots"))
+    assert code == 0, err
+    result = json.loads(out)
+    assert result["plant"] == "brfd" and set(result["relative_error"]["before"]) == {"force"}
+    assert result["event_share"]["samples"]["share"] > 0  # the reversals are the record's events
+    assert (tmp_path / "plots" / "overlay_force.png").stat().st_size > 0
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"data": [[0.0, 0.0, 0.0]] * 2000, "dt": 0.0009765625}))
+    code, _, err = run(capsys, "diagnose", "--plant", "brfd", str(bad))
+    assert code == 2 and "'dt' says" in err  # refused with what is wrong, not misread
+
+
 def test_diagnose_an_emps_record_in_csv_form(env: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """``--plant emps`` reads the CSV form, answers in the plant's channels and writes its plots."""
     from engine.plants.emps import load_mat

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
 from typing import Any
 
 import httpx
@@ -66,6 +68,32 @@ def test_diagnose_an_emps_record_over_http(client: httpx.Client) -> None:
     errors = body["relative_error"]
     assert set(errors["before"]) == set(errors["after"]) == {"position", "velocity", "acceleration", "force"}
     assert sum(errors["after"].values()) <= sum(errors["before"].values())
+
+
+BRFD_2HZ = (
+    Path(__file__).resolve().parents[2]
+    / "engine"
+    / "plants"
+    / "brfd"
+    / "data"
+    / "dataset-2_2Hz30lbtension0.5amplitude.json"
+)
+
+
+def test_diagnose_a_brfd_record_over_http_as_the_data_set_gives_it(client: httpx.Client) -> None:
+    """``"plant": "brfd"``: the data set's JSON object as it is (inches, kips), answered in SI units."""
+    record = {"name": "2Hz", **json.loads(BRFD_2HZ.read_text())}
+    r = client.post("/v1/diagnose", json={"plant": "brfd", "record": record}, timeout=300)
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert body["plant"] == "brfd" and body["record"] == "2Hz"
+    assert set(body["relative_error"]["before"]) == {"force"}
+    assert body["relative_error"]["after"]["force"] < body["relative_error"]["before"]["force"]
+    assert body["calibration"]["units"] == {"Fc": "N", "sigma0": "N/m"}
+    bad = {**record, "friction force units": "tonnes"}
+    r = client.post("/v1/diagnose", json={"plant": "brfd", "record": bad})
+    assert r.status_code == 422 and "force unit 'tonnes'" in r.json()["detail"]
+    assert client.get("/healthz").status_code == 200
 
 
 def test_diagnose_refuses_an_emps_record_it_cannot_read(client: httpx.Client) -> None:

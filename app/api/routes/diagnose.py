@@ -11,12 +11,18 @@ from starlette.concurrency import run_in_threadpool
 from app.api.deps import CSV_QUERY, CSVRecordDep, body_kind, csv_record, json_body, reject_query
 from app.api.openapi import body_schema
 from app.schemas.common import ErrorPublic
-from app.schemas.diagnose import DiagnoseCreate, PlantDiagnoseCreate
+from app.schemas.diagnose import BrfdDiagnoseCreate, DiagnoseCreate, PlantDiagnoseCreate
 from app.services import diagnosis, plant_diagnosis
 from app.services.plant_diagnosis import PlantRecords
 from engine.diagnosis.space import check_bounds
 from engine.plants import DEFAULT_PLANT, get_plant
 from engine.simulation import CATALOGUE
+
+#: Request schema per plant other than the default.
+PLANT_SCHEMAS: dict[str, type[PlantDiagnoseCreate] | type[BrfdDiagnoseCreate]] = {
+    "emps": PlantDiagnoseCreate,
+    "brfd": BrfdDiagnoseCreate,
+}
 
 router = APIRouter(prefix="/diagnose", tags=["diagnose"])
 
@@ -33,7 +39,7 @@ def _names_another_plant(raw: bytes) -> bool:
 @router.post(
     "",
     summary="Diagnose the gap between a record and the model",
-    openapi_extra=body_schema(DiagnoseCreate, csv=True, alternatives=(PlantDiagnoseCreate,)),
+    openapi_extra=body_schema(DiagnoseCreate, csv=True, alternatives=tuple(PLANT_SCHEMAS.values())),
     responses={
         422: {"model": ErrorPublic, "description": "Invalid record, unknown effect, or a record the model cannot fit"},
     },
@@ -46,8 +52,9 @@ async def diagnose(request: Request, csv_params: CSVRecordDep) -> Any:
     known conditions as query parameters).
 
     ``"plant": "emps"`` diagnoses a record of the EMPS benchmark instead (``PlantDiagnoseCreate``: the record's
-    signals and gains as its .mat file holds them, optionally ``calibrate_on`` another record and
-    ``hold_calibration``); the answer then carries ``relative_error`` before and after per channel.
+    signals and gains as its .mat file holds them), ``"plant": "brfd"`` one of the BRFD friction damper
+    (``BrfdDiagnoseCreate``: the data set's JSON object as it is); optionally ``calibrate_on`` another record
+    and ``hold_calibration``; the answer then carries ``relative_error`` before and after per channel.
 
     The record may be on any grid (10 us to 1 ms, any length covering the test window, the event given or
     located, any accepted units); it is fitted on its own instants, ``record`` in the answer says how it was
@@ -57,7 +64,9 @@ async def diagnose(request: Request, csv_params: CSVRecordDep) -> Any:
     bounds = None
     if body_kind(request) != "csv" and _names_another_plant(await request.body()):
         reject_query(request, CSV_QUERY)
-        other = await json_body(request, PlantDiagnoseCreate)
+        raw = json.loads(await request.body())
+        schema = PLANT_SCHEMAS.get(str(raw.get("plant")), PlantDiagnoseCreate)  # an unknown name: 422 from the schema
+        other = await json_body(request, schema)
         records = PlantRecords(
             get_plant(other.plant),
             other.record.to_record(),

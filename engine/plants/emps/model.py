@@ -169,6 +169,9 @@ class EmpsPlant:
     calibrated: tuple[CalibratedParameter, ...] = CALIBRATED
     catalogue: Mapping[str, CandidateEffect] = MappingProxyType(CATALOGUE)
     diff_step: float = DIFF_STEP
+    #: residual energy from 20 ms before to 80 ms after a pulse edge counts as the edge's (the
+    #: closed loop rings about 60 ms)
+    event_span: tuple[float, float] = (-0.02, 0.08)
 
     def __init__(self, n_substeps: int = N_SUBSTEPS, fixed: Mapping[str, float] | None = None) -> None:
         self.n_substeps = n_substeps

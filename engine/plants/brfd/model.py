@@ -1,0 +1,218 @@
+"""The BRFD as a plant: displacement in, friction force out.
+
+Nominal model (a documented choice, see ``docs/brfd.md``): a **Dahl-type friction element**, i.e.
+LuGre with its micro-damping sigma1 = 0, integrated in the displacement domain (exact exponential
+per sample, :mod:`engine.plants.brfd._kernel`). Two calibrated parameters: the Coulomb level Fc [N]
+and the pre-sliding stiffness sigma0 [N/m]. Why Dahl/LuGre: the makers model the device with LuGre;
+the pre-sliding stiffness gives the force's finite slope after a reversal (an elasto-plastic
+element has it too but with a corner a record does not show); sigma1 matters only for the
+micro-motion dynamics, which an imposed 1024 Hz displacement does not resolve; Stribeck,
+asymmetry and viscous terms enter LuGre's g(v) and sigma2 as catalogue effects. Bouc-Wen would add
+shape parameters the catalogue's effects would then compete with.
+
+Input: the measured displacement, low-passed with a zero-phase 4th-order Butterworth at
+:data:`INPUT_CUTOFF` (the transducer's 1.5 um quantum would otherwise dither the element at every
+sample), delayed by the ``delay`` effect (linear interpolation). Output: the load cell's force,
+``gain F + offset``. The scored samples start after :data:`SETTLE` (the element starts unloaded,
+which the record need not).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+
+import numpy as np
+from scipy.signal import butter, sosfiltfilt
+
+from engine.plants.base import CalibratedParameter, CandidateEffect, Channel
+from engine.plants.brfd import _kernel as k
+from engine.plants.brfd.catalogue import CATALOGUE, EFFECT_FIELDS, LOCI
+from engine.plants.brfd.record import BrfdRecord, load_json, load_record
+
+__all__ = [
+    "CALIBRATED",
+    "CHANNELS",
+    "DIFF_STEP",
+    "EXAMPLES",
+    "BrfdParameters",
+    "BrfdPlant",
+]
+
+#: Cut-off of the zero-phase low-pass on the displacement input [Hz] (the sinusoidal tests run at
+#: 0.1-2 Hz; the earthquake histories hold little above 10 Hz).
+INPUT_CUTOFF: float = 30.0
+#: Velocity scale of the Stribeck effect [m/s].
+STRIBECK_VELOCITY: float = 0.01
+#: Retreat from the running extreme of x that counts as a reversal [m] (the wind-up of the
+#: self-energizing effect restarts there; 0.1 mm, far above the transducer's 1.5 um quantum).
+REVERSAL_TOLERANCE: float = 1e-4
+#: Time at the start of a record not scored [s] (the element starts unloaded).
+SETTLE: float = 0.25
+#: Share of the force's RMS drawn as white noise on a synthetic record's force.
+SYNTHETIC_NOISE_SHARE: float = 0.02
+#: Step of the diagnosis' finite differences, as a share of a parameter's interval (the force is
+#: piecewise smooth in the parameters; the play's edges make finer steps noisy).
+DIFF_STEP: float = 1e-3
+#: The shipped records (``engine/plants/brfd/data``) and where they are.
+EXAMPLES: tuple[str, ...] = (
+    "dataset-2_1Hz30lbtension1amplitude",
+    "dataset-2_2Hz30lbtension0.5amplitude",
+    "dataset-2_ImperialValleyDBE",
+)
+DATA_DIR: Path = Path(__file__).resolve().parent / "data"
+
+#: The channels of this plant.
+CHANNELS: tuple[Channel, ...] = (Channel("force", "N", "friction force from the load cell (the file's kip x 4448.22)"),)
+
+#: The calibrated parameters: nominal values and plausible intervals.
+CALIBRATED: tuple[CalibratedParameter, ...] = (
+    CalibratedParameter("Fc", 200.0, 40_000.0, "N", True, nominal=8000.0),
+    CalibratedParameter("sigma0", 1e5, 1e9, "N/m", True, nominal=1e7),
+)
+
+
+@dataclass(frozen=True)
+class BrfdParameters:
+    """Every parameter of the model, in SI units (module docstring; effects' neutral values as defaults)."""
+
+    Fc: float = 8000.0
+    sigma0: float = 1e7
+    play: float = 0.0
+    kappa: float = 0.0
+    stribeck: float = 0.0
+    asym: float = 0.0
+    sigma2: float = 0.0
+    c_link: float = 0.0
+    offset: float = 0.0
+    gain: float = 1.0
+    delay: float = 0.0
+
+    def vector(self) -> np.ndarray:
+        """The kernel's parameter vector (the linkage compliance folded into the element's stiffness)."""
+        p = np.zeros(k.N_PARAMS)
+        p[k.P_SIGMA0] = self.sigma0 / (1.0 + self.sigma0 * self.c_link)
+        p[k.P_FC] = self.Fc
+        p[k.P_SIGMA2] = self.sigma2
+        p[k.P_FS] = self.stribeck * self.Fc
+        p[k.P_VS] = STRIBECK_VELOCITY
+        p[k.P_ASYM] = self.asym
+        p[k.P_PLAY] = self.play
+        p[k.P_KAPPA] = self.kappa
+        p[k.P_REV_TOL] = REVERSAL_TOLERANCE
+        return p
+
+
+def input_displacement(record: BrfdRecord) -> np.ndarray:
+    """The displacement the model is driven with [m]: the record's, low-passed (module docstring)."""
+    sos = butter(4, INPUT_CUTOFF / (0.5 / record.ts), btype="low", output="sos")
+    return sosfiltfilt(sos, record.x)
+
+
+class BrfdPlant:
+    """The banded rotary friction damper as a :class:`~engine.plants.base.Plant`."""
+
+    name: str = "brfd"
+    loci: tuple[str, ...] = LOCI
+    channels: tuple[Channel, ...] = CHANNELS
+    calibrated: tuple[CalibratedParameter, ...] = CALIBRATED
+    catalogue: Mapping[str, CandidateEffect] = MappingProxyType(CATALOGUE)
+    diff_step: float = DIFF_STEP
+    #: the backlash regime right after a reversal (a few mm of play at the reversal's low speed)
+    event_span: tuple[float, float] = (0.0, 0.08)
+
+    @property
+    def examples(self) -> tuple[str, ...]:
+        """The shipped records: a 1 Hz and a 2 Hz sinusoidal test at 30 lb, an earthquake history."""
+        return EXAMPLES
+
+    def example(self, name: str | None = None, seconds: float | None = None) -> BrfdRecord:
+        """A shipped record, its first ``seconds`` if given."""
+        name = name or EXAMPLES[0]
+        if name not in EXAMPLES:
+            raise KeyError(f"unknown BRFD record {name!r}; shipped: {', '.join(EXAMPLES)}")
+        record = load_json(DATA_DIR / f"{name}.json")
+        return record if seconds is None else record.head(seconds)
+
+    def read(self, path: str | Path) -> BrfdRecord:
+        """Read a ``.json`` (as distributed) or ``.csv`` record (:mod:`engine.plants.brfd.record`)."""
+        return load_record(path)
+
+    def fixed_by(self, record: BrfdRecord) -> dict[str, float]:
+        """None: the band tension is known but not a model parameter."""
+        return {}
+
+    def measured(self, record: BrfdRecord) -> dict[str, np.ndarray]:
+        """The load cell's force [N]."""
+        return {"force": np.asarray(record.force, dtype=float)}
+
+    def scored(self, record: BrfdRecord) -> slice:
+        """Every sample after :data:`SETTLE`."""
+        return slice(round(SETTLE / record.ts), None)
+
+    def time(self, record: BrfdRecord) -> np.ndarray:
+        """The record's sample instants [s]."""
+        return record.t
+
+    def events(self, record: BrfdRecord) -> np.ndarray:
+        """The reversals of the imposed displacement [s] (the backlash regime follows each)."""
+        return record.t[k.reversals(input_displacement(record), REVERSAL_TOLERANCE)]
+
+    def parameters(self, values: Mapping[str, float]) -> BrfdParameters:
+        """Model parameters from calibrated and effect values by name (others nominal or neutral).
+
+        Raises
+        ------
+        KeyError
+            For an unknown name.
+        """
+        fields: dict[str, float] = {}
+        for name, v in values.items():
+            if name in EFFECT_FIELDS:
+                fields[EFFECT_FIELDS[name]] = float(v)
+            elif name in {p.name for p in CALIBRATED}:
+                fields[name] = float(v)
+            else:
+                raise KeyError(f"unknown BRFD parameter or effect {name!r}")
+        return BrfdParameters(**fields)
+
+    def simulate(self, record: BrfdRecord, values: Mapping[str, float]) -> dict[str, np.ndarray]:
+        """The force [N] simulated on the record's grid from its displacement.
+
+        Raises
+        ------
+        KeyError
+            For an unknown name.
+        RuntimeError
+            When the kernel produces a non-finite force.
+        """
+        p = self.parameters(values)
+        x = input_displacement(record)
+        if p.delay != 0.0:
+            x = np.interp(record.t - p.delay, record.t, x)
+        force = np.empty(record.n)
+        contact = np.empty(record.n, dtype=np.int8)
+        status = k.transmitted_force(x, record.ts, p.vector(), force, contact)
+        if status != 0:
+            raise RuntimeError(f"BRFD simulation failed (status {status}) at {values}")
+        return {"force": p.gain * force + p.offset}
+
+    def contact(self, record: BrfdRecord, values: Mapping[str, float]) -> np.ndarray:
+        """Whether the linkage is in contact (True) or inside its play (False), per sample."""
+        p = self.parameters(values)
+        x = input_displacement(record)
+        if p.delay != 0.0:
+            x = np.interp(record.t - p.delay, record.t, x)
+        force = np.empty(record.n)
+        contact = np.empty(record.n, dtype=np.int8)
+        k.transmitted_force(x, record.ts, p.vector(), force, contact)
+        return contact.astype(bool)
+
+    def synthesize(self, record: BrfdRecord, values: Mapping[str, float], rng: np.random.Generator) -> BrfdRecord:
+        """A record like ``record`` whose force is simulated at ``values`` plus white noise."""
+        f = self.simulate(record, values)["force"]
+        sd = SYNTHETIC_NOISE_SHARE * float(np.sqrt(np.mean(f**2)))
+        return dataclasses.replace(record, force=f + rng.normal(0.0, sd, f.size), name=f"synthetic({record.name})")
