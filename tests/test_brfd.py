@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from engine.diagnosis.plant_gap import PlantObjective, calibrate, diagnose_plant, fit
+from engine.identification.plant_width import fit_width
 from engine.plants import Plant, get_plant
 from engine.plants.brfd import BrfdPlant, BrfdRecord, load_csv, load_json
 from engine.plants.brfd.record import FORCE_UNITS, LENGTH_UNITS
@@ -22,6 +23,7 @@ from engine.records import RecordError
 DATA = Path(__file__).resolve().parents[1] / "engine" / "plants" / "brfd" / "data"
 SINE_1HZ = "dataset-2_1Hz30lbtension1amplitude"
 SINE_2HZ = "dataset-2_2Hz30lbtension0.5amplitude"
+QUAKE = "dataset-2_ImperialValleyDBE"
 
 
 @pytest.fixture(scope="module")
@@ -139,3 +141,33 @@ def test_the_width_is_the_same_on_two_sine_tests_within_their_uncertainties(
     (b1, s1), (b2, s2) = widths
     assert b1 > 3 * s1 and b2 > 3 * s2  # identifiable on each
     assert abs(b1 - b2) <= 2 * np.hypot(s1, s2), widths
+
+
+def test_a_synthetic_play_is_identified_with_an_interval_that_holds_it(
+    brfd: BrfdPlant, records: dict[str, BrfdRecord]
+) -> None:
+    synthetic = brfd.synthesize(
+        records[SINE_2HZ], {"Fc": 9000.0, "sigma0": 3e6, "backlash": 0.003}, np.random.default_rng(4)
+    )
+    width = fit_width(brfd, [synthetic])
+    assert width.identifiable, width.reasons
+    assert width.interval[0] <= 0.003 <= width.interval[1]
+    assert abs(width.K - 0.003) <= 3 * width.sigma_K
+    answer = width.to_dict()
+    assert answer["K"] == width.K and set(answer["correlation_with_K"]) == {"Fc", "sigma0"}
+
+
+def test_a_width_the_data_cannot_fix_is_reported_not_identifiable_with_the_reason(
+    brfd: BrfdPlant, records: dict[str, BrfdRecord]
+) -> None:
+    """Measured on the shipped earthquake record: the model error leaves the play's profile flat."""
+    width = fit_width(brfd, [records[QUAKE].head(10.0)])
+    assert not width.identifiable and width.reasons
+    answer = width.to_dict()
+    assert answer["K"] is None and answer["sigma_K"] is None and answer["best_fit_K"] == width.K
+
+
+def test_two_records_fitted_jointly_share_one_width(brfd: BrfdPlant, records: dict[str, BrfdRecord]) -> None:
+    width = fit_width(brfd, [records[SINE_1HZ], records[SINE_2HZ]])
+    assert len(width.fitted) == 2 and set(width.correlation) == {"Fc[0]", "sigma0[0]", "Fc[1]", "sigma0[1]"}
+    assert width.identifiable and width.interval[1] - width.interval[0] <= 0.004

@@ -74,6 +74,7 @@ def test_init_stores_only_params() -> None:
         "max_epochs": 500,
         "target": "abs",
         "test_rows": "match",
+        "widths": None,
     }
     assert not [k for k in vars(ident) if k.endswith("_")]
 

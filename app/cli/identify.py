@@ -3,16 +3,24 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from app import output
-from app.cli.common import EXIT_OK, add_db_option, add_record_options, open_store, read_record
+from app.cli.common import EXIT_OK, CommandError, add_db_option, add_record_options, open_store, read_record
 from engine.constants import CHANNELS
+from engine.plants import DEFAULT_PLANT, PLANTS
 
 
 def cmd_identify(args: argparse.Namespace) -> int:
     """Identify the record's backlash width and write the outcome as JSON."""
     from app.services.identification import identify_from_store
 
+    if args.plant != DEFAULT_PLANT:
+        return _identify_plant(args)
+    if args.joint:
+        raise CommandError("--joint applies with --plant (a plant whose records share one width), not to the drive")
+    if args.channel is None:
+        raise CommandError("give --channel (one of " + ", ".join(CHANNELS) + ")")
     record = read_record(args)
     output.write_json(
         identify_from_store(
@@ -22,11 +30,39 @@ def cmd_identify(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _identify_plant(args: argparse.Namespace) -> int:
+    """``--plant NAME``: the width as a continuous fitted parameter, with its interval and identifiability."""
+    from app.services.plant_identification import identify_width
+
+    if not args.continuous:
+        raise CommandError("with --plant the width is fitted as a continuous parameter: add --continuous")
+    n = 1 + len(args.joint or ())
+    output.info(
+        f"fitting the backlash width of {n} record(s) of plant {args.plant} (a profile over the width; ~10 s a record)"
+    )
+    output.write_json(identify_width(args.plant, args.record, args.joint))
+    return EXIT_OK
+
+
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``identify`` to the subcommands."""
     p = sub.add_parser("identify", help="identify the backlash width of a record (like POST /v1/identify)")
     add_record_options(p)
-    p.add_argument("--channel", required=True, choices=CHANNELS)
+    p.add_argument("--channel", choices=CHANNELS, help="the backlash drive's channel (required without --plant)")
+    p.add_argument(
+        "--plant",
+        choices=sorted({DEFAULT_PLANT, *PLANTS}),
+        default=DEFAULT_PLANT,
+        help=f"the plant the record is of (default {DEFAULT_PLANT}); brfd reads the data set's JSON file as distributed "
+        "or its CSV form and fits the width continuously (--continuous)",
+    )
+    p.add_argument(
+        "--joint",
+        action="append",
+        type=Path,
+        metavar="FILE",
+        help="with --plant: another record of the same device, fitted jointly (one width shared); repeatable",
+    )
     p.add_argument("--pattern-set", help="pattern-set id (default: the stored set with the nearest c)")
     p.add_argument("--kind", help="only choose pattern sets of this kind")
     p.add_argument(

@@ -10,7 +10,7 @@ from engine.diagnosis.plant_gap import PlantGapReport, calibrate, diagnose_plant
 from engine.diagnosis.plant_plots import plot_plant_overlay
 from engine.plants import Plant, get_plant
 
-__all__ = ["PlantDiagnosis", "PlantRecords", "read", "run", "write_plots"]
+__all__ = ["PlantDiagnosis", "PlantRecords", "read", "read_file", "run", "write_plots"]
 
 
 @dataclass(frozen=True)
@@ -35,7 +35,8 @@ class PlantRecords:
     calibrate_on: Any | None = None
 
 
-def _read(plant: Plant, path: Path) -> Any:
+def read_file(plant: Plant, path: Path) -> Any:
+    """One record file as ``plant`` reads it (its ``read``); raises ``RecordError`` with what to fix."""
     reader = getattr(plant, "read", None)
     if reader is None:
         raise ValueError(f"plant {plant.name!r} reads its records through the default diagnosis, not --plant")
@@ -45,7 +46,7 @@ def _read(plant: Plant, path: Path) -> Any:
 def read(plant_name: str, record_path: Path, calibrate_on: Path | None = None) -> PlantRecords:
     """Read the record (and the calibration record) of plant ``plant_name``; raises ``RecordError`` with what to fix."""
     plant = get_plant(plant_name)
-    return PlantRecords(plant, _read(plant, record_path), _read(plant, calibrate_on) if calibrate_on else None)
+    return PlantRecords(plant, read_file(plant, record_path), read_file(plant, calibrate_on) if calibrate_on else None)
 
 
 def run(records: PlantRecords, hold: bool = False) -> PlantDiagnosis:

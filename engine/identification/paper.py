@@ -25,6 +25,14 @@ Pipeline, for one channel and one group of operating conditions:
    ``W4``, ``D(i) = sum_j |Wt(j) - Ww(i, j)|`` and the identified width is
    ``K[nr5]`` with ``nr5 = argmin D`` (1-based in the paper).
 
+The width grid is a parameter (``widths``, default the paper's ``K_GRID``), so
+the method can run on another plant (e.g. :mod:`engine.plants.brfd.patterns`);
+it must hold exactly six strictly increasing widths, because the normalisation
+picks rows by width index (``M3_WIDTHS = (1, 2, 3)``,
+``N4_EXTREME_WIDTHS = (3, 4, 5, 6)``, ``m1`` on width 1). Any channel name is
+accepted when ``wavelet`` is given; without it the channel must be one of
+``CHANNEL_WAVELETS`` (the paper's wavelet per channel).
+
 The text of section 3.1 is garbled in many places; every reading chosen here
 is listed, one entry per ambiguity, in ``docs/paper-notes.md``.
 """
@@ -38,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from engine.constants import CHANNEL_WAVELETS, CHANNELS, K_GRID, N_SAMPLES, WAVELET_LEVEL
+from engine.constants import CHANNEL_WAVELETS, K_GRID, N_SAMPLES, WAVELET_LEVEL
 from engine.features.wavelet import wavelet_coefficients
 from engine.identification._network import TrainResult, Weights, initial_weights, train
 from engine.identification.base import IdentificationResult, NotFittedError
@@ -46,17 +54,21 @@ from engine.identification.normalisation import TERM_NAMES, normalisation_terms,
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["ARRAYS_FORMAT_VERSION", "TARGETS", "TEST_ROWS", "PaperIdentifier"]
+__all__ = ["ARRAYS_FORMAT_VERSION", "N_WIDTHS", "TARGETS", "TEST_ROWS", "PaperIdentifier"]
 
 #: Version of the layout produced by :meth:`PaperIdentifier.to_arrays`
-#: (2: adds ``pattern_rows``; the target and test-row readings are parameters).
+#: (2: adds ``pattern_rows``; the target and test-row readings are parameters). The ``widths``
+#: array (in the layout since version 1) holds the grid the patterns were trained on; a layout
+#: without it is read as ``K_GRID`` (or the ``widths`` parameter), so no new version was needed.
 ARRAYS_FORMAT_VERSION: int = 2
 #: Readings of the network target (docs/paper-notes.md, D9): ``exp(-|h2|)`` or the printed ``exp(-h2)``.
 TARGETS: tuple[str, ...] = ("abs", "as_printed")
 #: Readings of the test network's training data (docs/paper-notes.md, D10).
 TEST_ROWS: tuple[str, ...] = ("match", "single")
 
-_N_OUT = len(K_GRID)  # the paper's 6 output neurons, one per width
+#: Widths in a grid: the paper's six, which the normalisation's width indices (1..6) assume.
+N_WIDTHS: int = len(K_GRID)
+_N_OUT = N_WIDTHS  # the paper's 6 output neurons, one per width
 
 
 def _init_row_values(m1_rows: np.ndarray, n_rows: int) -> np.ndarray:
@@ -78,7 +90,8 @@ class PaperIdentifier:
     Parameters
     ----------
     channel : str
-        Channel the records hold, one of ``engine.constants.CHANNELS``.
+        Channel the records hold: one of ``engine.constants.CHANNELS`` when
+        ``wavelet`` is None; any name (e.g. another plant's channel) when it is given.
     wavelet : str or None, default None
         Wavelet name; None uses the paper's wavelet of the channel
         (``engine.constants.CHANNEL_WAVELETS``).
@@ -105,13 +118,17 @@ class PaperIdentifier:
         both get the same number of weight updates per epoch and the same
         stop rule (docs/paper-notes.md, D10); or the record once ("single",
         the literal reading).
+    widths : sequence of float or None, default None
+        The six backlash widths K of the patterns [m] (the unit of the plant's play),
+        strictly increasing; None uses the paper's ``K_GRID``. Exactly six: the
+        normalisation of eqs. (2)-(5) selects rows by width index 1..6.
 
     Attributes
     ----------
     wavelet_ : str
         Wavelet actually used.
     widths_ : ndarray, shape (6,)
-        Backlash widths K of the patterns, ``K_GRID`` order [m].
+        Backlash widths K of the patterns, increasing (``widths``, default ``K_GRID``) [m].
     patterns_ : ndarray, shape (6, 15)
         Pattern matrix Ww: row i is W4 of the network trained on width i.
     epochs_ : ndarray of int, shape (6,)
@@ -146,6 +163,7 @@ class PaperIdentifier:
         max_epochs: int = 500,
         target: str = "abs",
         test_rows: str = "match",
+        widths: tuple[float, ...] | None = None,
     ) -> None:
         self.channel = channel
         self.wavelet = wavelet
@@ -157,6 +175,7 @@ class PaperIdentifier:
         self.max_epochs = max_epochs
         self.target = target
         self.test_rows = test_rows
+        self.widths = widths
 
     # -- parameters --------------------------------------------------------
 
@@ -171,11 +190,15 @@ class PaperIdentifier:
         "max_epochs",
         "target",
         "test_rows",
+        "widths",
     )
 
     def get_params(self, deep: bool = True) -> dict[str, Any]:
-        """Constructor parameters (JSON-ready)."""
-        return {name: getattr(self, name) for name in self._PARAM_NAMES}
+        """Constructor parameters (JSON-ready: ``widths`` given as an array comes back as a tuple)."""
+        params = {name: getattr(self, name) for name in self._PARAM_NAMES}
+        if isinstance(params["widths"], np.ndarray):
+            params["widths"] = tuple(params["widths"].tolist())
+        return params
 
     def set_params(self, **params: Any) -> PaperIdentifier:
         """Set constructor parameters; returns self."""
@@ -191,8 +214,18 @@ class PaperIdentifier:
         return f"{type(self).__name__}({args})"
 
     def _validate_params(self) -> None:
-        if self.channel not in CHANNELS:
-            raise ValueError(f"unknown channel {self.channel!r}; known channels: {', '.join(CHANNELS)}")
+        if self.wavelet is None:
+            if self.channel not in CHANNEL_WAVELETS:
+                raise ValueError(
+                    f"unknown channel {self.channel!r}; known channels: {', '.join(CHANNEL_WAVELETS)} "
+                    "(another channel needs an explicit wavelet)"
+                )
+        else:
+            if not (isinstance(self.channel, str) and self.channel):
+                raise ValueError(f"channel must be a non-empty name, got {self.channel!r}")
+            if not (isinstance(self.wavelet, str) and self.wavelet):
+                raise ValueError(f"wavelet must be a wavelet name or None, got {self.wavelet!r}")
+        self._grid()
         if not (isinstance(self.n_hidden, (int, np.integer)) and self.n_hidden >= 1):
             raise ValueError(f"n_hidden must be a positive integer, got {self.n_hidden!r}")
         if not (isinstance(self.max_epochs, (int, np.integer)) and self.max_epochs >= 1):
@@ -205,6 +238,33 @@ class PaperIdentifier:
             raise ValueError(f"target must be one of {', '.join(TARGETS)}, got {self.target!r}")
         if self.test_rows not in TEST_ROWS:
             raise ValueError(f"test_rows must be one of {', '.join(TEST_ROWS)}, got {self.test_rows!r}")
+
+    def _grid(self) -> np.ndarray:
+        """The validated width grid [m]: ``widths`` or ``K_GRID``, shape (6,).
+
+        Raises
+        ------
+        ValueError
+            Not six finite, strictly increasing values.
+        """
+        if self.widths is None:
+            return np.asarray(K_GRID, dtype=float)
+        try:
+            grid = np.asarray(self.widths, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"widths must be a sequence of {N_WIDTHS} numbers [m], got {self.widths!r}") from None
+        if grid.shape != (N_WIDTHS,):
+            raise ValueError(
+                f"widths must hold exactly {N_WIDTHS} widths (the normalisation of eqs. 2-5 selects rows by "
+                f"width index 1..{N_WIDTHS}), got shape {grid.shape}: {self.widths!r}"
+            )
+        if not np.all(np.isfinite(grid)):
+            raise ValueError(f"widths must be finite, got {grid.tolist()}")
+        if not np.all(np.diff(grid) > 0.0):
+            raise ValueError(
+                f"widths must be strictly increasing (width 1 is the smallest in the normalisation), got {grid.tolist()}"
+            )
+        return grid
 
     # -- input handling ------------------------------------------------------
 
@@ -224,21 +284,21 @@ class PaperIdentifier:
         return wavelet_coefficients(arr, wavelet, mode=self.mode, level=self.level, axis=-1)
 
     @staticmethod
-    def _width_index(y: Any, n_records: int) -> np.ndarray:
-        """Widths [m] -> 1-based indices into K_GRID; all six must be present."""
+    def _width_index(y: Any, n_records: int, grid: np.ndarray, grid_name: str = "K_GRID") -> np.ndarray:
+        """Widths [m] -> 1-based indices into ``grid`` (named ``grid_name`` in messages); all six must be present."""
         yy = np.asarray(y, dtype=float)
         if yy.shape != (n_records,):
             raise ValueError(f"y must hold one width per record, shape ({n_records},), got {yy.shape}")
-        grid = np.asarray(K_GRID)
         match = np.isclose(yy[:, None], grid[None, :], rtol=1e-9, atol=1e-12)
         bad = ~match.any(axis=1)
         if bad.any():
-            raise ValueError(f"width(s) {sorted(set(yy[bad].tolist()))} m are not in K_GRID {list(K_GRID)}")
+            raise ValueError(f"width(s) {sorted(set(yy[bad].tolist()))} m are not in {grid_name} {grid.tolist()}")
         idx = match.argmax(axis=1) + 1
         missing = sorted(set(range(1, _N_OUT + 1)) - set(idx.tolist()))
         if missing:
             raise ValueError(
-                f"training data lacks width(s) {[K_GRID[i - 1] for i in missing]} m; all six widths of K_GRID are needed"
+                f"training data lacks width(s) {[float(grid[i - 1]) for i in missing]} m; "
+                f"all six widths of {grid_name} {grid.tolist()} are needed"
             )
         return idx
 
@@ -267,7 +327,8 @@ class PaperIdentifier:
             the training records of one pattern set (e.g. the 7 J1 cases x 6
             widths of one c group).
         y : array_like, shape (n_records,)
-            Backlash width K of each record [m]; values of ``K_GRID``, all six present.
+            Backlash width K of each record [m]; values of the width grid (``widths``,
+            default ``K_GRID``), all six present.
         groups : array_like, optional
             Ignored: the paper's method has no use for the records' groups (J1); present so
             that every identifier offers the same ``fit`` (:class:`~engine.identification.base.Identifier`).
@@ -278,8 +339,9 @@ class PaperIdentifier:
             self.
         """
         self._validate_params()
+        grid = self._grid()
         N = self._features(X)
-        wi = self._width_index(y, N.shape[0])
+        wi = self._width_index(y, N.shape[0], grid, "K_GRID" if self.widths is None else "the width grid")
         terms = normalisation_terms(N, wi)
         self.wavelet_ = self.wavelet if self.wavelet is not None else CHANNEL_WAVELETS[self.channel]
         self.n_features_in_ = N.shape[1]
@@ -295,13 +357,13 @@ class PaperIdentifier:
         self.init_weights_ = _init_row_values(m1_rows, max(self.n_hidden, _N_OUT))
         X1 = normalise(N, self.h1_, self.k1_, self.h2_, self.k2_)
         patterns, epochs, rms, rows = [], [], [], []
-        for i, K in enumerate(K_GRID, start=1):
+        for i, K in enumerate(grid.tolist(), start=1):
             res = self._train(X1[wi == i], f"{self.channel}/pattern K={K}")
             patterns.append(res.weights.W3[0].copy())
             epochs.append(res.epochs)
             rms.append(res.rms)
             rows.append(int(np.count_nonzero(wi == i)))
-        self.widths_ = np.asarray(K_GRID, dtype=float)
+        self.widths_ = grid
         self.patterns_ = np.stack(patterns)
         self.epochs_ = np.asarray(epochs, dtype=int)
         self.pattern_rms_ = np.asarray(rms, dtype=float)
@@ -369,7 +431,7 @@ class PaperIdentifier:
                 "%s: D has a tie at its minimum %.3g between widths %s; reporting the first (nr5 = %d), as argmin does",
                 label,
                 D[i],
-                [K_GRID[j] for j in tied],
+                [float(self.widths_[j]) for j in tied],
                 i + 1,
             )
         return IdentificationResult(
@@ -412,7 +474,7 @@ class PaperIdentifier:
         return self.identify_batch(arr[None, :])[0]
 
     def d_vectors(self, X: Any) -> np.ndarray:
-        """D vectors of a batch, shape (n_records, 6)."""
+        """D vectors of a batch, shape (n_records, 6), in ``widths_`` order."""
         return np.stack([r.D for r in self.identify_batch(X)])
 
     def predict(self, X: Any) -> np.ndarray:
@@ -455,7 +517,8 @@ class PaperIdentifier:
         params : mapping
             Constructor parameters (unknown keys raise).
         arrays : mapping of str to ndarray
-            As produced by :meth:`to_arrays`.
+            As produced by :meth:`to_arrays`. ``widths``, when present, must equal the
+            parameters' grid (``widths``, default ``K_GRID``); when absent that grid is used.
 
         Returns
         -------
@@ -470,7 +533,6 @@ class PaperIdentifier:
         need = {
             "format_version",
             "patterns",
-            "widths",
             "epochs",
             "pattern_rms",
             "pattern_rows",
@@ -478,7 +540,7 @@ class PaperIdentifier:
             "terms",
             "case",
             "n_features_in",
-        }
+        }  # "widths" is optional: without it the grid is the parameters' (default K_GRID)
         if "format_version" in arrays:  # checked first: an older layout also lacks newer arrays
             version = int(np.asarray(arrays["format_version"]))
             if version != ARRAYS_FORMAT_VERSION:
@@ -498,12 +560,18 @@ class PaperIdentifier:
             "terms": (len(TERM_NAMES),),
         }
         for key, shape in shapes.items():
+            if key not in arrays:  # only "widths" may be absent (see need)
+                continue
             if np.shape(arrays[key]) != shape:
                 raise ValueError(
                     f"array {key!r} has shape {np.shape(arrays[key])}, expected {shape} for n_hidden={obj.n_hidden}"
                 )
-        if not np.allclose(arrays["widths"], K_GRID, rtol=0, atol=1e-12):
-            raise ValueError(f"stored widths {np.asarray(arrays['widths']).tolist()} differ from K_GRID {list(K_GRID)}")
+        grid = obj._grid()
+        if "widths" in arrays and not np.allclose(arrays["widths"], grid, rtol=0, atol=1e-12):
+            raise ValueError(
+                f"stored widths {np.asarray(arrays['widths']).tolist()} differ from the width grid {grid.tolist()} "
+                f"of the parameters (widths={obj.widths!r})"
+            )
         obj.wavelet_ = obj.wavelet if obj.wavelet is not None else CHANNEL_WAVELETS[obj.channel]
         obj.n_features_in_ = int(np.asarray(arrays["n_features_in"]))
         obj.terms_ = {k: float(v) for k, v in zip(TERM_NAMES, np.asarray(arrays["terms"], dtype=float), strict=True)}
@@ -511,7 +579,7 @@ class PaperIdentifier:
         obj.h1_, obj.k1_, obj.h2_, obj.k2_ = (obj.terms_[k] for k in ("h1", "k1", "h2", "k2"))
         obj.target_ = obj._target(obj.h2_)
         obj.init_weights_ = np.array(arrays["init_weights"], dtype=float)
-        obj.widths_ = np.array(arrays["widths"], dtype=float)
+        obj.widths_ = grid  # equal to the stored widths, checked above; K_GRID by default when not stored
         obj.patterns_ = np.array(arrays["patterns"], dtype=float)
         obj.epochs_ = np.array(arrays["epochs"], dtype=int)
         obj.pattern_rms_ = np.array(arrays["pattern_rms"], dtype=float)

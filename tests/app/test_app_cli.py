@@ -452,3 +452,20 @@ def test_diagnose_an_emps_record_in_csv_form(env: Path, tmp_path: Path, capsys: 
     assert result["event_share"]["samples"]["share"] > 0  # the pulses are the record's events
     assert result["status"] in {"explained", "partly_explained", "unexplained"}
     assert (tmp_path / "plots" / "overlay_acceleration.png").stat().st_size > 0
+
+
+def test_identify_the_width_of_brfd_records_jointly(env: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``identify --plant brfd --continuous`` with a second record of the same device."""
+    data = Path(__file__).resolve().parents[2] / "engine" / "plants" / "brfd" / "data"
+    one, two = data / "dataset-2_1Hz30lbtension1amplitude.json", data / "dataset-2_2Hz30lbtension0.5amplitude.json"
+    code, out, err = run(capsys, "identify", "--plant", "brfd", str(one), "--joint", str(two), "--continuous")
+    assert code == 0, err
+    result = json.loads(out)
+    cont = result["continuous"]
+    assert result["plant"] == "brfd" and result["unit"] == "m" and len(cont["fitted"]) == 2
+    assert cont["identifiable"] and cont["interval_95"][0] <= cont["K"] <= cont["interval_95"][1]
+    paper = result["paper"]  # the seed's method, per record: a grid width and its D vector
+    assert [p["record"] for p in paper] == result["records"]
+    assert all(p["width"] in p["widths"] and len(p["D"]) == 6 for p in paper)
+    code, _, err = run(capsys, "identify", "--plant", "brfd", str(one))
+    assert code == 2 and "--continuous" in err
