@@ -7,6 +7,7 @@ CC BY-SA 4.0).
 
 from __future__ import annotations
 
+import gzip
 import json
 from pathlib import Path
 
@@ -37,7 +38,7 @@ def records(brfd: BrfdPlant) -> dict[str, BrfdRecord]:
 
 
 def test_the_json_is_read_as_distributed_and_converted_to_si_once(records: dict[str, BrfdRecord]) -> None:
-    raw = np.asarray(json.loads((DATA / f"{SINE_1HZ}.json").read_text())["data"])
+    raw = np.asarray(json.loads(gzip.decompress((DATA / f"{SINE_1HZ}.json.gz").read_bytes()))["data"])
     rec = records[SINE_1HZ]
     assert rec.n == raw.shape[0] and rec.ts == pytest.approx(1 / 1024)
     np.testing.assert_allclose(rec.x, raw[:, 1] * 0.0254)
@@ -59,7 +60,7 @@ def test_the_csv_form_reads_the_same_record(records: dict[str, BrfdRecord]) -> N
 
 
 def test_a_record_that_cannot_be_read_correctly_is_refused_with_what_to_fix() -> None:
-    obj = json.loads((DATA / f"{SINE_2HZ}.json").read_text())
+    obj = json.loads(gzip.decompress((DATA / f"{SINE_2HZ}.json.gz").read_bytes()))
     cases = {
         "displacement units": ({**obj, "displacement units": "furlong"}, "displacement unit"),
         "dt": ({**obj, "dt": 0.002}, "'dt' says"),

@@ -39,40 +39,47 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING)
     plant = get_plant("brfd")
     files = sorted(args.directory.glob("*.json"))
-    rows, per_series, records = [], {}, {}
-    lines = [
-        "| record | tension [lb] | width [mm] | 95 % interval [mm] | identifiable | corr(K, sigma0) | force error without -> with play [%] | s |",
-        "| --- | ---: | ---: | --- | --- | ---: | --- | ---: |",
-    ]
+    per_series: dict[str, list[str]] = {}
+    fits = {}
     for f in files:
         rec = plant.read(f)
         t0 = time.perf_counter()
         w = fit_width(plant, [rec])
-        dt = time.perf_counter() - t0
-        e = w.relative_error[0]
-        lines.append(
-            f"| {rec.name} | {rec.tension if rec.tension is not None else '-'} | {w.K * 1e3:.2f} +- {w.sigma_K * 1e3:.2f} | "
-            f"[{w.interval[0] * 1e3:.2f}, {w.interval[1] * 1e3:.2f}] | "
-            f"{'yes' if w.identifiable else 'no: ' + '; '.join(w.reasons)} | {w.correlation['sigma0']:+.2f} | "
-            f"{e['without']['force']:.1f} -> {e['with_width']['force']:.1f} | {dt:.0f} |"
-        )
-        rows.append((rec.name, w))
-        per_series.setdefault(_series(rec.name), []).append((rec.name, w))
-        records[rec.name] = rec
-        sys.stderr.write(f"{rec.name}: {w.K * 1e3:.2f} mm ({dt:.0f} s)\n")
-    lines += [
-        "",
+        fits[rec.name] = (rec, w, time.perf_counter() - t0)
+        per_series.setdefault(_series(rec.name), []).append(rec.name)
+        sys.stderr.write(f"{rec.name}: {w.K * 1e3:.2f} mm\n")
+    joint = {}
+    summary = [
         "| series | records identifiable | their widths: mean, spread (sd) [mm] | joint fit [mm] | joint interval [mm] |",
         "| --- | --- | --- | --- | --- |",
     ]
-    for series, items in per_series.items():
-        ok = [w for _, w in items if w.identifiable]
-        ks = np.array([w.K for w in ok]) * 1e3
-        joint = fit_width(plant, [records[n] for n, w in items if w.identifiable]) if ok else None
+    for series, names in per_series.items():
+        ok = [n for n in names if fits[n][1].identifiable]
+        ks = np.array([fits[n][1].K for n in ok]) * 1e3
+        j = fit_width(plant, [fits[n][0] for n in ok]) if ok else None
+        joint[series] = j
         spread = f"{ks.mean():.2f}, {ks.std(ddof=1):.2f}" if ks.size > 1 else (f"{ks[0]:.2f}, -" if ks.size else "-")
-        jtxt = f"{joint.K * 1e3:.2f} +- {joint.sigma_K * 1e3:.2f}" if joint else "-"
-        jint = f"[{joint.interval[0] * 1e3:.2f}, {joint.interval[1] * 1e3:.2f}]" if joint else "-"
-        lines.append(f"| {series} | {len(ok)}/{len(items)} | {spread} | {jtxt} | {jint} |")
+        jtxt = f"{j.K * 1e3:.2f} +- {j.sigma_K * 1e3:.2f}" if j else "-"
+        jint = f"[{j.interval[0] * 1e3:.2f}, {j.interval[1] * 1e3:.2f}]" if j else "-"
+        summary.append(f"| {series} | {len(ok)}/{len(names)} | {spread} | {jtxt} | {jint} |")
+    lines = [
+        "| record | tension [lb] | width [mm] | 95 % interval [mm] | identifiable | holds its series' joint width | "
+        "corr(K, sigma0) | force error without -> with play [%] | s |",
+        "| --- | ---: | ---: | --- | --- | --- | ---: | --- | ---: |",
+    ]
+    for name, (rec, w, dt) in fits.items():
+        j = joint[_series(name)]
+        holds = (
+            "-" if j is None or not w.identifiable else ("yes" if w.interval[0] <= j.K <= w.interval[1] else "**no**")
+        )
+        e = w.relative_error[0]
+        lines.append(
+            f"| {name} | {rec.tension if rec.tension is not None else '-'} | {w.K * 1e3:.2f} +- {w.sigma_K * 1e3:.2f} | "
+            f"[{w.interval[0] * 1e3:.2f}, {w.interval[1] * 1e3:.2f}] | "
+            f"{'yes' if w.identifiable else 'no: ' + '; '.join(w.reasons)} | {holds} | {w.correlation['sigma0']:+.2f} | "
+            f"{e['without']['force']:.1f} -> {e['with_width']['force']:.1f} | {dt:.0f} |"
+        )
+    lines += ["", *summary]
     text = "\n".join(lines) + "\n"
     if args.out:
         args.out.write_text(text)

@@ -410,14 +410,14 @@ def test_unit_help_lists_the_engines_units() -> None:
 
 
 def test_diagnose_a_brfd_record_as_distributed(env: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """``--plant brfd`` reads the data set's JSON file as it is and writes the force overlay."""
+    """``--plant brfd`` reads the data set's JSON file (here gzip-compressed as shipped) and writes the force overlay."""
     path = (
         Path(__file__).resolve().parents[2]
         / "engine"
         / "plants"
         / "brfd"
         / "data"
-        / "dataset-2_2Hz30lbtension0.5amplitude.json"
+        / "dataset-2_2Hz30lbtension0.5amplitude.json.gz"
     )
     code, out, err = run(capsys, "diagnose", "--plant", "brfd", str(path), "--plots", str(tmp_path / "plots"))
     assert code == 0, err
@@ -457,7 +457,10 @@ def test_diagnose_an_emps_record_in_csv_form(env: Path, tmp_path: Path, capsys: 
 def test_identify_the_width_of_brfd_records_jointly(env: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """``identify --plant brfd --continuous`` with a second record of the same device."""
     data = Path(__file__).resolve().parents[2] / "engine" / "plants" / "brfd" / "data"
-    one, two = data / "dataset-2_1Hz30lbtension1amplitude.json", data / "dataset-2_2Hz30lbtension0.5amplitude.json"
+    one, two = (
+        data / "dataset-2_1Hz30lbtension1amplitude.json.gz",
+        data / "dataset-2_2Hz30lbtension0.5amplitude.json.gz",
+    )
     code, out, err = run(capsys, "identify", "--plant", "brfd", str(one), "--joint", str(two), "--continuous")
     assert code == 0, err
     result = json.loads(out)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gzip
 import json
 from pathlib import Path
 from typing import Any
@@ -76,13 +77,13 @@ BRFD_2HZ = (
     / "plants"
     / "brfd"
     / "data"
-    / "dataset-2_2Hz30lbtension0.5amplitude.json"
+    / "dataset-2_2Hz30lbtension0.5amplitude.json.gz"
 )
 
 
 def test_diagnose_a_brfd_record_over_http_as_the_data_set_gives_it(client: httpx.Client) -> None:
     """``"plant": "brfd"``: the data set's JSON object as it is (inches, kips), answered in SI units."""
-    record = {"name": "2Hz", **json.loads(BRFD_2HZ.read_text())}
+    record = {"name": "2Hz", **json.loads(gzip.decompress(BRFD_2HZ.read_bytes()))}
     r = client.post("/v1/diagnose", json={"plant": "brfd", "record": record}, timeout=300)
     assert r.status_code == 200, r.text
     body = r.json()

@@ -61,7 +61,10 @@ DIFF_STEP: float = 1e-3
 EXAMPLES: tuple[str, ...] = (
     "dataset-2_1Hz30lbtension1amplitude",
     "dataset-2_2Hz30lbtension0.5amplitude",
+    "dataset-2_1Hz36lbtension1amplitude",
+    "dataset-2_0.5Hz36lbtension1amplitude",
     "dataset-2_ImperialValleyDBE",
+    "dataset-2_KocaeliDBE",
 )
 DATA_DIR: Path = Path(__file__).resolve().parent / "data"
 
@@ -126,7 +129,7 @@ class BrfdPlant:
 
     @property
     def examples(self) -> tuple[str, ...]:
-        """The shipped records: a 1 Hz and a 2 Hz sinusoidal test at 30 lb, an earthquake history."""
+        """The shipped records: sinusoidal tests at 30 lb (1 Hz, 2 Hz) and 36 lb (1 Hz, 0.5 Hz), two earthquake histories."""
         return EXAMPLES
 
     def example(self, name: str | None = None, seconds: float | None = None) -> BrfdRecord:
@@ -134,11 +137,11 @@ class BrfdPlant:
         name = name or EXAMPLES[0]
         if name not in EXAMPLES:
             raise KeyError(f"unknown BRFD record {name!r}; shipped: {', '.join(EXAMPLES)}")
-        record = load_json(DATA_DIR / f"{name}.json")
+        record = load_json(DATA_DIR / f"{name}.json.gz")
         return record if seconds is None else record.head(seconds)
 
     def read(self, path: str | Path) -> BrfdRecord:
-        """Read a ``.json`` (as distributed) or ``.csv`` record (:mod:`engine.plants.brfd.record`)."""
+        """Read a ``.json`` (as distributed, or ``.json.gz``) or ``.csv`` record (:mod:`engine.plants.brfd.record`)."""
         return load_record(path)
 
     def fixed_by(self, record: BrfdRecord) -> dict[str, float]:

@@ -15,6 +15,7 @@ friction_force`` and one comment line per unit before it (``# displacement units
 
 from __future__ import annotations
 
+import gzip
 import io
 import json
 import math
@@ -48,6 +49,8 @@ FORCE_UNITS: dict[str, float] = {"kip": 4448.2216152605, "lb": 4.4482216152605, 
 SAMPLE_JITTER: float = 0.01
 #: Fewest samples a record needs (a second at the data set's 1024 Hz).
 MIN_SAMPLES: int = 1024
+#: First bytes of a gzip stream.
+GZIP_MAGIC: bytes = b"\x1f\x8b"
 #: Columns of the JSON ``data`` matrix, in order.
 JSON_COLUMNS: tuple[str, ...] = (
     "time",
@@ -195,13 +198,25 @@ def from_json_object(obj: Any, name: str) -> BrfdRecord:
     )
 
 
+def _stem(path: Path) -> str:
+    """The file name without ``.json``, ``.json.gz`` or ``.csv``."""
+    name = path.name
+    for suffix in (".json.gz", ".json", ".csv"):
+        if name.lower().endswith(suffix):
+            return name[: -len(suffix)]
+    return path.stem
+
+
 def load_json(source: str | Path | bytes, name: str | None = None) -> BrfdRecord:
-    """Read a record in the data set's JSON form (a path, or the file's bytes)."""
-    if isinstance(source, bytes):
-        text, label = source.decode("utf-8", errors="replace"), name or "record"
-    else:
-        path = Path(source)
-        text, label = path.read_text(encoding="utf-8", errors="replace"), name or path.stem
+    """Read a record in the data set's JSON form (a path, or the file's bytes; gzip-compressed or not)."""
+    raw = source if isinstance(source, bytes) else Path(source).read_bytes()
+    label = name or ("record" if isinstance(source, bytes) else _stem(Path(source)))
+    if raw[:2] == GZIP_MAGIC:
+        try:
+            raw = gzip.decompress(raw)
+        except (OSError, EOFError) as exc:
+            raise RecordError(f"{label}: a gzip file that cannot be decompressed ({exc})") from None
+    text = raw.decode("utf-8", errors="replace")
     try:
         obj = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -215,7 +230,7 @@ def load_csv(source: str | Path | bytes, name: str | None = None) -> BrfdRecord:
         text, label = source.decode("utf-8", errors="replace"), name or "record"
     else:
         path = Path(source)
-        text, label = path.read_text(encoding="utf-8", errors="replace"), name or path.stem
+        text, label = path.read_text(encoding="utf-8", errors="replace"), name or _stem(path)
     units: dict[str, str | None] = {"displacement": None, "friction force": None}
     lines = text.splitlines()
     body = [ln for ln in lines if not ln.lstrip().startswith("#")]
@@ -254,7 +269,7 @@ def load_csv(source: str | Path | bytes, name: str | None = None) -> BrfdRecord:
 
 
 def load_record(path: str | Path) -> BrfdRecord:
-    """Read a ``.json`` (as distributed) or ``.csv`` record.
+    """Read a ``.json`` (as distributed, or gzip-compressed ``.json.gz``) or ``.csv`` record.
 
     Raises
     ------
@@ -262,11 +277,12 @@ def load_record(path: str | Path) -> BrfdRecord:
         An unknown suffix, or a file that cannot be read correctly as a BRFD record.
     """
     path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".json":
+    name = path.name.lower()
+    if name.endswith((".json", ".json.gz")):
         return load_json(path)
-    if suffix == ".csv":
+    if name.endswith(".csv"):
         return load_csv(path)
     raise RecordError(
-        f"{path.name}: a BRFD record is a .json file as distributed or a .csv; got {suffix or 'no suffix'}"
+        f"{path.name}: a BRFD record is a .json file as distributed (or .json.gz) or a .csv; "
+        f"got {path.suffix or 'no suffix'}"
     )
