@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from engine.diagnosis.plant_gap import PlantObjective, calibrate, diagnose_plant, fit
+from engine.diagnosis.plant_transfer import held_out
 from engine.identification.plant_width import fit_width
 from engine.plants import Plant, get_plant
 from engine.plants.brfd import BrfdPlant, BrfdRecord, load_csv, load_json
@@ -172,3 +173,18 @@ def test_two_records_fitted_jointly_share_one_width(brfd: BrfdPlant, records: di
     width = fit_width(brfd, [records[SINE_1HZ], records[SINE_2HZ]])
     assert len(width.fitted) == 2 and set(width.correlation) == {"Fc[0]", "sigma0[0]", "Fc[1]", "sigma0[1]"}
     assert width.identifiable and width.interval[1] - width.interval[0] <= 0.004
+
+
+def test_a_held_out_prediction_reports_the_nominal_and_the_named_model_on_records_not_fitted(
+    brfd: BrfdPlant, records: dict[str, BrfdRecord]
+) -> None:
+    """Fit on the 1 Hz / 30 lb test, predict the 2 Hz / 30 lb test (the first 2 s of each keep it quick)."""
+    train, test = [records[SINE_1HZ].head(2.0)], [records[SINE_2HZ].head(2.0)]
+    out = held_out(brfd, train, test, ["backlash"])
+    (name,) = out.relative_error
+    row = out.relative_error[name]
+    assert set(row) == {"nominal", "with_effects", "own_calibration"}
+    assert set(out.nominal) == {"Fc", "sigma0"} and set(out.with_effects) == {"Fc", "sigma0", "backlash"}
+    assert row["with_effects"]["force"] < row["nominal"]["force"]  # measured: the play carries over
+    with pytest.raises(KeyError, match="no effect"):
+        held_out(brfd, train, test, ["warp_drive"])

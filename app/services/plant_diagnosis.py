@@ -72,11 +72,22 @@ def run(records: PlantRecords, hold: bool = False) -> PlantDiagnosis:
 
 
 def write_plots(result: PlantDiagnosis, out_dir: Path) -> list[Path]:
-    """Measured vs simulated, before and after, around the record's events: one PNG per dynamic channel."""
+    """Measured vs simulated, before and after, around the record's events: one PNG per dynamic channel, plus
+    the plant's own figures (the BRFD's force-displacement loop)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     names = [c.name for c in result.plant.channels]
     chosen = [c for c in ("acceleration", "force") if c in names] or names[:1]
     return [
         plot_plant_overlay(result.plant, result.record, result.report, out_dir / f"overlay_{c}.png", channel=c)
         for c in chosen
-    ]
+    ] + _plant_figures(result, out_dir)
+
+
+def _plant_figures(result: PlantDiagnosis, out_dir: Path) -> list[Path]:
+    """The plant's own figures, where it has any (``figures(record, before, after, out_dir)``)."""
+    figures = getattr(result.plant, "figures", None)
+    if figures is None:
+        return []
+    report = result.report
+    after = report.named.fit.values if report.named else None
+    return list(figures(result.record, report.calibration.values, after, out_dir))

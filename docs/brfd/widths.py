@@ -56,11 +56,17 @@ def main(argv: list[str] | None = None) -> int:
     for series, names in per_series.items():
         ok = [n for n in names if fits[n][1].identifiable]
         ks = np.array([fits[n][1].K for n in ok]) * 1e3
-        j = fit_width(plant, [fits[n][0] for n in ok]) if ok else None
-        joint[series] = j
+        # the identifiable records jointly; where none is, all of them jointly (does pooling help?)
+        j = fit_width(plant, [fits[n][0] for n in (ok or names)])
+        joint[series] = j if ok else None
         spread = f"{ks.mean():.2f}, {ks.std(ddof=1):.2f}" if ks.size > 1 else (f"{ks[0]:.2f}, -" if ks.size else "-")
-        jtxt = f"{j.K * 1e3:.2f} +- {j.sigma_K * 1e3:.2f}" if j else "-"
-        jint = f"[{j.interval[0] * 1e3:.2f}, {j.interval[1] * 1e3:.2f}]" if j else "-"
+        jtxt = f"{j.K * 1e3:.2f} +- {j.sigma_K * 1e3:.2f}" + (
+            ""
+            if ok
+            else " (all records; "
+            + ("identifiable)" if j.identifiable else "not identifiable: " + "; ".join(j.reasons) + ")")
+        )
+        jint = f"[{j.interval[0] * 1e3:.2f}, {j.interval[1] * 1e3:.2f}]"
         summary.append(f"| {series} | {len(ok)}/{len(names)} | {spread} | {jtxt} | {jint} |")
     lines = [
         "| record | tension [lb] | width [mm] | 95 % interval [mm] | identifiable | holds its series' joint width | "

@@ -200,7 +200,7 @@ class PlantGapReport:
         over the other two axes of the localisation.
     event_share : dict
         ``{"before": {channel: share}, "after": {...}, "samples": {"share": s}}``: the share of each
-        channel's residual energy within the plant's ``event_span`` of the plant's input events, before and
+        channel's residual energy near the plant's input events (:meth:`~engine.plants.base.Plant.near_events`), before and
         after, beside the share of samples there (empty dicts without events).
     ranking : list of EffectFit
         Every single effect, best first.
@@ -660,20 +660,16 @@ def event_shares(
     Returns
     -------
     shares : dict of str to float
-        Per channel, the share of its residual energy within the plant's ``event_span`` of an event
-        (empty when the record has no events).
+        Per channel, the share of its residual energy in the samples the plant counts as near its
+        input events (:meth:`~engine.plants.base.Plant.near_events`; empty when there are none).
     samples : float
         The share of the scored samples within those spans (what the energy share would be if
         the residual ignored the events).
     """
     obj = objective or PlantObjective(plant, record)
-    t = np.asarray(plant.time(record), dtype=float)[obj.window]
-    events = np.asarray(plant.events(record), dtype=float)
-    if events.size == 0:
+    near = np.asarray(plant.near_events(record), dtype=bool)[obj.window]
+    if not near.any():
         return {}, 0.0
-    near = np.zeros(t.size, dtype=bool)
-    for te in events:
-        near |= (t >= te + plant.event_span[0]) & (t < te + plant.event_span[1])
     res = obj.residuals(values)
     shares = {c: float(res[c][near] @ res[c][near] / max(res[c] @ res[c], 1e-300)) for c in obj.channels}
     return shares, float(near.mean())

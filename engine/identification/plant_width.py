@@ -19,7 +19,8 @@ Method
   Gaussian residual; it does not need the cost to be quadratic, which a play's cost is not).
 - **Correlation** of the width with every other fitted parameter, from the Gauss-Newton
   covariance at the optimum.
-- **Identifiable** when the profile interval lies inside the searched range and is no wider than
+- **Identifiable** when the profile interval lies inside the searched range (neither reaching zero
+  width, where the data cannot tell a play from none, nor the largest width) and is no wider than
   :data:`MAX_INTERVAL` and the width's correlation with no other parameter exceeds
   :data:`MAX_CORRELATION` in magnitude; otherwise the answer says which of these failed, and the
   width is reported as not identifiable rather than as a number.
@@ -261,6 +262,11 @@ def fit_width(plant: Plant, records: Sequence[Any], width: str = "backlash") -> 
     reasons = []
     if interval[1] >= q.hi - 0.5 * step:
         reasons.append(f"the 95 % interval reaches the largest width searched ({q.hi * 1e3:g} mm)")
+    if interval[0] <= q.lo + 0.5 * step:
+        reasons.append(
+            f"the 95 % interval reaches zero width: the data do not tell a play from none "
+            f"(at most {interval[1] * 1e3:.2f} mm)"
+        )
     if interval[1] - interval[0] > MAX_INTERVAL:
         reasons.append(
             f"the profile is flat: widths from {interval[0] * 1e3:.2f} to {interval[1] * 1e3:.2f} mm fit within the "

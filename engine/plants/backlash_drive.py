@@ -16,7 +16,7 @@ import numpy as np
 
 from engine.constants import CHANNEL_UNITS, CHANNELS
 from engine.diagnosis.space import DEFAULT_BOUNDS, LOG_SCALED_EFFECTS, LOG_SCALED_PARAMETERS, default_space
-from engine.plants.base import CalibratedParameter, CandidateEffect, Channel
+from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, within_span
 from engine.records import Record
 from engine.simulation import (
     CATALOGUE,
@@ -36,6 +36,9 @@ __all__ = ["DIFF_STEP", "SYNTHETIC_SNR_DB", "BacklashDrivePlant"]
 #: 1.3 stopped at 0.87 / 1.25 (a1 error 16 % left on a 40 dB record); with 1e-3 it reached the
 #: noise (0.90 / 1.30, a1 error 1.1 %, tests/test_plants.py).
 DIFF_STEP: float = 1e-3
+
+#: The backlash test's transient around its event t_e [s]: from 5 ms before to 50 ms after.
+EVENT_SPAN: tuple[float, float] = (-0.005, 0.05)
 
 #: Signal-to-noise ratio of a synthetic record's white noise [dB] (the middle of MODEL.md's 30-50 dB).
 SYNTHETIC_SNR_DB: float = 40.0
@@ -65,8 +68,6 @@ class BacklashDrivePlant:
     )
 
     diff_step: float = DIFF_STEP
-    #: the backlash test's transient: from 5 ms before the event t_e to 50 ms after it
-    event_span: tuple[float, float] = (-0.005, 0.05)
 
     def __init__(self, solver: SolverSettings | None = None) -> None:
         self.solver = solver or SolverSettings()
@@ -106,6 +107,10 @@ class BacklashDrivePlant:
     def events(self, record: Record) -> np.ndarray:
         """The record's event instant t_e (MODEL.md's backlash test; 0 on the record's time axis)."""
         return np.array([record.time[record.event_index]])
+
+    def near_events(self, record: Record) -> np.ndarray:
+        """Samples within :data:`EVENT_SPAN` of the event t_e."""
+        return within_span(record.time, self.events(record), EVENT_SPAN)
 
     def synthesize(self, record: Record, values: Mapping[str, float], rng: np.random.Generator) -> Record:
         """The record's channels simulated at ``values`` plus white noise at :data:`SYNTHETIC_SNR_DB`."""

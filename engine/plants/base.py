@@ -34,6 +34,7 @@ __all__ = [
     "free_parameters",
     "relative_error",
     "relative_errors",
+    "within_span",
 ]
 
 
@@ -172,9 +173,6 @@ class Plant(Protocol):
         Parameters refitted with every candidate effect.
     catalogue : mapping of str to CandidateEffect
         The candidate effects.
-    event_span : tuple of float
-        From when to when around each input event (:meth:`events`) residual energy counts as the
-        event's [s] (the plant's transient after an event).
     diff_step : float
         Step of the diagnosis' finite differences, as a share of each parameter's search interval:
         the smallest step at which the plant's simulated channels change smoothly (a simulation
@@ -187,7 +185,6 @@ class Plant(Protocol):
     calibrated: tuple[CalibratedParameter, ...]
     catalogue: Mapping[str, CandidateEffect]
     diff_step: float
-    event_span: tuple[float, float]
 
     def measured(self, record: Any) -> dict[str, np.ndarray]:
         """The record's measured channels, ``name -> samples`` in channel order and unit."""
@@ -230,6 +227,15 @@ class Plant(Protocol):
         """The record's sample instants [s]."""
         ...
 
+    def near_events(self, record: Any) -> np.ndarray:
+        """Per sample, whether it lies in the transient of one of the record's input events.
+
+        What "near" means is the plant's: a time span around each event (:func:`within_span`), or
+        a stretch of travel after a reversal. The diagnosis reports how much of the residual lies
+        there beside the share of samples there.
+        """
+        ...
+
     @property
     def examples(self) -> tuple[str, ...]:
         """Names of the records :meth:`example` gives, the first one the default."""
@@ -247,6 +253,15 @@ class Plant(Protocol):
             For a name not in :attr:`examples`.
         """
         ...
+
+
+def within_span(t: np.ndarray, events: np.ndarray, span: tuple[float, float]) -> np.ndarray:
+    """Samples at instants ``t`` [s] from ``span[0]`` to ``span[1]`` [s] around any of ``events`` [s]."""
+    t = np.asarray(t, dtype=float)
+    near = np.zeros(t.size, dtype=bool)
+    for te in np.asarray(events, dtype=float):
+        near |= (t >= te + span[0]) & (t < te + span[1])
+    return near
 
 
 def free_parameters(plant: Plant, record: Any) -> tuple[CalibratedParameter, ...]:

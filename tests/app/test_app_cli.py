@@ -425,6 +425,7 @@ def test_diagnose_a_brfd_record_as_distributed(env: Path, tmp_path: Path, capsys
     assert result["plant"] == "brfd" and set(result["relative_error"]["before"]) == {"force"}
     assert result["event_share"]["samples"]["share"] > 0  # the reversals are the record's events
     assert (tmp_path / "plots" / "overlay_force.png").stat().st_size > 0
+    assert (tmp_path / "plots" / "force_displacement.png").stat().st_size > 10_000  # the plant's own figure
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"data": [[0.0, 0.0, 0.0]] * 2000, "dt": 0.0009765625}))
     code, _, err = run(capsys, "diagnose", "--plant", "brfd", str(bad))

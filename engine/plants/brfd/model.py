@@ -50,6 +50,9 @@ STRIBECK_VELOCITY: float = 0.01
 #: Retreat from the running extreme of x that counts as a reversal [m] (the wind-up of the
 #: self-energizing effect restarts there; 0.1 mm, far above the transducer's 1.5 um quantum).
 REVERSAL_TOLERANCE: float = 1e-4
+#: Travel after a reversal within which the backlash regime lies [m]: the unloading of the element
+#: (Fc / sigma0, about 4 mm at the sine tests' 9 kN and 2.2e6 N/m) and the play (3-4 mm).
+REGIME_TRAVEL: float = 0.008
 #: Time at the start of a record not scored [s] (the element starts unloaded).
 SETTLE: float = 0.25
 #: Share of the force's RMS drawn as white noise on a synthetic record's force.
@@ -124,8 +127,6 @@ class BrfdPlant:
     calibrated: tuple[CalibratedParameter, ...] = CALIBRATED
     catalogue: Mapping[str, CandidateEffect] = MappingProxyType(CATALOGUE)
     diff_step: float = DIFF_STEP
-    #: the backlash regime right after a reversal (a few mm of play at the reversal's low speed)
-    event_span: tuple[float, float] = (0.0, 0.08)
 
     @property
     def examples(self) -> tuple[str, ...]:
@@ -163,6 +164,16 @@ class BrfdPlant:
     def events(self, record: BrfdRecord) -> np.ndarray:
         """The reversals of the imposed displacement [s] (the backlash regime follows each)."""
         return record.t[k.reversals(input_displacement(record), REVERSAL_TOLERANCE)]
+
+    def near_events(self, record: BrfdRecord) -> np.ndarray:
+        """Samples of the backlash regime's reach: from a reversal until the displacement has
+        travelled :data:`REGIME_TRAVEL` from it (or the next reversal)."""
+        x = input_displacement(record)
+        near = np.zeros(record.n, dtype=bool)
+        for i in k.reversals(x, REVERSAL_TOLERANCE):
+            far = np.flatnonzero(np.abs(x[i:] - x[i]) > REGIME_TRAVEL)
+            near[i : i + (int(far[0]) if far.size else record.n - i)] = True
+        return near
 
     def parameters(self, values: Mapping[str, float]) -> BrfdParameters:
         """Model parameters from calibrated and effect values by name (others nominal or neutral).
@@ -213,6 +224,14 @@ class BrfdPlant:
         contact = np.empty(record.n, dtype=np.int8)
         k.transmitted_force(x, record.ts, p.vector(), force, contact)
         return contact.astype(bool)
+
+    def figures(
+        self, record: BrfdRecord, before: Mapping[str, float], after: Mapping[str, float] | None, out_dir: Path
+    ) -> list[Path]:
+        """The plant's own figure of a diagnosis: force against displacement, before and after."""
+        from engine.plants.brfd.plots import plot_force_displacement
+
+        return [plot_force_displacement(self, record, before, after, Path(out_dir) / "force_displacement.png")]
 
     def synthesize(self, record: BrfdRecord, values: Mapping[str, float], rng: np.random.Generator) -> BrfdRecord:
         """A record like ``record`` whose force is simulated at ``values`` plus white noise."""

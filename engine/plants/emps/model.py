@@ -29,7 +29,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from engine.plants.base import CalibratedParameter, CandidateEffect, Channel
+from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, within_span
 from engine.plants.emps import _kernel as k
 from engine.plants.emps.catalogue import CATALOGUE, EFFECT_FIELDS, LOCI
 from engine.plants.emps.channels import N_BORDER, measured_channels, process
@@ -75,6 +75,10 @@ POSITION_FRICTION_PERIOD: float = 2.5e-3
 #: scales of 1e-3 of an interval and finer differences send the solver the roughness, not the slope
 #: (a fit of DATA_EMPS stopped at its start with 1e-3).
 DIFF_STEP: float = 1e-2
+
+#: Span around a pulse edge that counts as the edge's transient [s]: from 20 ms before to 80 ms
+#: after (the closed loop rings about 60 ms).
+EVENT_SPAN: tuple[float, float] = (-0.02, 0.08)
 
 #: The benchmark's records shipped with the package (estimation, validation) and where they are.
 EXAMPLES: tuple[str, ...] = ("DATA_EMPS", "DATA_EMPS_PULSES")
@@ -169,9 +173,6 @@ class EmpsPlant:
     calibrated: tuple[CalibratedParameter, ...] = CALIBRATED
     catalogue: Mapping[str, CandidateEffect] = MappingProxyType(CATALOGUE)
     diff_step: float = DIFF_STEP
-    #: residual energy from 20 ms before to 80 ms after a pulse edge counts as the edge's (the
-    #: closed loop rings about 60 ms)
-    event_span: tuple[float, float] = (-0.02, 0.08)
 
     def __init__(self, n_substeps: int = N_SUBSTEPS, fixed: Mapping[str, float] | None = None) -> None:
         self.n_substeps = n_substeps
@@ -217,6 +218,10 @@ class EmpsPlant:
         """The instants [s] where the pulse signal switches (none in a record without pulses)."""
         edges = np.flatnonzero(np.diff(record.pulses) != 0.0) + 1
         return record.t[edges]
+
+    def near_events(self, record: EmpsRecord) -> np.ndarray:
+        """Samples within :data:`EVENT_SPAN` of a pulse edge."""
+        return within_span(record.t, self.events(record), EVENT_SPAN)
 
     def synthesize(self, record: EmpsRecord, values: Mapping[str, float], rng: np.random.Generator) -> EmpsRecord:
         """A record like ``record`` whose qm and vir are simulated at ``values``.
