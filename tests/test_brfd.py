@@ -95,6 +95,19 @@ def test_the_plant_implements_the_interface_and_every_effect_moves_the_force(
         plant.simulate(rec, {"no_such_parameter": 1.0})
 
 
+def test_the_nominal_model_calibrated_on_a_sine_test_follows_its_force(
+    brfd: BrfdPlant, records: dict[str, BrfdRecord]
+) -> None:
+    """The friction level matches the loop's plateau (measured: about +-10 kN at 30 lb, 1 in, 1 Hz)."""
+    rec = records[SINE_1HZ]
+    obj = PlantObjective(brfd, rec)
+    cal = calibrate(brfd, rec, objective=obj)
+    plateau = float(np.percentile(np.abs(rec.force[brfd.scored(rec)]), 75))
+    assert cal.values["Fc"] == pytest.approx(plateau, rel=0.2)
+    error = obj.relative_errors(cal.values)["force"]
+    assert error < 30.0 and error < obj.relative_errors({})["force"]
+
+
 def test_no_force_is_transmitted_inside_the_play(brfd: BrfdPlant, records: dict[str, BrfdRecord]) -> None:
     rec = records[SINE_2HZ]
     values = {"Fc": 8000.0, "sigma0": 4e6, "backlash": 0.004}

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from typing import Annotated, Literal, TypeVar
 
 from fastapi import Depends, HTTPException, Query, Request
@@ -13,6 +14,7 @@ from app.jobs import JobManager
 from app.records_io import ACCEPTED_UNITS_DOC, UNITS_SYNTAX, RecordFormatError, parse_units, record_from_csv
 from app.services.errors import InvalidInputError
 from engine.constants import MAX_SAMPLE_INTERVAL, MIN_SAMPLE_INTERVAL, SAMPLE_INTERVAL
+from engine.plants import DEFAULT_PLANT
 from engine.records import Record
 from engine.records.units import BASE_TORQUE
 from engine.storage import PatternStore
@@ -157,3 +159,12 @@ def reject_query(request: Request, names: tuple[str, ...]) -> None:
 
 #: Query parameters of the CSV form of record bodies.
 CSV_QUERY = ("sample_interval", "event_index", "units", "J1", "c", "c1", "K", BASE_TORQUE)
+
+
+def names_another_plant(raw: bytes) -> bool:
+    """Whether a JSON body names a plant other than the default (malformed bodies are left to the validation)."""
+    try:
+        body = json.loads(raw)
+    except ValueError:
+        return False
+    return isinstance(body, dict) and body.get("plant", DEFAULT_PLANT) != DEFAULT_PLANT

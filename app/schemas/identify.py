@@ -7,6 +7,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from app.schemas.common import ChannelName, RecordIn
+from app.schemas.diagnose import BrfdRecordIn
 from engine.constants import C_NOMINAL, K_GRID
 
 
@@ -88,3 +89,35 @@ class IdentificationPublic(BaseModel):
         default=None, description="The calibrated K as a continuous width (only when requested)."
     )
     record: RecordReadPublic = Field(description="How the record was read.")
+
+
+class PlantIdentifyCreate(BaseModel):
+    """The backlash width of records of a plant with a play in its catalogue (``"plant": "brfd"``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    plant: Literal["brfd"] = Field(description="The plant the records are of.")
+    record: BrfdRecordIn
+    joint: list[BrfdRecordIn] = Field(
+        default_factory=list,
+        max_length=20,
+        description="Other records of the same device, fitted jointly with ``record`` (one width shared).",
+    )
+    continuous: Literal[True] = Field(
+        default=True, description="The width is fitted as a continuous parameter (the only way for this plant)."
+    )
+
+
+class PlantWidthPublic(BaseModel):
+    """The width of a plant's records: continuous with its interval and identifiability; the seed's method beside it."""
+
+    plant: str
+    records: list[str]
+    unit: str = Field(description="Unit of the width (m).")
+    continuous: dict[str, Any] = Field(
+        description="K, sigma_K (null when not identifiable), interval_95, identifiable, reasons, fitted, "
+        "correlation_with_K, relative_error, profile."
+    )
+    paper: list[dict[str, Any]] | None = Field(
+        default=None, description="Per record, the seed's W3/D/argmin width on a grid of six widths."
+    )

@@ -9,7 +9,7 @@ from app.services.plant_diagnosis import read_file
 from engine.identification.plant_width import fit_width
 from engine.plants import get_plant
 
-__all__ = ["identify_width"]
+__all__ = ["identify_records", "identify_width"]
 
 #: The catalogue effect that is the backlash width, on every plant that has one.
 WIDTH_EFFECT: str = "backlash"
@@ -29,6 +29,20 @@ def identify_width(plant_name: str, record: Path, joint: list[Path] | None = Non
     if WIDTH_EFFECT not in plant.catalogue:
         raise ValueError(f"plant {plant_name!r} has no backlash width in its catalogue; identify applies to brfd")
     records = [read_file(plant, record), *(read_file(plant, p) for p in joint or ())]
+    return identify_records(plant_name, records)
+
+
+def identify_records(plant_name: str, records: list[Any]) -> dict[str, Any]:
+    """The width of ``records`` (already read) of plant ``plant_name``: continuous, and the seed's method beside it.
+
+    Raises
+    ------
+    ValueError
+        For a plant whose catalogue has no backlash width.
+    """
+    plant = get_plant(plant_name)
+    if WIDTH_EFFECT not in plant.catalogue:
+        raise ValueError(f"plant {plant_name!r} has no backlash width in its catalogue; identify applies to brfd")
     width = fit_width(plant, records, WIDTH_EFFECT)
     out: dict[str, Any] = {
         "plant": plant.name,

@@ -97,6 +97,21 @@ def test_diagnose_a_brfd_record_over_http_as_the_data_set_gives_it(client: httpx
     assert client.get("/healthz").status_code == 200
 
 
+def test_identify_the_width_of_a_brfd_record_over_http(client: httpx.Client) -> None:
+    """``POST /v1/identify {"plant": "brfd", ...}``: the continuous width with its interval, the seed's method beside."""
+    record = {"name": "2Hz", **json.loads(gzip.decompress(BRFD_2HZ.read_bytes()))}
+    r = client.post("/v1/identify", json={"plant": "brfd", "record": record}, timeout=300)
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert body["plant"] == "brfd" and body["unit"] == "m" and body["records"] == ["2Hz"]
+    cont = body["continuous"]
+    assert cont["identifiable"] and cont["interval_95"][0] <= cont["K"] <= cont["interval_95"][1]
+    assert set(cont["correlation_with_K"]) == {"Fc", "sigma0"}
+    assert body["paper"][0]["width"] in body["paper"][0]["widths"]
+    r = client.post("/v1/identify", json={"plant": "brfd", "record": {**record, "displacement units": "cubits"}})
+    assert r.status_code == 422 and "displacement unit 'cubits'" in r.json()["detail"]
+
+
 def test_diagnose_refuses_an_emps_record_it_cannot_read(client: httpx.Client) -> None:
     bad = _emps_body(1000)
     bad["t"][500] += 0.0004  # a jittered instant: the grid is not the controller's

@@ -8,14 +8,14 @@ from typing import Any
 from fastapi import APIRouter, Request
 from starlette.concurrency import run_in_threadpool
 
-from app.api.deps import CSV_QUERY, CSVRecordDep, body_kind, csv_record, json_body, reject_query
+from app.api.deps import CSV_QUERY, CSVRecordDep, body_kind, csv_record, json_body, names_another_plant, reject_query
 from app.api.openapi import body_schema
 from app.schemas.common import ErrorPublic
 from app.schemas.diagnose import BrfdDiagnoseCreate, DiagnoseCreate, PlantDiagnoseCreate
 from app.services import diagnosis, plant_diagnosis
 from app.services.plant_diagnosis import PlantRecords
 from engine.diagnosis.space import check_bounds
-from engine.plants import DEFAULT_PLANT, get_plant
+from engine.plants import get_plant
 from engine.simulation import CATALOGUE
 
 #: Request schema per plant other than the default.
@@ -25,15 +25,6 @@ PLANT_SCHEMAS: dict[str, type[PlantDiagnoseCreate] | type[BrfdDiagnoseCreate]] =
 }
 
 router = APIRouter(prefix="/diagnose", tags=["diagnose"])
-
-
-def _names_another_plant(raw: bytes) -> bool:
-    """Whether a JSON body names a plant other than the default (malformed bodies are left to the validation)."""
-    try:
-        body = json.loads(raw)
-    except ValueError:
-        return False
-    return isinstance(body, dict) and body.get("plant", DEFAULT_PLANT) != DEFAULT_PLANT
 
 
 @router.post(
@@ -62,7 +53,7 @@ async def diagnose(request: Request, csv_params: CSVRecordDep) -> Any:
     in its units.
     """
     bounds = None
-    if body_kind(request) != "csv" and _names_another_plant(await request.body()):
+    if body_kind(request) != "csv" and names_another_plant(await request.body()):
         reject_query(request, CSV_QUERY)
         raw = json.loads(await request.body())
         schema = PLANT_SCHEMAS.get(str(raw.get("plant")), PlantDiagnoseCreate)  # an unknown name: 422 from the schema

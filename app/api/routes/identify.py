@@ -7,11 +7,20 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Query, Request
 from starlette.concurrency import run_in_threadpool
 
-from app.api.deps import CSV_QUERY, CSVRecordDep, StoreDep, body_kind, csv_record, json_body, reject_query
+from app.api.deps import (
+    CSV_QUERY,
+    CSVRecordDep,
+    StoreDep,
+    body_kind,
+    csv_record,
+    json_body,
+    names_another_plant,
+    reject_query,
+)
 from app.api.openapi import body_schema
 from app.schemas.common import ChannelName, ErrorPublic
-from app.schemas.identify import IdentificationPublic, IdentifyCreate
-from app.services import identification
+from app.schemas.identify import IdentificationPublic, IdentifyCreate, PlantIdentifyCreate, PlantWidthPublic
+from app.services import identification, plant_identification
 from app.services.errors import InvalidInputError
 
 router = APIRouter(prefix="/identify", tags=["identify"])
@@ -19,9 +28,9 @@ router = APIRouter(prefix="/identify", tags=["identify"])
 
 @router.post(
     "",
-    response_model=IdentificationPublic,
+    response_model=IdentificationPublic | PlantWidthPublic,
     summary="Identify the backlash width of a record",
-    openapi_extra=body_schema(IdentifyCreate, csv=True),
+    openapi_extra=body_schema(IdentifyCreate, csv=True, alternatives=(PlantIdentifyCreate,)),
     responses={
         400: {"model": ErrorPublic, "description": "Malformed JSON or CSV"},
         404: {"model": ErrorPublic, "description": "No (matching) pattern set stored"},
@@ -54,7 +63,17 @@ async def identify(
     ``channel``, ``pattern_set``, ``continuous``, ``sample_interval``, ``event_index``, ``units``
     (e.g. ``omega1:rpm,a1:g``), ``base_torque`` and the known conditions (``c``, ``J1``, ...) as
     query parameters.
+
+    ``"plant": "brfd"`` identifies the width of a BRFD record instead (``PlantIdentifyCreate``: the data
+    set's JSON object as it is, optionally ``joint`` records of the same device sharing one width): the
+    width as a continuous parameter with its 95 % interval, or not identifiable with the reason, and the
+    seed's W3/D/argmin width beside it.
     """
+    if body_kind(request) != "csv" and names_another_plant(await request.body()):
+        reject_query(request, (*CSV_QUERY, "channel", "pattern_set", "kind", "continuous"))
+        other = await json_body(request, PlantIdentifyCreate)
+        records = [other.record.to_record(), *(r.to_record() for r in other.joint)]
+        return await run_in_threadpool(plant_identification.identify_records, other.plant, records)
     if body_kind(request) == "csv":
         if channel is None:
             raise InvalidInputError("with a CSV body, give the channel to identify from as query parameter ?channel=")
