@@ -49,6 +49,9 @@ simulate(PlantParameters()); simulate_batch([PlantParameters(), PlantParameters(
 # and the EMPS plant's loop, on the shipped record (which also proves the records are in the package)
 RUN python -c "from importlib.resources import files; from engine.plants.emps import EmpsPlant, load_mat; \
 EmpsPlant().simulate(load_mat(str(files('engine.plants.emps') / 'data' / 'DATA_EMPS.mat')).head(1.0), {})"
+# and the BRFD's friction element and reversal finder, on its shipped record (likewise in the package)
+RUN python -c "from engine.plants.brfd import BrfdPlant; p = BrfdPlant(); r = p.example(seconds=2.0); \
+p.simulate(r, {'backlash': 0.003}); p.events(r)"
 
 VOLUME ["/data"]
 EXPOSE 8000

@@ -130,10 +130,10 @@ def test_the_images_command_serves_and_passes_its_health_check(
     assert subprocess.run(check, capture_output=True, timeout=30).returncode != 0  # down -> unhealthy
 
 
-@pytest.mark.parametrize("marker", ["simulate_batch", "EmpsPlant"])
+@pytest.mark.parametrize("marker", ["simulate_batch", "EmpsPlant", "BrfdPlant"])
 def test_the_kernel_warm_up_steps_run(dockerfile: list[tuple[str, str]], tmp_path: Path, marker: str) -> None:
-    """The build steps that compile the numba kernels (the drive's serial and parallel ones, the EMPS loop on
-    the record shipped in the package) run as written."""
+    """The build steps that compile the numba kernels (the drive's serial and parallel ones, the EMPS loop and
+    the BRFD element on the records shipped in the package) run as written."""
     args = dockerfile[_index(dockerfile, "RUN", marker)][1]
     argv = shlex.split(args)
     assert argv[:2] == ["python", "-c"], args
