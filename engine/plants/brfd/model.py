@@ -193,16 +193,8 @@ class BrfdPlant:
                 raise KeyError(f"unknown BRFD parameter or effect {name!r}")
         return BrfdParameters(**fields)
 
-    def simulate(self, record: BrfdRecord, values: Mapping[str, float]) -> dict[str, np.ndarray]:
-        """The force [N] simulated on the record's grid from its displacement.
-
-        Raises
-        ------
-        KeyError
-            For an unknown name.
-        RuntimeError
-            When the kernel produces a non-finite force.
-        """
+    def _run(self, record: BrfdRecord, values: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
+        """The element's transmitted force [N] (before the load cell) and the contact flags, per sample."""
         p = self.parameters(values)
         x = input_displacement(record)
         if p.delay != 0.0:
@@ -211,19 +203,24 @@ class BrfdPlant:
         contact = np.empty(record.n, dtype=np.int8)
         status = k.transmitted_force(x, record.ts, p.vector(), force, contact)
         if status != 0:
-            raise RuntimeError(f"BRFD simulation failed (status {status}) at {values}")
-        return {"force": p.gain * force + p.offset}
+            raise RuntimeError(f"BRFD simulation failed (status {status}) at {dict(values)}")
+        return p.gain * force + p.offset, contact.astype(bool)
+
+    def simulate(self, record: BrfdRecord, values: Mapping[str, float]) -> dict[str, np.ndarray]:
+        """The force [N] simulated on the record's grid from its displacement, as the load cell reads it.
+
+        Raises
+        ------
+        KeyError
+            For an unknown name.
+        RuntimeError
+            When the kernel produces a non-finite force.
+        """
+        return {"force": self._run(record, values)[0]}
 
     def contact(self, record: BrfdRecord, values: Mapping[str, float]) -> np.ndarray:
         """Whether the linkage is in contact (True) or inside its play (False), per sample."""
-        p = self.parameters(values)
-        x = input_displacement(record)
-        if p.delay != 0.0:
-            x = np.interp(record.t - p.delay, record.t, x)
-        force = np.empty(record.n)
-        contact = np.empty(record.n, dtype=np.int8)
-        k.transmitted_force(x, record.ts, p.vector(), force, contact)
-        return contact.astype(bool)
+        return self._run(record, values)[1]
 
     def figures(
         self, record: BrfdRecord, before: Mapping[str, float], after: Mapping[str, float] | None, out_dir: Path
