@@ -623,11 +623,15 @@ def test_cli_validate_runs_protocol_2_by_default(
     monkeypatch.setattr(run, "run_validation", fake_run)
     monkeypatch.setattr(v1, "run_validation", no_v1)
     assert main(["validate", "--out", str(tmp_path / "v")]) == 0
-    assert calls == [{"n_cases": 300, "seed": 97, "out_dir": tmp_path / "v", "workers": 2, "mix": None}]
+    assert calls == [
+        {"n_cases": 300, "seed": 97, "out_dir": tmp_path / "v", "workers": None, "mix": None, "scheduler": None}
+    ]  # workers None: a local Dask cluster of one worker per core
     out = capsys.readouterr().out
     assert "protocol 2: 300 cases, seed 97" in out and "| single effect: explained, top effect right |" in out
     assert main(["validate", "--cases", "10", "--seed", "4", "--workers", "1", "--mix", "single=1,clean=1"]) == 0
     assert calls[-1]["mix"] == {"single": 1.0, "clean": 1.0} and calls[-1]["n_cases"] == 10
+    assert main(["validate", "--scheduler", "tcp://10.0.0.7:8786", "--out", str(tmp_path / "w")]) == 0
+    assert calls[-1]["scheduler"] == "tcp://10.0.0.7:8786"
     assert main(["validate", "--mix", "single"]) == 2
     assert "KIND=SHARE" in capsys.readouterr().err
     assert main(["validate", "--protocol", "1", "--mix", "single=1"]) == 2

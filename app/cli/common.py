@@ -108,6 +108,24 @@ def add_record_options(p: argparse.ArgumentParser) -> None:
         p.add_argument(f"--{name}", type=finite, help=f"known condition {name} [{unit_name}]")
 
 
+def add_dask_options(p: argparse.ArgumentParser) -> None:
+    """``--workers`` and ``--scheduler``: where many-case work runs (engine.distributed)."""
+    from engine.distributed import SCHEDULER_ENV
+
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="single-threaded Dask worker processes of the local cluster (default: this machine's cores; "
+        "0 runs in this process)",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="tcp://HOST:PORT",
+        help=f"an existing Dask scheduler to send the work to (default ${SCHEDULER_ENV}, else a local cluster)",
+    )
+
+
 def add_db_option(p: argparse.ArgumentParser) -> None:
     """``--db``: the pattern-store file."""
     from engine.storage import DEFAULT_STORE_PATH, STORE_PATH_ENV
@@ -180,12 +198,14 @@ def user_errors() -> tuple[type[BaseException], ...]:
     from app.records_io import RecordFormatError
     from app.services.errors import ServiceError
     from engine.diagnosis.space import BoundsError
+    from engine.distributed import SchedulerUnreachable
     from engine.records import RecordError
     from engine.simulation import ParameterError, SimulationError
     from engine.storage import InvalidPatternSet, PatternStoreError
 
     return (
         CommandError,
+        SchedulerUnreachable,
         RecordFormatError,
         RecordError,
         BoundsError,

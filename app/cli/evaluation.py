@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from app import output
-from app.cli.common import EXIT_OK, CommandError
+from app.cli.common import EXIT_OK, CommandError, add_dask_options
 
 #: The simulator benchmark, relative to the repository root.
 BENCH_SCRIPT = Path("bench") / "bench_simulator.py"
@@ -55,7 +55,9 @@ def _validate_v1(args: argparse.Namespace, n_cases: int, seed: int) -> None:
 
     out = Path(args.out)
     try:
-        report = validation.run_validation(n_cases=n_cases, seed=seed, out_dir=out, workers=args.workers)
+        report = validation.run_validation(
+            n_cases=n_cases, seed=seed, out_dir=out, workers=args.workers, scheduler=args.scheduler
+        )
     except FileExistsError as exc:
         raise CommandError(str(exc)) from None
     output.write(report.table())
@@ -74,7 +76,12 @@ def _validate_v2(args: argparse.Namespace, n_cases: int, seed: int) -> None:
 
     try:
         doc = run.run_validation(
-            n_cases=n_cases, seed=seed, out_dir=Path(args.out), workers=args.workers, mix=_parse_mix(args.mix)
+            n_cases=n_cases,
+            seed=seed,
+            out_dir=Path(args.out),
+            workers=args.workers,
+            mix=_parse_mix(args.mix),
+            scheduler=args.scheduler,
         )
     except (FileExistsError, ValueError) as exc:
         raise CommandError(str(exc)) from None
@@ -166,7 +173,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help=f"seed of the case generator (default {VALIDATE_DEFAULTS[2][1]}; protocol 1: {VALIDATE_DEFAULTS[1][1]}, "
         "the README's blind run of its code)",
     )
-    p.add_argument("--workers", type=int, default=2, help="parallel diagnosis processes (default 2)")
+    add_dask_options(p)
     p.add_argument(
         "--mix",
         default=None,

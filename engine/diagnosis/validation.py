@@ -45,9 +45,9 @@ import math
 import time
 from collections import Counter, defaultdict
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -239,14 +239,8 @@ def write_cases(cases: Sequence[BlindCase], key: Sequence[AnswerEntry], out_dir:
     return key_path
 
 
-def _init_worker() -> None:
-    import numba
-
-    numba.set_num_threads(1)
-
-
-def _diagnose_file(path: str, results_dir: str, settings: DiagnosisSettings) -> str:
-    case = BlindCase.from_dict(json.loads(Path(path).read_text()))
+def _diagnose_case(case: BlindCase, settings: DiagnosisSettings) -> dict[str, Any]:
+    """One blind case's result as its file stores it (a failure is recorded as status ``error``)."""
     library = EffectLibrary([CATALOGUE[n] for n in case.library])
     t0 = time.perf_counter()
     try:
@@ -262,41 +256,53 @@ def _diagnose_file(path: str, results_dir: str, settings: DiagnosisSettings) -> 
         }
     out["case_id"] = case.case_id
     out["wall_seconds"] = time.perf_counter() - t0
-    (Path(results_dir) / f"{case.case_id}.json").write_text(json.dumps(out))
-    return case.case_id
+    return out
 
 
-def diagnose_cases(out_dir: str | Path, workers: int = 1, settings: DiagnosisSettings | None = None) -> Path:
+def diagnose_cases(
+    out_dir: str | Path,
+    workers: int | None = 0,
+    settings: DiagnosisSettings | None = None,
+    scheduler: str | None = None,
+) -> Path:
     """Diagnose every case in ``out_dir/cases`` (never reading the key); results to ``out_dir/results``.
+
+    The cases are read and the results written by this process; the diagnoses run on Dask
+    (:mod:`engine.distributed`).
 
     Parameters
     ----------
     out_dir : path
         Directory written by :func:`write_cases`.
-    workers : int
-        Parallel processes (each with one numba thread); 1 runs in this process.
+    workers : int or None
+        Single-threaded worker processes of a local Dask cluster (None: one per core); 0 (the
+        default) runs in this process. Ignored when a scheduler is given.
     settings : DiagnosisSettings, optional
         Diagnosis settings (default ``DiagnosisSettings()``).
+    scheduler : str, optional
+        Address of an existing Dask scheduler (default ``$BACKLASH_DASK_SCHEDULER``, else a local cluster).
     """
+    from engine.distributed import Progress, dask_client, map_cases, scheduler_address
+
     settings = DiagnosisSettings() if settings is None else settings
     out = Path(out_dir)
     results = out / "results"
     results.mkdir(parents=True, exist_ok=True)
-    files = sorted(str(p) for p in (out / "cases").glob("*.json"))
-    t0 = time.perf_counter()
-    if workers <= 1:
-        for i, f in enumerate(files):
-            _diagnose_file(f, str(results), settings)
-            logger.info("diagnosed %d/%d (%.0f s)", i + 1, len(files), time.perf_counter() - t0)
-    else:
-        import multiprocessing
+    cases = {p.stem: BlindCase.from_dict(json.loads(p.read_text())) for p in sorted((out / "cases").glob("*.json"))}
 
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker) as ex:
-            futs = [ex.submit(_diagnose_file, f, str(results), settings) for f in files]
-            for i, fut in enumerate(futs):
-                fut.result()
-                logger.info("diagnosed %d/%d (%.0f s)", i + 1, len(files), time.perf_counter() - t0)
+    def write(case: BlindCase, result: dict[str, Any]) -> None:
+        (results / f"{case.case_id}.json").write_text(json.dumps(result))
+
+    if workers == 0 and scheduler_address(scheduler) is None:
+        progress = Progress(len(cases), "case")
+        for case in cases.values():
+            write(case, _diagnose_case(case, settings))
+            progress.step(case.case_id)
+        return results
+    with dask_client(scheduler, workers) as client:
+        inputs = {k: (c, settings) for k, c in cases.items()}
+        for key, result in map_cases(client, _diagnose_case, inputs, "case"):
+            write(cases[key], result)
     return results
 
 
@@ -489,9 +495,10 @@ def run_validation(
     n_cases: int,
     seed: int,
     out_dir: str | Path,
-    workers: int = 1,
+    workers: int | None = 0,
     settings: DiagnosisSettings | None = None,
     fractions: dict[str, float] | None = None,
+    scheduler: str | None = None,
 ) -> ValidationReport:
     """Generate, diagnose blind, then score; writes ``report.json`` and ``report.md`` in ``out_dir``.
 
@@ -503,12 +510,15 @@ def run_validation(
         Seed of the case generator.
     out_dir : path
         Working directory (``cases/``, ``key/``, ``results/``, reports).
-    workers : int
-        Parallel diagnosis processes.
+    workers : int or None
+        Single-threaded workers of a local Dask cluster (None: one per core; 0, the default: in this
+        process).
     settings : DiagnosisSettings, optional
         Diagnosis settings (default ``DiagnosisSettings()``).
     fractions : dict, optional
         Mix of case kinds (see :func:`generate_cases`).
+    scheduler : str, optional
+        An existing Dask scheduler (default ``$BACKLASH_DASK_SCHEDULER``, else a local cluster).
 
     Raises
     ------
@@ -524,7 +534,7 @@ def run_validation(
     cases, key = generate_cases(n_cases, seed, fractions=fractions)
     write_cases(cases, key, out)
     del key  # the diagnosis never sees it
-    diagnose_cases(out, workers, settings)
+    diagnose_cases(out, workers, settings, scheduler)
     report = score(out)
     (out / "report.json").write_text(json.dumps(report.to_dict(), indent=1))
     (out / "report.md").write_text(

@@ -16,24 +16,19 @@ Three evaluations, none of which ever trains on a record it scores:
 from __future__ import annotations
 
 import logging
-import multiprocessing
-import os
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from engine.constants import C_GROUPS, CHANNELS, K_GRID, OPERATING_RANGE
+from engine.distributed import dask_client, map_cases
 from engine.identification.training import make_identifier
 from engine.simulation import PlantParameters, SimulationResult, add_white_noise, simulate_batch
 
 logger = logging.getLogger(__name__)
 
-#: Worker processes are spawned, never forked: the parent has run numba's parallel
-#: (OpenMP) kernel, and libgomp aborts a forked child that uses OpenMP again.
-_SPAWN = multiprocessing.get_context("spawn")
 
 NOISE_LEVELS_DB: tuple[float, ...] = (40.0, 30.0)
 
@@ -141,6 +136,7 @@ def evaluate(
     noise_seed: int = 7,
     n_jobs: int | None = None,
     progress: Callable[[int, int, str], None] | None = None,
+    scheduler: str | None = None,
 ) -> list[AccuracyRow]:
     """Run evaluations (a), (b) and (c) for every identifier kind and channel.
 
@@ -153,7 +149,11 @@ def evaluate(
     kinds : mapping of kind to hyper-parameters
         Identifier kinds to evaluate, e.g. ``{"template": {}, "paper": {"max_epochs": 500}}``.
     n_jobs : int, optional
-        Worker processes (default: CPU count).
+        Single-threaded workers of the local Dask cluster (default: one per core).
+    progress : callable, optional
+        Called with (tasks done, tasks, task) as tasks finish.
+    scheduler : str, optional
+        An existing Dask scheduler (default ``$BACKLASH_DASK_SCHEDULER``, else a local cluster).
     """
     groups = sorted(grids)
     y = np.array([c.plant.K for c in grids[groups[0]].cases])
@@ -162,34 +162,35 @@ def evaluate(
     gidx = nearest_group_index(np.array([c.plant.c for c in random.cases]), groups)
     splits = list(SPLITS_RANDOM)
     X_random = noisy_versions(random, channels, noise_seed)
-    lojo_tasks: list[tuple[str, str, Future[tuple[int, int, float]]]] = []
-    random_tasks: list[tuple[str, str, Future[list[tuple[np.ndarray, np.ndarray]]]]] = []
-    with ProcessPoolExecutor(max_workers=n_jobs or os.cpu_count() or 1, mp_context=_SPAWN) as pool:
-        for kind, params in kinds.items():
-            for ch in channels:
-                for cg in groups:
-                    lojo_tasks.append(
-                        (kind, ch, pool.submit(_lojo_task, kind, ch, dict(params), grids[cg].channel(ch), y, g))
-                    )
-                grids_X = [grids[cg].channel(ch) for cg in groups]
-                random_tasks.append(
-                    (kind, ch, pool.submit(_random_task, kind, ch, dict(params), grids_X, y, g, X_random[ch], gidx))
-                )
-        n_tasks, done = len(lojo_tasks) + len(random_tasks), 0
-        lojo: dict[tuple[str, str], list[tuple[int, int, float]]] = {}
-        rows: list[AccuracyRow] = []
-        for kind, ch, lojo_fut in lojo_tasks:
-            lojo.setdefault((kind, ch), []).append(lojo_fut.result())
-            done += 1
+    lojo_inputs: dict[str, tuple[Any, ...]] = {}
+    random_inputs: dict[str, tuple[Any, ...]] = {}
+    for kind, params in kinds.items():
+        for ch in channels:
+            for cg in groups:
+                lojo_inputs[f"lojo/{kind}/{ch}/{cg}"] = (kind, ch, dict(params), grids[cg].channel(ch), y, g)
+            grids_X = [grids[cg].channel(ch) for cg in groups]
+            random_inputs[f"random/{kind}/{ch}"] = (kind, ch, dict(params), grids_X, y, g, X_random[ch], gidx)
+    n_tasks = len(lojo_inputs) + len(random_inputs)
+    results: dict[str, Any] = {}
+    with dask_client(scheduler, n_jobs) as client:
+        for key, res in map_cases(client, _lojo_task, lojo_inputs, "accuracy", 0, n_tasks):
+            results[key] = res
             if progress:
-                progress(done, n_tasks, f"lojo {kind} {ch}")
-        for kind, ch, random_fut in random_tasks:
-            for split, (widths, epochs) in zip(splits, random_fut.result(), strict=True):
-                n_right = int(np.isclose(widths, truth).sum())
-                rows.append(AccuracyRow(kind, ch, split, len(truth), n_right, float(epochs.mean())))
-            done += 1
+                progress(len(results), n_tasks, key)
+        for key, widths_epochs in map_cases(client, _random_task, random_inputs, "accuracy", len(lojo_inputs), n_tasks):
+            results[key] = widths_epochs
             if progress:
-                progress(done, n_tasks, f"random {kind} {ch}")
+                progress(len(results), n_tasks, key)
+    lojo: dict[tuple[str, str], list[tuple[int, int, float]]] = {}
+    rows: list[AccuracyRow] = []
+    for key in lojo_inputs:  # submission order: the report does not depend on which task finished first
+        _, kind, ch, _ = key.split("/")
+        lojo.setdefault((kind, ch), []).append(results[key])
+    for key in random_inputs:
+        _, kind, ch = key.split("/")
+        for split, (widths, epochs) in zip(splits, results[key], strict=True):
+            n_right = int(np.isclose(widths, truth).sum())
+            rows.append(AccuracyRow(kind, ch, split, len(truth), n_right, float(epochs.mean())))
     for (kind, ch), parts in lojo.items():
         n = sum(p[1] for p in parts)
         rows.append(

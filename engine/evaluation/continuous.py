@@ -16,25 +16,19 @@ the random records, not in the main job.
 from __future__ import annotations
 
 import logging
-import multiprocessing
-import os
 import time
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
 from engine.constants import CHANNELS
+from engine.distributed import dask_client, map_cases
 from engine.evaluation.accuracy import SPLITS_RANDOM, noisy_versions, random_cases
 from engine.identification.width import estimate_width, nearest_grid_width
 from engine.records import Record
 
 logger = logging.getLogger(__name__)
-
-#: Worker processes are spawned, never forked: the parent has run numba's parallel
-#: (OpenMP) kernel, and libgomp aborts a forked child that uses OpenMP again.
-_SPAWN = multiprocessing.get_context("spawn")
 
 
 @dataclass(frozen=True)
@@ -64,36 +58,44 @@ def _task(channel: str, X: np.ndarray, c: np.ndarray) -> list[tuple[float, float
 
 
 def evaluate_continuous(
-    n_cases: int = 20, channels: Sequence[str] = CHANNELS, n_jobs: int | None = None, n_random: int = 240
+    n_cases: int = 20,
+    channels: Sequence[str] = CHANNELS,
+    n_jobs: int | None = None,
+    n_random: int = 240,
+    scheduler: str | None = None,
 ) -> list[ContinuousRow]:
-    """Score the calibrated width on the first ``n_cases`` random held-out records, per channel and noise level."""
+    """Score the calibrated width on the first ``n_cases`` random held-out records, per channel and noise level.
+
+    The fits run on Dask (:mod:`engine.distributed`): ``n_jobs`` local single-threaded workers (default
+    one per core), or the cluster of ``scheduler`` / ``$BACKLASH_DASK_SCHEDULER``.
+    """
     random = random_cases(n_random)
     truth = np.array([c.plant.K for c in random.cases])[:n_cases]
     c = np.array([c.plant.c for c in random.cases])[:n_cases]
     versions = noisy_versions(random, channels)
     rows = []
-    with ProcessPoolExecutor(max_workers=n_jobs or os.cpu_count() or 1, mp_context=_SPAWN) as pool:
-        futures = {
-            (ch, split): pool.submit(_task, ch, versions[ch][s][:n_cases], c)
-            for ch in channels
-            for s, split in enumerate(SPLITS_RANDOM)
-        }
-        for (ch, split), fut in futures.items():
-            est = np.array(fut.result())
-            K_hat, sd, sec = est[:, 0], est[:, 1], est[:, 2]
-            correct = int(sum(np.isclose(nearest_grid_width(k), t) for k, t in zip(K_hat, truth, strict=True)))
-            rows.append(
-                ContinuousRow(
-                    ch,
-                    split,
-                    n_cases,
-                    correct,
-                    float(np.median(np.abs(K_hat - truth)) * 1e3),
-                    float(np.mean(np.abs(K_hat - truth) <= 2 * sd)),
-                    float(np.median(sec)),
-                )
+    inputs = {
+        f"{ch}/{split}": (ch, versions[ch][s][:n_cases], c) for ch in channels for s, split in enumerate(SPLITS_RANDOM)
+    }
+    with dask_client(scheduler, n_jobs) as client:
+        results = dict(map_cases(client, _task, inputs, "continuous"))
+    for key in inputs:  # submission order
+        ch, split = key.split("/")
+        est = np.array(results[key])
+        K_hat, sd, sec = est[:, 0], est[:, 1], est[:, 2]
+        correct = int(sum(np.isclose(nearest_grid_width(k), t) for k, t in zip(K_hat, truth, strict=True)))
+        rows.append(
+            ContinuousRow(
+                ch,
+                split,
+                n_cases,
+                correct,
+                float(np.median(np.abs(K_hat - truth)) * 1e3),
+                float(np.mean(np.abs(K_hat - truth) <= 2 * sd)),
+                float(np.median(sec)),
             )
-            logger.info("calibrated width %s %s: %d/%d", ch, split, correct, n_cases)
+        )
+        logger.info("calibrated width %s %s: %d/%d", ch, split, correct, n_cases)
     return rows
 
 

@@ -11,11 +11,8 @@ wrong answer for the scorer); an interruption (Ctrl-C) is not recorded.
 from __future__ import annotations
 
 import logging
-import multiprocessing
 import time
 from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from pathlib import Path
 from typing import Any
 
 from engine.diagnosis.diagnose import DiagnosisSettings, diagnose
@@ -28,7 +25,7 @@ logger = logging.getLogger(__name__)
 __all__ = ["DiagnoseFn", "diagnose_cases", "diagnose_record", "library_of_run"]
 
 #: A diagnosis of one record with a library and settings, returning the JSON-ready result
-#: (``DiagnosisResult.to_dict()``'s shape). Must be picklable (module-level) for ``workers > 1``.
+#: (``DiagnosisResult.to_dict()``'s shape). Must be picklable (module-level): it runs on Dask workers.
 DiagnoseFn = Callable[[Record, EffectLibrary, DiagnosisSettings], dict[str, Any]]
 
 #: Localisation cells kept per result file (the scorer reads none; they are for a reader).
@@ -58,22 +55,15 @@ def library_of_run(layout: RunLayout, catalogue: EffectLibrary) -> EffectLibrary
     return EffectLibrary([catalogue[n] for n in manifest["library"]])
 
 
-def _init_worker() -> None:
-    import numba
-
-    numba.set_num_threads(1)
-
-
 def _diagnose_one(
-    root: str,
     case_id: str,
+    record: Record,
     library: EffectLibrary,
     settings: DiagnosisSettings,
     fn: DiagnoseFn,
     version: dict[str, Any],
-) -> tuple[str, str, float]:
-    layout = RunLayout(Path(root))
-    record = layout.read_case(case_id)
+) -> dict[str, Any]:
+    """One case's result as its file stores it (a failure is recorded as status ``error``)."""
     t0 = time.perf_counter()
     try:
         out = fn(record, library, settings)
@@ -83,23 +73,25 @@ def _diagnose_one(
             "verdict": {"status": "error", "effect": None, "value": None, "effects": [], "locus": None},
             "error": repr(exc),
         }
-    wall = time.perf_counter() - t0
     out["case_id"] = case_id
-    out["wall_seconds"] = wall
+    out["wall_seconds"] = time.perf_counter() - t0
     out["code_version"] = version
-    layout.write_result(case_id, out)
-    return case_id, str(out.get("verdict", {}).get("status")), wall
+    return out
 
 
 def diagnose_cases(
     layout: RunLayout,
     library: EffectLibrary,
-    workers: int = 1,
+    workers: int | None = 0,
     settings: DiagnosisSettings | None = None,
     diagnose_fn: DiagnoseFn | None = None,
     version: dict[str, Any] | None = None,
+    scheduler: str | None = None,
 ) -> list[str]:
-    """Diagnose every case of ``cases/`` that has no result yet.
+    """Diagnose every case of ``cases/`` that has no result yet, on Dask (:mod:`engine.distributed`).
+
+    This process reads each case's record and writes each result as soon as it arrives; the
+    diagnoses run on the cluster's workers (no shared file system needed).
 
     Parameters
     ----------
@@ -107,59 +99,48 @@ def diagnose_cases(
         The run's directory (its cases written).
     library : EffectLibrary
         The candidate effects, the same for every case (:func:`library_of_run`).
-    workers : int
-        Parallel processes (each with one numba thread); 1 diagnoses in this process.
+    workers : int or None
+        Single-threaded worker processes of a local Dask cluster (None: one per core); 0 (the
+        default) diagnoses in this process. Ignored when a scheduler is given.
     settings : DiagnosisSettings, optional
         Diagnosis settings (default ``DiagnosisSettings()``).
     diagnose_fn : DiagnoseFn, optional
-        The diagnosis (default :func:`diagnose_record`; tests pass a cheap stand-in).
+        The diagnosis (default :func:`diagnose_record`; tests pass a cheap stand-in; must be
+        importable by the workers, i.e. module-level).
     version : dict, optional
         Code version stored in every result (:func:`engine.validation.provenance.code_version`).
+    scheduler : str, optional
+        Address of an existing Dask scheduler (default ``$BACKLASH_DASK_SCHEDULER``, else a local cluster).
 
     Returns
     -------
     list of str
         Ids of the cases diagnosed by this call (in the order they finished).
     """
+    from engine.distributed import Progress, dask_client, map_cases, scheduler_address
+
     settings = DiagnosisSettings() if settings is None else settings
     fn = diagnose_record if diagnose_fn is None else diagnose_fn
     version = {} if version is None else version
     ids = layout.case_ids()
     done = layout.done() & set(ids)
     todo = [c for c in ids if c not in done]
-    n = len(ids)
     if done:
-        logger.info("resuming: %d of %d cases already diagnosed, %d to go", len(done), n, len(todo))
+        logger.info("resuming: %d of %d cases already diagnosed, %d to go", len(done), len(ids), len(todo))
     finished: list[str] = []
-    t0 = time.perf_counter()
-
-    def log(case_id: str, status: str, seconds: float) -> None:
-        finished.append(case_id)
-        logger.info(
-            "case %d/%d %s: %s (%.1f s; %.0f s elapsed)",
-            len(done) + len(finished),
-            n,
-            case_id,
-            status,
-            seconds,
-            time.perf_counter() - t0,
-        )
-
-    root = str(layout.root)
-    if workers <= 1:
-        for case_id in todo:
-            log(*_diagnose_one(root, case_id, library, settings, fn, version))
+    if not todo:
         return finished
-    ctx = multiprocessing.get_context("spawn")
-    ex = ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker)
-    try:
-        pending: set[Future[tuple[str, str, float]]] = {
-            ex.submit(_diagnose_one, root, c, library, settings, fn, version) for c in todo
-        }
-        while pending:
-            ready, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in ready:
-                log(*fut.result())
-    finally:
-        ex.shutdown(wait=True, cancel_futures=True)
+    if workers == 0 and scheduler_address(scheduler) is None:
+        progress = Progress(len(ids), "case", len(done))
+        for case_id in todo:
+            out = _diagnose_one(case_id, layout.read_case(case_id), library, settings, fn, version)
+            layout.write_result(case_id, out)
+            finished.append(case_id)
+            progress.step(f"{case_id}: {out['verdict'].get('status')} ({out['wall_seconds']:.1f} s)")
+        return finished
+    inputs = {c: (c, layout.read_case(c), library, settings, fn, version) for c in todo}
+    with dask_client(scheduler, workers) as client:
+        for case_id, out in map_cases(client, _diagnose_one, inputs, "case", len(done), len(ids)):
+            layout.write_result(case_id, out)
+            finished.append(case_id)
     return finished

@@ -167,13 +167,14 @@ def run_validation(
     n_cases: int,
     seed: int,
     out_dir: str | Path,
-    workers: int = 1,
+    workers: int | None = 0,
     settings: DiagnosisSettings | None = None,
     mix: Mapping[str, float] | None = None,
     catalogue: EffectLibrary = CATALOGUE,
     held_back: EffectLibrary = HELD_BACK,
     diagnose_fn: DiagnoseFn | None = None,
     absorption: bool = True,
+    scheduler: str | None = None,
 ) -> dict[str, Any]:
     """Run (or resume) a protocol-v2 validation and write its report (see the module notes).
 
@@ -185,8 +186,9 @@ def run_validation(
         Seed of the case generator.
     out_dir : path
         The run's directory (``run.json``, ``cases/``, ``key/``, ``results/``, ``report.*``).
-    workers : int
-        Parallel diagnosis processes.
+    workers : int or None
+        Single-threaded workers of a local Dask cluster (None: one per core; 0, the default: in this
+        process).
     settings : DiagnosisSettings, optional
         Diagnosis settings (default ``DiagnosisSettings()``).
     mix : mapping of str to float, optional
@@ -200,6 +202,9 @@ def run_validation(
     absorption : bool
         The generator's absorption rule (:func:`engine.validation.cases.generate_cases`; off only
         in tests of the run's machinery).
+    scheduler : str, optional
+        An existing Dask scheduler (``tcp://host:port``; default ``$BACKLASH_DASK_SCHEDULER``, else a
+        local cluster of ``workers``).
 
     Returns
     -------
@@ -215,5 +220,5 @@ def run_validation(
     version = code_version()
     prepare_cases(layout, n_cases, seed, mix, catalogue, held_back, absorption)
     library = library_of_run(layout, catalogue)
-    diagnose_cases(layout, library, workers, settings, diagnose_fn, version)
+    diagnose_cases(layout, library, workers, settings, diagnose_fn, version, scheduler)
     return score_run(layout, version)
