@@ -7,7 +7,7 @@ import logging
 from collections.abc import Sequence
 
 from app import output
-from app.cli import diagnose, evaluation, identify, pattern_sets, serve, simulate
+from app.cli import batch, diagnose, evaluation, identify, pattern_sets, serve, simulate
 from app.cli.common import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_USAGE, settings, user_errors
 
 logger = logging.getLogger(__name__)
@@ -26,7 +26,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="log level (default $BACKLASH_LOG_LEVEL or INFO)",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for group in (simulate, pattern_sets, identify, diagnose, serve, evaluation):
+    for group in (simulate, pattern_sets, identify, diagnose, batch, serve, evaluation):
         group.register(sub)
     return parser
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import subprocess
@@ -473,3 +474,33 @@ def test_identify_the_width_of_brfd_records_jointly(env: Path, capsys: pytest.Ca
     assert all(p["width"] in p["widths"] and len(p["D"]) == 6 for p in paper)
     code, _, err = run(capsys, "identify", "--plant", "brfd", str(one))
     assert code == 2 and "--continuous" in err
+
+
+def test_diagnose_batch_writes_one_answer_per_record_and_a_summary_and_resumes(
+    env: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two BRFD records and one unreadable file, on a one-worker local Dask cluster; then resumed."""
+    import shutil
+
+    data = Path(__file__).resolve().parents[2] / "engine" / "plants" / "brfd" / "data"
+    src = tmp_path / "in"
+    src.mkdir()
+    for name in ("dataset-2_2Hz30lbtension0.5amplitude", "dataset-2_1Hz30lbtension1amplitude"):
+        shutil.copy(data / f"{name}.json.gz", src)
+    (src / "broken.json").write_text("{not json")
+    out = tmp_path / "out"
+    code, stdout, err = run(capsys, "diagnose-batch", str(src), "--out", str(out), "--plant", "brfd", "--workers", "1")
+    assert code == 0, err
+    answers = sorted(p.name for p in out.glob("*.json"))
+    assert answers == ["dataset-2_1Hz30lbtension1amplitude.json", "dataset-2_2Hz30lbtension0.5amplitude.json"]
+    rows = {r["record"]: r for r in csv.DictReader((out / "summary.csv").open())}
+    assert rows["broken"]["status"] == "refused" and "not valid JSON" in rows["broken"]["detail"]
+    one = json.loads((out / "dataset-2_1Hz30lbtension1amplitude.json").read_text())
+    assert rows["dataset-2_1Hz30lbtension1amplitude"]["status"] == one["status"]
+    assert "| record | status |" in stdout
+    stamp = (out / "dataset-2_1Hz30lbtension1amplitude.json").stat().st_mtime_ns
+    code, _, err = run(capsys, "diagnose-batch", str(src), "--out", str(out), "--plant", "brfd", "--workers", "1")
+    assert code == 0, err
+    assert (out / "dataset-2_1Hz30lbtension1amplitude.json").stat().st_mtime_ns == stamp  # not diagnosed again
+    code, _, err = run(capsys, "diagnose-batch", str(tmp_path / "nothing-*.csv"), "--out", str(out))
+    assert code == 2 and "no record files" in err

@@ -1,0 +1,45 @@
+"""``backlash diagnose-batch``: diagnose every record of a directory or glob on Dask, one answer file each."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from app import output
+from app.cli.common import EXIT_OK, CommandError, add_dask_options
+from engine.plants import DEFAULT_PLANT, PLANTS
+
+
+def cmd_diagnose_batch(args: argparse.Namespace) -> int:
+    """Diagnose the records; write ``OUT/<record>.json`` per record and ``OUT/summary.{csv,md}``."""
+    from app.services.batch import find_records, run_batch
+
+    try:
+        files = find_records(args.source)
+    except FileNotFoundError as exc:
+        raise CommandError(str(exc)) from None
+    output.info(f"diagnosing {len(files)} record(s) of plant {args.plant} into {args.out}")
+    try:
+        rows = run_batch(files, args.out, args.plant, args.workers, args.scheduler)
+    except ValueError as exc:
+        raise CommandError(str(exc)) from None
+    output.write((args.out / "summary.md").read_text())
+    refused = sum(r["status"] == "refused" for r in rows)
+    if refused:
+        output.info(f"{refused} record(s) refused: see the detail column of {args.out / 'summary.csv'}")
+    return EXIT_OK
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``diagnose-batch`` to the subcommands."""
+    p = sub.add_parser(
+        "diagnose-batch",
+        help="diagnose every record file of a directory or glob (on Dask); one answer file each and a summary",
+    )
+    p.add_argument("source", help="a directory of record files, or a glob such as 'bench/*.csv' (quote it)")
+    p.add_argument("--out", type=Path, required=True, help="directory of the answers and summary (resumable)")
+    p.add_argument(
+        "--plant", choices=sorted({DEFAULT_PLANT, *PLANTS}), default=DEFAULT_PLANT, help="the plant the records are of"
+    )
+    add_dask_options(p)
+    p.set_defaults(func=cmd_diagnose_batch)
