@@ -53,6 +53,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         setup_logging(settings.log_level)
         app.state.store = PatternStore(settings.db_path)
         app.state.jobs = JobManager(workers=settings.workers, max_pending=settings.max_pending_jobs)
+        app.state.dask = None
+        if settings.dask_scheduler is not None:
+            from engine.distributed import connect
+
+            app.state.dask = connect(settings.dask_scheduler)  # SchedulerUnreachable stops the start with its message
+            logger.info("training jobs run on the Dask cluster at %s", settings.dask_scheduler)
         logger.info(
             "pattern store %s (%d sets); %d training worker(s); API key %s",
             app.state.store.path,
@@ -64,6 +70,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             yield
         finally:
             app.state.jobs.shutdown(wait=True)
+            if app.state.dask is not None:
+                app.state.dask.close()
 
     app = FastAPI(
         title="backlash",

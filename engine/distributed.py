@@ -31,6 +31,7 @@ __all__ = [
     "SCHEDULER_ENV",
     "Progress",
     "SchedulerUnreachable",
+    "connect",
     "dask_client",
     "map_cases",
     "run_single_threaded",
@@ -76,13 +77,7 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
 
     address = scheduler_address(scheduler)
     if address is not None:
-        try:
-            client = Client(address, timeout=CONNECT_TIMEOUT)
-        except (OSError, TimeoutError) as exc:
-            raise SchedulerUnreachable(
-                f"cannot reach the Dask scheduler at {address} ({exc}); start one (dask scheduler) or leave "
-                f"--scheduler and ${SCHEDULER_ENV} unset for a local cluster"
-            ) from None
+        client = connect(address)
         logger.info("Dask: scheduler %s, %d workers", address, len(client.scheduler_info().get("workers", {})))
         try:
             yield client
@@ -106,6 +101,25 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
     finally:
         client.close()
         cluster.close()
+
+
+def connect(address: str) -> Any:
+    """A client of the scheduler at ``address``.
+
+    Raises
+    ------
+    SchedulerUnreachable
+        When it does not answer within :data:`CONNECT_TIMEOUT` (the message says what to do).
+    """
+    from distributed import Client
+
+    try:
+        return Client(address, timeout=CONNECT_TIMEOUT)
+    except (OSError, TimeoutError) as exc:
+        raise SchedulerUnreachable(
+            f"cannot reach the Dask scheduler at {address} ({exc}); start one (dask scheduler) or leave "
+            f"--scheduler and ${SCHEDULER_ENV} unset for a local cluster"
+        ) from None
 
 
 def run_single_threaded(fn: Callable[..., T], *args: Any) -> T:

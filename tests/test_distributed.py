@@ -162,3 +162,45 @@ def test_an_unreachable_scheduler_is_refused_with_what_to_do(monkeypatch: pytest
         dask_client(f"tcp://127.0.0.1:{_free_port()}"),
     ):
         pass
+
+
+def test_the_service_trains_on_the_cluster_of_its_scheduler_with_the_same_job_api(tmp_path: Path) -> None:
+    """``BACKLASH_DASK_SCHEDULER`` set: a training job runs on that cluster's worker, the set is stored here."""
+    from fastapi.testclient import TestClient
+
+    from app.core.config import Settings
+    from app.main import create_app
+
+    cluster = _Cluster(tmp_path, workers=1)
+    try:
+        app = create_app(Settings(db_path=tmp_path / "patterns.sqlite3", dask_scheduler=cluster.address))
+        with TestClient(app) as client:
+            request = {"channel": "v2", "c": 1.0, "J1_values": [0.87, 0.8482], "kind": "template"}
+            r = client.post("/v1/pattern-sets", json=request)
+            assert r.status_code == 202, r.text
+            accepted = r.json()
+            deadline = time.monotonic() + 120
+            while (job := client.get(f"/v1/jobs/{accepted['job_id']}").json())["state"] not in ("done", "failed"):
+                assert time.monotonic() < deadline, job
+                time.sleep(0.1)
+            assert job["state"] == "done", job
+            assert client.get(f"/v1/pattern-sets/{accepted['pattern_set_id']}").status_code == 200
+            ran = app.state.dask.run_on_scheduler(lambda dask_scheduler: sorted(dask_scheduler.task_prefixes))
+            assert "train" in ran  # the task ran on the cluster, keyed train-<set id>
+    finally:
+        cluster.close()
+
+
+def test_the_service_refuses_to_start_on_a_scheduler_that_does_not_answer(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from fastapi.testclient import TestClient
+
+    import engine.distributed
+    from app.core.config import Settings
+    from app.main import create_app
+
+    monkeypatch.setattr(engine.distributed, "CONNECT_TIMEOUT", 2.0)
+    app = create_app(Settings(db_path=tmp_path / "p.sqlite3", dask_scheduler=f"tcp://127.0.0.1:{_free_port()}"))
+    with pytest.raises(SchedulerUnreachable, match="cannot reach the Dask scheduler"), TestClient(app):
+        pass

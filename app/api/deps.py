@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from typing import Annotated, Literal, TypeVar
+from typing import Annotated, Any, Literal, TypeVar
 
 from fastapi import Depends, HTTPException, Query, Request
 from fastapi.exceptions import RequestValidationError
@@ -34,7 +34,13 @@ def get_jobs(request: Request) -> JobManager:
     return request.app.state.jobs
 
 
+def get_dask(request: Request) -> Any:
+    """The Dask client of ``BACKLASH_DASK_SCHEDULER``'s cluster, or None (jobs run in this process)."""
+    return getattr(request.app.state, "dask", None)
+
+
 SettingsDep = Annotated[Settings, Depends(get_settings)]
+DaskDep = Annotated[Any, Depends(get_dask)]
 StoreDep = Annotated[PatternStore, Depends(get_store)]
 JobsDep = Annotated[JobManager, Depends(get_jobs)]
 

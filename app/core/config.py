@@ -66,6 +66,18 @@ class Settings(BaseSettings):
         default=16, description="Queued plus running training jobs before new ones are refused with 429."
     )
     log_level: LogLevel = Field(default="INFO", description="Log level of the service and the engine.")
+    dask_scheduler: str | None = Field(
+        default=None,
+        description="Address of a Dask scheduler (tcp://host:port; the same variable as the CLI's, "
+        "BACKLASH_DASK_SCHEDULER): training jobs then run on that cluster; the job API is unchanged.",
+    )
+
+    @field_validator("dask_scheduler")
+    @classmethod
+    def _check_dask_scheduler(cls, value: str | None) -> str | None:
+        if value is not None and "://" not in value:
+            raise ValueError(f"dask_scheduler must be an address such as tcp://host:8786, got {value!r}")
+        return value
 
     @field_validator("log_level", mode="before")
     @classmethod

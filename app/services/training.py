@@ -63,21 +63,15 @@ def check(spec: TrainingSpec) -> None:
     check_identifier(spec.kind, spec.channel, dict(spec.params))
 
 
-def train_pattern_set(
-    spec: TrainingSpec,
-    store: PatternStore,
-    *,
-    set_id: str | None = None,
-    progress: ProgressFn = _no_progress,
-) -> PatternSet:
-    """Simulate the training cases, let the engine fit and package the identifier, save the set; return it as stored."""
+def compute_pattern_set(spec: TrainingSpec, progress: ProgressFn = _no_progress) -> PatternSet:
+    """Simulate the training cases and let the engine fit and package the identifier (not stored)."""
     cases = spec.cases()
     progress(
         0.02,
         f"simulating {len(cases)} cases ({len(K_GRID)} widths x {len(spec.J1_values)} J1 values) at c = {spec.c:g}",
     )
     grid = simulation.run(cases)
-    pattern_set = engine_training.train_pattern_set(
+    return engine_training.train_pattern_set(
         spec.channel,
         spec.c,
         kind=spec.kind,
@@ -87,6 +81,30 @@ def train_pattern_set(
         grid=grid,
         progress=progress,
     )
+
+
+def train_pattern_set(
+    spec: TrainingSpec,
+    store: PatternStore,
+    *,
+    set_id: str | None = None,
+    progress: ProgressFn = _no_progress,
+    cluster: Any = None,
+) -> PatternSet:
+    """Train the pattern set (here, or on the Dask cluster of ``cluster``), save it; return it as stored.
+
+    On a cluster the job's progress shows its stage (sent, running there, saving); the fraction
+    moves only when the result is back (the worker reports no finer progress).
+    """
+    if cluster is None:
+        pattern_set = compute_pattern_set(spec, progress)
+    else:
+        from engine.distributed import run_single_threaded
+
+        progress(0.02, f"sent to the Dask cluster at {cluster.scheduler.address}")
+        future = cluster.submit(run_single_threaded, compute_pattern_set, spec, key=f"train-{set_id or 'set'}")
+        progress(0.05, "training on the Dask cluster")
+        pattern_set = future.result()
     pattern_set.id = set_id
     saved = store.save(pattern_set)
     progress(1.0, "done")

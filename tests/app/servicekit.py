@@ -155,14 +155,16 @@ class GatedTraining:
     def __init__(self, real: Callable[..., Any], gates: int) -> None:
         self.real, self.gates, self.calls = real, [Gate() for _ in range(gates)], 0
 
-    def __call__(self, spec: Any, store: Any, *, set_id: str | None = None, progress: Any = None) -> Any:
+    def __call__(
+        self, spec: Any, store: Any, *, set_id: str | None = None, progress: Any = None, cluster: Any = None
+    ) -> Any:
         gate = self.gates[self.calls]
         self.calls += 1
         progress(0.5, "held by the test")
         gate.started.set()
         if not gate.release.wait(TIMEOUT):
             raise TimeoutError("the test never released the training")
-        return self.real(spec, store, set_id=set_id, progress=progress)
+        return self.real(spec, store, set_id=set_id, progress=progress, cluster=cluster)
 
     def release_all(self) -> None:
         for gate in self.gates:

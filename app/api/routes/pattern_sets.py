@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Response, status
 
-from app.api.deps import JobsDep, StoreDep
+from app.api.deps import DaskDep, JobsDep, StoreDep
 from app.core.config import API_V1_STR
 from app.jobs import JobManager, JobState, ProgressFn
 from app.schemas.common import ChannelName, ErrorPublic
@@ -49,7 +49,9 @@ def _missing(jobs: JobManager, set_id: str) -> NotFoundError:
     summary="Train a pattern set (background job)",
     responses={422: {"model": ErrorPublic}, 429: {"model": ErrorPublic, "description": "Too many jobs pending"}},
 )
-def create_pattern_set(body: PatternSetCreate, store: StoreDep, jobs: JobsDep, response: Response) -> Any:
+def create_pattern_set(
+    body: PatternSetCreate, store: StoreDep, jobs: JobsDep, dask: DaskDep, response: Response
+) -> Any:
     """Queue the training of one pattern set and answer at once with the job's and the set's ids.
 
     The job simulates the six widths x ``J1_values`` at ``c`` (with ``effects``),
@@ -69,7 +71,7 @@ def create_pattern_set(body: PatternSetCreate, store: StoreDep, jobs: JobsDep, r
     set_id = uuid.uuid4().hex
 
     def run(progress: ProgressFn) -> str:
-        training.train_pattern_set(spec, store, set_id=set_id, progress=progress)
+        training.train_pattern_set(spec, store, set_id=set_id, progress=progress, cluster=dask)
         return set_id
 
     job = jobs.submit(run, kind=TRAIN_JOB, meta={"pattern_set_id": set_id})
