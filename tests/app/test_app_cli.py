@@ -248,7 +248,9 @@ def test_validate_calls_the_blind_validation(
     Path("v").mkdir()
     code, out, _ = run(capsys, "validate", "--protocol", "1", "--cases", "12", "--seed", "3", "--out", "v")
     assert code == 0 and out.startswith("| top-1 | 0.95 |") and "| after | 0.9 |" in out
-    assert long_jobs.validation == [{"n_cases": 12, "seed": 3, "out_dir": Path("v"), "workers": 2}]
+    assert long_jobs.validation == [
+        {"n_cases": 12, "seed": 3, "out_dir": Path("v"), "workers": None, "scheduler": None}
+    ]
     assert long_jobs.scored == [Path("v")] and Path("v/identification.md").read_text() == "| after | 0.9 |"
     assert json.loads(Path("v/identification.json").read_text()) == {"before": 0.5, "after": 0.9}
 
@@ -273,7 +275,9 @@ def test_validate_refuses_a_directory_that_holds_a_run(
             ["validate", "--protocol", "1"],
             {
                 "main_job": [],
-                "validation": [{"n_cases": 200, "seed": 53, "out_dir": Path("out/validation"), "workers": 2}],
+                "validation": [
+                    {"n_cases": 200, "seed": 53, "out_dir": Path("out/validation"), "workers": None, "scheduler": None}
+                ],
                 "validation_v2": [],
             },
         ),
@@ -283,7 +287,14 @@ def test_validate_refuses_a_directory_that_holds_a_run(
                 "main_job": [],
                 "validation": [],
                 "validation_v2": [
-                    {"n_cases": 300, "seed": 97, "out_dir": Path("out/validation"), "workers": 2, "mix": None}
+                    {
+                        "n_cases": 300,
+                        "seed": 97,
+                        "out_dir": Path("out/validation"),
+                        "workers": None,
+                        "mix": None,
+                        "scheduler": None,
+                    }
                 ],
             },
         ),
