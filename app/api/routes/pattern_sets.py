@@ -57,7 +57,9 @@ def create_pattern_set(
     The job simulates the six widths x ``J1_values`` at ``c`` (with ``effects``),
     fits the identifier on ``channel`` and stores the set. Everything is validated
     before the job is queued, so a 202 means only the simulation or the fit can still
-    fail (the job then ends ``failed`` with the reason, and nothing is stored).
+    fail (the job then ends ``failed`` with the reason, and nothing is stored). With
+    ``BACKLASH_DASK_SCHEDULER`` set, the simulation and the fit run on that Dask cluster and the set is
+    stored here; the job and its API are the same.
     """
     spec = training.TrainingSpec(
         channel=body.channel,
