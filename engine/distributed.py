@@ -66,7 +66,9 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
     scheduler : str, optional
         Address of an existing scheduler, ``tcp://host:port``.
     workers : int, optional
-        Worker processes of the local cluster (default: the machine's cores); ignored with a scheduler.
+        Worker processes of the local cluster (default: the machine's cores); 0 yields None: no
+        cluster, :func:`map_cases` then runs the tasks in this process (debugging, small runs).
+        Ignored with a scheduler.
 
     Raises
     ------
@@ -83,6 +85,9 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
             yield client
         finally:
             client.close()
+        return
+    if workers == 0:
+        yield None
         return
     n = workers or os.cpu_count() or 1
     single = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
@@ -169,14 +174,21 @@ def map_cases(
 
     Each task runs through :func:`run_single_threaded`. Tasks are keyed by ``label`` and the key, so
     a task resubmitted after a worker's loss is the same task. A task that raises re-raises here.
+    With ``client`` None (``dask_client(workers=0)``) the tasks run here, one after the other.
     """
+    progress = Progress(total if total is not None else len(inputs) + done, label, done)
+    if client is None:
+        for key, args in inputs.items():
+            result = fn(*args)
+            progress.step(key)
+            yield key, result
+        return
     from distributed import as_completed
 
     futures = {
         client.submit(run_single_threaded, fn, *args, key=f"{label}-{key}", pure=False): key
         for key, args in inputs.items()
     }
-    progress = Progress(total if total is not None else len(inputs) + done, label, done)
     for fut in as_completed(futures):
         key = futures[fut]
         result = fut.result()

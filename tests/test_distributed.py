@@ -164,6 +164,7 @@ def test_an_unreachable_scheduler_is_refused_with_what_to_do(monkeypatch: pytest
         pass
 
 
+@pytest.mark.slow  # 30 s: a scheduler, a worker and a training
 def test_the_service_trains_on_the_cluster_of_its_scheduler_with_the_same_job_api(tmp_path: Path) -> None:
     """``BACKLASH_DASK_SCHEDULER`` set: a training job runs on that cluster's worker, the set is stored here."""
     from fastapi.testclient import TestClient

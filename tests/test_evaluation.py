@@ -45,13 +45,13 @@ def test_evaluate_scores_held_out_records_only():
 
 
 def test_main_job_writes_tables_and_figures(tmp_path):
-    result = run(tmp_path / "out", db_path=tmp_path / "p.sqlite3", n_random=12, kinds={"template": {}}, n_jobs=1)
+    result = run(tmp_path / "out", db_path=tmp_path / "p.sqlite3", n_random=12, kinds={"template": {}}, n_jobs=0)
     for name in ("accuracy.md", "accuracy.csv", "channels_by_width.png", "accuracy_vs_noise.png", "report.md"):
         assert (tmp_path / "out" / name).stat().st_size > 0
     store = PatternStore(tmp_path / "p.sqlite3")
     assert len(store) == 4 * 5
     # a second run replaces the main job's sets instead of piling them up
-    run(tmp_path / "out", db_path=tmp_path / "p.sqlite3", n_random=12, kinds={"template": {}}, n_jobs=1)
+    run(tmp_path / "out", db_path=tmp_path / "p.sqlite3", n_random=12, kinds={"template": {}}, n_jobs=0)
     assert len(store) == 4 * 5
     assert "leave-one-J1-out" in result.report()
 
@@ -59,7 +59,7 @@ def test_main_job_writes_tables_and_figures(tmp_path):
 def test_main_job_pattern_sets_load_back_for_every_kind(tmp_path):
     from engine.identification.training import identifier_from_pattern_set
 
-    run(tmp_path / "out", db_path=tmp_path / "p.sqlite3", n_random=6, kinds={"template": {}, "paper": {}}, n_jobs=1)
+    run(tmp_path / "out", db_path=tmp_path / "p.sqlite3", n_random=6, kinds={"template": {}, "paper": {}}, n_jobs=0)
     store = PatternStore(tmp_path / "p.sqlite3")
     rec = simulate_batch(paper_grid(1.0, (0.85,), (0.005,))).channel("v2")[0]
     for kind in ("template", "paper"):

@@ -74,7 +74,7 @@ def run_batch(
     scheduler: str | None = None,
 ) -> list[dict[str, Any]]:
     """Diagnose every file without an answer in ``out_dir`` yet; write the answers and the summary; return its rows."""
-    from engine.distributed import dask_client, map_cases, scheduler_address
+    from engine.distributed import dask_client, map_cases
 
     out_dir.mkdir(parents=True, exist_ok=True)
     names = {f: _stem(f) for f in files}
@@ -94,16 +94,10 @@ def run_batch(
             rows[name] = {c: None for c in SUMMARY_COLUMNS} | {"record": name, "status": "refused", "detail": str(exc)}
     if inputs:
         done = len(names) - len(inputs)
-        if workers == 0 and scheduler_address(scheduler) is None:
-            results = ((name, diagnose_one(*args)) for name, args in inputs.items())
-            for name, answer in results:
+        with dask_client(scheduler, workers) as client:
+            for name, answer in map_cases(client, diagnose_one, inputs, "record", done, len(names)):
                 write_json_atomic(out_dir / f"{name}.json", answer, indent=1)
                 rows[name] = summary_row(name, answer)
-        else:
-            with dask_client(scheduler, workers) as client:
-                for name, answer in map_cases(client, diagnose_one, inputs, "record", done, len(names)):
-                    write_json_atomic(out_dir / f"{name}.json", answer, indent=1)
-                    rows[name] = summary_row(name, answer)
     table = [rows[n] for n in sorted(rows)]
     with (out_dir / "summary.csv").open("w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(SUMMARY_COLUMNS))

@@ -282,7 +282,7 @@ def diagnose_cases(
     scheduler : str, optional
         Address of an existing Dask scheduler (default ``$BACKLASH_DASK_SCHEDULER``, else a local cluster).
     """
-    from engine.distributed import Progress, dask_client, map_cases, scheduler_address
+    from engine.distributed import dask_client, map_cases
 
     settings = DiagnosisSettings() if settings is None else settings
     out = Path(out_dir)
@@ -293,12 +293,6 @@ def diagnose_cases(
     def write(case: BlindCase, result: dict[str, Any]) -> None:
         (results / f"{case.case_id}.json").write_text(json.dumps(result))
 
-    if workers == 0 and scheduler_address(scheduler) is None:
-        progress = Progress(len(cases), "case")
-        for case in cases.values():
-            write(case, _diagnose_case(case, settings))
-            progress.step(case.case_id)
-        return results
     with dask_client(scheduler, workers) as client:
         inputs = {k: (c, settings) for k, c in cases.items()}
         for key, result in map_cases(client, _diagnose_case, inputs, "case"):

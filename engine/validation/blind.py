@@ -117,7 +117,7 @@ def diagnose_cases(
     list of str
         Ids of the cases diagnosed by this call (in the order they finished).
     """
-    from engine.distributed import Progress, dask_client, map_cases, scheduler_address
+    from engine.distributed import dask_client, map_cases
 
     settings = DiagnosisSettings() if settings is None else settings
     fn = diagnose_record if diagnose_fn is None else diagnose_fn
@@ -129,14 +129,6 @@ def diagnose_cases(
         logger.info("resuming: %d of %d cases already diagnosed, %d to go", len(done), len(ids), len(todo))
     finished: list[str] = []
     if not todo:
-        return finished
-    if workers == 0 and scheduler_address(scheduler) is None:
-        progress = Progress(len(ids), "case", len(done))
-        for case_id in todo:
-            out = _diagnose_one(case_id, layout.read_case(case_id), library, settings, fn, version)
-            layout.write_result(case_id, out)
-            finished.append(case_id)
-            progress.step(f"{case_id}: {out['verdict'].get('status')} ({out['wall_seconds']:.1f} s)")
         return finished
     inputs = {c: (c, layout.read_case(c), library, settings, fn, version) for c in todo}
     with dask_client(scheduler, workers) as client:
