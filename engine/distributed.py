@@ -90,6 +90,7 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
         yield None
         return
     n = workers or os.cpu_count() or 1
+    logging.getLogger("distributed").setLevel(max(logging.WARNING, logging.getLogger().getEffectiveLevel()))
     single = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
     cluster = LocalCluster(
         n_workers=n,
