@@ -22,7 +22,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     """The main job: train, evaluate, write tables and figures to ``--out``; print its summary."""
     from engine.evaluation import main_job
 
-    result = main_job.run(Path(args.out))
+    result = main_job.run(Path(args.out), n_jobs=args.workers, scheduler=args.scheduler)
     output.write(result.report())
     return EXIT_OK
 
@@ -141,6 +141,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``run``, ``bench`` and ``validate`` to the subcommands."""
     p = sub.add_parser("run", help="the main job: train, evaluate, write tables and figures")
     p.add_argument("--out", default="out", help="output directory (default out)")
+    add_dask_options(p)
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser(

@@ -92,8 +92,14 @@ def run(
     n_random: int = 240,
     kinds: Mapping[str, Mapping[str, Any]] | None = None,
     n_jobs: int | None = None,
+    scheduler: str | None = None,
 ) -> MainJobResult:
-    """Run the main job; see the module docstring."""
+    """Run the main job; see the module docstring.
+
+    The held-out evaluations run on Dask (:mod:`engine.distributed`): ``n_jobs`` local single-threaded
+    workers (default one per core; 0 in this process), or the cluster of ``scheduler`` /
+    ``$BACKLASH_DASK_SCHEDULER``.
+    """
     t0 = time.perf_counter()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -128,6 +134,7 @@ def run(
         kinds,
         n_jobs=n_jobs,
         progress=lambda i, n, what: logger.info("  evaluation task %d/%d (%s)", i, n, what),
+        scheduler=scheduler,
     )
 
     _step(5, n_steps, f"writing tables and figures to {out}/")

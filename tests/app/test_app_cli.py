@@ -192,8 +192,9 @@ class FakeLongJobs:
         self.validation_v2: list[dict[str, Any]] = []
         self.scored: list[Path] = []
 
-    def run(self, out_dir: Path) -> Any:
+    def run(self, out_dir: Path, **dask: Any) -> Any:
         self.main_job.append(out_dir)
+        self.dask = dask
         return types.SimpleNamespace(report=lambda: "## Paper's Tables 1-4\n| K | nr5 |")
 
     def run_validation(self, **kwargs: Any) -> Any:
