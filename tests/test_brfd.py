@@ -19,7 +19,7 @@ from engine.diagnosis.plant_transfer import held_out
 from engine.identification.plant_width import fit_width
 from engine.plants import Plant, get_plant
 from engine.plants.brfd import BrfdPlant, BrfdRecord, load_csv, load_json
-from engine.plants.brfd.record import FORCE_UNITS, LENGTH_UNITS
+from engine.plants.brfd.record import FORCE_UNITS, LENGTH_UNITS, record_from_arrays
 from engine.records import RecordError
 
 DATA = Path(__file__).resolve().parents[1] / "engine" / "plants" / "brfd" / "data"
@@ -68,6 +68,7 @@ def test_a_record_that_cannot_be_read_correctly_is_refused_with_what_to_fix() ->
         "columns": ({**obj, "data": [row[:2] for row in obj["data"]]}, "at least the columns"),
         "short": ({**obj, "data": obj["data"][:100]}, "at least 1024"),
         "time": ({**obj, "data": [obj["data"][0], *obj["data"][2:]]}, "not uniform"),
+        "no units": ({k: v for k, v in obj.items() if k != "displacement units"}, "does not say its 'displacement"),
     }
     for label, (bad, message) in cases.items():
         with pytest.raises(RecordError, match=message):
@@ -76,6 +77,13 @@ def test_a_record_that_cannot_be_read_correctly_is_refused_with_what_to_fix() ->
         load_json(b"{not json", name="broken")
     with pytest.raises(RecordError, match="units"):
         load_csv(b"time,displacement,friction_force\n0,0,0\n", name="no units")
+
+
+def test_a_record_sampled_too_slowly_for_the_input_filter_is_refused(brfd: BrfdPlant) -> None:
+    t = np.arange(2000) / 50.0  # 50 Hz: below twice the 30 Hz input filter
+    rec = record_from_arrays(t, 0.01 * np.sin(t), 1e3 * np.sin(t), "slow")
+    with pytest.raises(RecordError, match="needs more than 60 Hz"):
+        brfd.simulate(rec, {})
 
 
 def test_the_plant_implements_the_interface_and_every_effect_moves_the_force(

@@ -77,8 +77,8 @@ class BrfdRecordIn(BaseModel):
     dt: FiniteFloat | None = Field(default=None, description="Sample interval [s] (checked against the time column).")
     sampling_freq: FiniteFloat | None = Field(default=None, alias="sampling freq", description="[Hz], informative.")
     time_units: str = Field(default="s", alias="time units")
-    displacement_units: str = Field(default="in", alias="displacement units", description="in, mm or m.")
-    friction_force_units: str = Field(default="kip", alias="friction force units", description="kip, lb, kN or N.")
+    displacement_units: str = Field(alias="displacement units", description="in, mm or m (the data set: in).")
+    friction_force_units: str = Field(alias="friction force units", description="kip, lb, kN or N (the data set: kip).")
     actuator_force_units: str | None = Field(default=None, alias="actuator force units", description="Not used.")
 
     def to_record(self) -> BrfdRecord:

@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -73,6 +73,7 @@ __all__ = [
     "localise",
     "rank_effects",
     "relative_errors",
+    "solve_unit_box",
 ]
 
 logger = logging.getLogger(__name__)
@@ -399,17 +400,7 @@ def fit(
     if not free:
         r = obj.vector(held)
         return Fit(dict(held), (), float(r @ r), {}, obj.n_eval - n0)
-    res = least_squares(
-        lambda z: obj.vector(values(z)),
-        1.0 + u0,
-        bounds=(1.0, 2.0),
-        method="trf",
-        diff_step=plant.diff_step,
-        x_scale=1.0,
-        max_nfev=MAX_NFEV,
-    )
-    if res.status < 0 or not np.all(np.isfinite(res.fun)):
-        raise RuntimeError(f"least squares failed on {[p.name for p in free]}: {res.message}")
+    res = solve_unit_box(lambda z: obj.vector(values(z)), u0, plant.diff_step, [p.name for p in free])
     cost = float(res.fun @ res.fun)
     dof = max(res.fun.size - len(free), 1)
     # correlated residuals carry fewer independent samples than they have: inflate by tau
@@ -429,6 +420,33 @@ def fit(
         ui = float(zi) - 1.0
         unc[p.name] = float(abs(p.dvalue_du(ui)) * su)
     return Fit(values(res.x), tuple(p.name for p in free), cost, unc, obj.n_eval - n0)
+
+
+def solve_unit_box(
+    residual: Callable[[np.ndarray], np.ndarray], u0: np.ndarray, diff_step: float, names: Sequence[str]
+) -> Any:
+    """Bounded least squares (scipy's trf) on z = 1 + u in [1, 2]^n, from the unit-box point ``u0``.
+
+    Working on z rather than u makes the solver's relative difference step the same share
+    (``diff_step``) of every interval wherever the point lies. Returns scipy's result.
+
+    Raises
+    ------
+    RuntimeError
+        When the solver fails or the residual is not finite (naming the parameters ``names``).
+    """
+    res = least_squares(
+        residual,
+        1.0 + np.asarray(u0, dtype=float),
+        bounds=(1.0, 2.0),
+        method="trf",
+        diff_step=diff_step,
+        x_scale=1.0,
+        max_nfev=MAX_NFEV,
+    )
+    if res.status < 0 or not np.all(np.isfinite(res.fun)):
+        raise RuntimeError(f"least squares failed on {list(names)}: {res.message}")
+    return res
 
 
 def integrated_time(x: np.ndarray, c: float = SOKAL_WINDOW) -> float:

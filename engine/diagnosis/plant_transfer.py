@@ -19,9 +19,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
-from engine.diagnosis.plant_gap import MAX_NFEV, N_SCAN, PlantObjective, calibrate
+from engine.diagnosis.plant_gap import N_SCAN, PlantObjective, calibrate, solve_unit_box
 from engine.plants.base import CalibratedParameter, Plant, free_parameters
 
 __all__ = ["HeldOut", "fit_shared", "held_out"]
@@ -83,11 +82,7 @@ def fit_shared(
         return np.concatenate([o.vector(v) for o in objectives])
 
     u0 = np.array([p.unit_coord(start.get(p.name, p.nominal)) for p in free])
-    res = least_squares(
-        vector, 1.0 + u0, bounds=(1.0, 2.0), method="trf", diff_step=plant.diff_step, x_scale=1.0, max_nfev=MAX_NFEV
-    )
-    if res.status < 0 or not np.all(np.isfinite(res.fun)):
-        raise RuntimeError(f"least squares failed on {[p.name for p in free]}: {res.message}")
+    res = solve_unit_box(vector, u0, plant.diff_step, [p.name for p in free])
     return values(res.x), float(res.fun @ res.fun)
 
 

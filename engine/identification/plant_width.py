@@ -35,10 +35,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 from scipy.stats import chi2
 
-from engine.diagnosis.plant_gap import MAX_NFEV, PlantObjective, calibrate, correlation_time, fit
+from engine.diagnosis.plant_gap import PlantObjective, calibrate, correlation_time, fit, solve_unit_box
 from engine.plants.base import FreeParameter, Plant, free_parameters
 
 __all__ = ["MAX_CORRELATION", "MAX_INTERVAL", "N_PROFILE", "WidthFit", "fit_width"]
@@ -183,7 +182,7 @@ def fit_width(plant: Plant, records: Sequence[Any], width: str = "backlash") -> 
     K0 = profile[k0][0]
     start_cals = [_calibrated_at(plant, o, width, K0, c).values for o, c in zip(joint.objectives, cals, strict=True)]
 
-    # joint least squares on the unit box (z = 1 + u, as engine.diagnosis.plant_gap.fit)
+    # joint least squares on the unit box (engine.diagnosis.plant_gap.solve_unit_box)
     params: list[FreeParameter] = [q, *(p for free in joint.free for p in free)]
     sizes = [len(f) for f in joint.free]
 
@@ -196,17 +195,7 @@ def fit_width(plant: Plant, records: Sequence[Any], width: str = "backlash") -> 
         return vals[0], out
 
     u0 = [q.unit_coord(K0)] + [p.unit_coord(start_cals[r][p.name]) for r, free in enumerate(joint.free) for p in free]
-    res = least_squares(
-        lambda z: joint.vector(*unpack(z)),
-        1.0 + np.asarray(u0),
-        bounds=(1.0, 2.0),
-        method="trf",
-        diff_step=plant.diff_step,
-        x_scale=1.0,
-        max_nfev=MAX_NFEV,
-    )
-    if res.status < 0 or not np.all(np.isfinite(res.fun)):
-        raise RuntimeError(f"least squares of the width failed: {res.message}")
+    res = solve_unit_box(lambda z: joint.vector(*unpack(z)), np.asarray(u0), plant.diff_step, [p.name for p in params])
     K, cal_values = unpack(res.x)
     cost = float(res.fun @ res.fun)
     if cost > profile[k0][1]:  # the profile's point is better: keep it (the cost of a play is rough)

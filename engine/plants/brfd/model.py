@@ -32,6 +32,7 @@ from engine.plants.base import CalibratedParameter, CandidateEffect, Channel
 from engine.plants.brfd import _kernel as k
 from engine.plants.brfd.catalogue import CATALOGUE, EFFECT_FIELDS, LOCI
 from engine.plants.brfd.record import BrfdRecord, load_json, load_record
+from engine.records import RecordError
 
 __all__ = [
     "CALIBRATED",
@@ -112,10 +113,34 @@ class BrfdParameters:
         return p
 
 
+#: The last record's filtered displacement: a fit simulates one record hundreds of times, and the
+#: zero-phase filter is as costly as the kernel itself (one entry, keyed by the record's identity).
+_LAST_INPUT: tuple[BrfdRecord | None, np.ndarray] = (None, np.empty(0))
+
+
 def input_displacement(record: BrfdRecord) -> np.ndarray:
-    """The displacement the model is driven with [m]: the record's, low-passed (module docstring)."""
-    sos = butter(4, INPUT_CUTOFF / (0.5 / record.ts), btype="low", output="sos")
-    return sosfiltfilt(sos, record.x)
+    """The displacement the model is driven with [m]: the record's, low-passed (module docstring).
+
+    Raises
+    ------
+    RecordError
+        For a sample rate at or below twice :data:`INPUT_CUTOFF` (the filter cannot be applied).
+    """
+    global _LAST_INPUT
+    last, x = _LAST_INPUT
+    if last is record:
+        return x
+    nyquist = 0.5 / record.ts
+    if nyquist <= INPUT_CUTOFF:
+        raise RecordError(
+            f"{record.name}: sampled at {2 * nyquist:.4g} Hz; the model low-passes the displacement at "
+            f"{INPUT_CUTOFF:g} Hz and needs more than {2 * INPUT_CUTOFF:g} Hz (the data set's records are 1024 Hz)"
+        )
+    sos = butter(4, INPUT_CUTOFF / nyquist, btype="low", output="sos")
+    x = sosfiltfilt(sos, record.x)
+    x.flags.writeable = False
+    _LAST_INPUT = (record, x)
+    return x
 
 
 class BrfdPlant:

@@ -173,8 +173,8 @@ def from_json_object(obj: Any, name: str) -> BrfdRecord:
         raise RecordError(f"{name}: not a BRFD record: a JSON object with a 'data' matrix is expected")
     units = {
         "time": obj.get("time units", "s"),
-        "displacement": obj.get("displacement units", "in"),
-        "force": obj.get("friction force units", "kip"),
+        "displacement": obj.get("displacement units"),
+        "force": obj.get("friction force units"),
     }
     if units["time"] != "s":
         raise RecordError(f"{name}: time units {units['time']!r}; the reader takes seconds ('s')")
@@ -192,6 +192,16 @@ def from_json_object(obj: Any, name: str) -> BrfdRecord:
         dt_data = float(np.median(np.diff(data[:, 0])))
         if not math.isclose(dt_file, dt_data, rel_tol=SAMPLE_JITTER):
             raise RecordError(f"{name}: 'dt' says {dt_file:.6g} s but the time column steps by {dt_data:.6g} s")
+    missing = [
+        key
+        for key, unit in (("displacement units", units["displacement"]), ("friction force units", units["force"]))
+        if unit is None
+    ]
+    if missing:
+        raise RecordError(
+            f"{name}: the record does not say its {' and '.join(repr(m) for m in missing)}; the data set's files give "
+            "them ('in' and 'kip'): add them rather than let the reader guess"
+        )
     meta = {k: v for k, v in obj.items() if k != "data"}
     return record_from_arrays(
         data[:, 0], data[:, 1], data[:, 2], name, str(units["displacement"]), str(units["force"]), meta
