@@ -1,8 +1,12 @@
 # The backlash service: `docker build -t backlash .` then
 #   docker run -p 8000:8000 -v backlash-data:/data backlash
-# Settings are BACKLASH_* environment variables (see app/core/config.py); the pattern
-# store lives on the /data volume. Other commands: docker run backlash backlash --help
-FROM python:3.11-slim
+# Settings are BACKLASH_* environment variables (see app/core/config.py); the database (pattern
+# sets, jobs, records, diagnoses) lives on the /data volume. Other commands: docker run backlash backlash --help
+# Without access to a container registry, build a local stand-in for the base from Debian's packages
+# (README, "Container"): docker build --network host --build-arg BASE_IMAGE=local/python:3.11-slim -t backlash .
+# Any base works that has Debian's apt-get and a Python 3.11 whose `python` and `pip` are on PATH.
+ARG BASE_IMAGE=python:3.11-slim
+FROM ${BASE_IMAGE}
 
 ENV PYTHONDONTWRITEBYTECODE=1 \
     PYTHONUNBUFFERED=1 \
@@ -18,7 +22,7 @@ RUN apt-get update \
     && rm -rf /var/lib/apt/lists/* \
     && useradd --create-home --uid 10001 --shell /usr/sbin/nologin app \
     && mkdir -p /data "$NUMBA_CACHE_DIR" \
-    && chown app:app /data "$NUMBA_CACHE_DIR"
+    && chown -R app:app /data /home/app/.cache
 
 WORKDIR /app
 
@@ -42,6 +46,8 @@ RUN pip install --no-deps . \
 
 USER app
 
+# build matplotlib's font cache (in /home/app/.cache) now, not in every new container and worker process
+RUN python -c "import matplotlib.pyplot"
 # compile the numba kernels into NUMBA_CACHE_DIR now, so the first request is fast
 # (one case runs the serial kernel, a batch the parallel one)
 RUN python -c "from engine.simulation import PlantParameters, simulate, simulate_batch; \

@@ -6,7 +6,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 LOCK := constraints.txt
 
-.PHONY: run test lint test-slow bench serve lock clean
+.PHONY: run test lint system-deps test-slow bench serve lock clean
 
 $(STAMP): pyproject.toml $(LOCK)
 	$(PY) -m venv $(VENV)
@@ -22,7 +22,11 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy
 
-test: lint
+# Docker engine, debootstrap and chromium for the system-level tests, when root on Debian (never fails)
+system-deps:
+	sh .ci/system-deps.sh
+
+test: lint system-deps
 	$(BIN)/python -m pytest -q
 
 test-slow: $(STAMP)

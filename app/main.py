@@ -13,6 +13,7 @@ from contextlib import asynccontextmanager
 from fastapi import FastAPI
 from fastapi.routing import APIRoute
 
+from app import web
 from app.api.errors import register_exception_handlers
 from app.api.main import api_router
 from app.api.middleware import ApiKeyMiddleware, BodySizeLimitMiddleware
@@ -20,8 +21,13 @@ from app.api.openapi import install_openapi
 from app.api.routes import health
 from app.api.routes.health import package_version
 from app.core.config import API_V1_STR, Settings, get_settings
+from app.core.instance import hold_database
 from app.core.logging import setup_logging
 from app.jobs import JobManager
+from app.services import diagnoses, training
+from app.services.diagnoses import DIAGNOSE_JOB
+from app.services.sync_diagnosis import SyncDiagnoses
+from app.services.training import TRAIN_JOB
 from engine.constants import MODEL_VERSION
 from engine.storage import PatternStore
 
@@ -51,25 +57,42 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         setup_logging(settings.log_level)
-        app.state.store = PatternStore(settings.db_path)
-        app.state.jobs = JobManager(workers=settings.workers, max_pending=settings.max_pending_jobs)
+        app.state.store = store = PatternStore(settings.db_path)
+        service_lock = hold_database(store.path)  # ServiceAlreadyRunning stops a second service on this file
         app.state.dask = None
         if settings.dask_scheduler is not None:
             from engine.distributed import connect
 
             app.state.dask = connect(settings.dask_scheduler)  # SchedulerUnreachable stops the start with its message
             logger.info("training jobs run on the Dask cluster at %s", settings.dask_scheduler)
+        kinds = {
+            TRAIN_JOB: training.job_kind(store, app.state.dask, settings.training_runs_in),
+            DIAGNOSE_JOB: diagnoses.JOB_KIND,
+        }
+        app.state.jobs = JobManager(
+            store,
+            kinds,
+            workers=settings.workers,
+            pools={"training": settings.workers, diagnoses.POOL: settings.diagnosis_workers},
+            max_pending=settings.max_pending_jobs,
+        )
+        app.state.jobs.recover()
+        app.state.sync_diagnoses = SyncDiagnoses(settings.max_sync_diagnoses, settings.sync_diagnose_timeout)
         logger.info(
-            "pattern store %s (%d sets); %d training worker(s); API key %s",
+            "store %s (%d pattern sets); %d training %s(es), %d diagnosis process(es); API key %s",
             app.state.store.path,
             len(app.state.store),
             settings.workers,
+            "process" if kinds[TRAIN_JOB].runs_in == "process" else "thread",
+            settings.diagnosis_workers,
             "required" if settings.api_key else "not required",
         )
         try:
             yield
         finally:
             app.state.jobs.shutdown(wait=True)
+            app.state.sync_diagnoses.close()
+            service_lock.close()
             if app.state.dask is not None:
                 app.state.dask.close()
 
@@ -87,6 +110,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.add_middleware(ApiKeyMiddleware, api_key=settings.api_key.get_secret_value())
     app.include_router(health.router)
     app.include_router(api_router, prefix=API_V1_STR)
+    app.include_router(web.router)
     install_openapi(app)
     return app
 

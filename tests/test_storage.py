@@ -260,7 +260,7 @@ def test_schema_version_pragmas_and_migration_hook(
     kept = store.save(make_set(0))
     conn = sqlite3.connect(db_path)
     assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
-    assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 1
+    assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 2
     conn.close()
 
     def add_note_column(c: sqlite3.Connection) -> None:
@@ -269,13 +269,13 @@ def test_schema_version_pragmas_and_migration_hook(
     monkeypatch.setattr(schema_module, "MIGRATIONS", [*schema_module.MIGRATIONS, add_note_column])
     migrated = PatternStore(db_path)
     conn = sqlite3.connect(db_path)
-    assert conn.execute("PRAGMA user_version").fetchone()[0] == 2
+    assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION + 1
     assert conn.execute("SELECT note FROM pattern_sets").fetchall() == [("migrated",)]
     conn.close()
     assert migrated.get(kept.id) == kept
     monkeypatch.undo()
 
-    with pytest.raises(PatternStoreError, match="schema version 2, newer than this code supports"):
+    with pytest.raises(PatternStoreError, match=f"schema version {SCHEMA_VERSION + 1}, newer than this code supports"):
         PatternStore(db_path)
     other = tmp_path / "other.sqlite3"
     conn = sqlite3.connect(other)
@@ -287,6 +287,24 @@ def test_schema_version_pragmas_and_migration_hook(
     junk.write_bytes(b"this is not a database" * 100)
     with pytest.raises(PatternStoreError, match=str(junk)):
         PatternStore(junk)
+
+
+def test_a_version_1_store_gains_the_service_tables_and_keeps_its_sets(db_path: Path) -> None:
+    """A store written before the service's tables existed (schema 1) opens, migrates to 2 and keeps its sets."""
+    kept = PatternStore(db_path).save(make_set(0))
+    conn = sqlite3.connect(db_path, isolation_level=None)
+    for table in ("jobs", "records", "diagnoses", "figures", "identifications"):  # back to what schema 1 wrote
+        conn.execute(f"DROP TABLE {table}")
+    conn.execute("PRAGMA user_version = 1")
+    conn.close()
+    reopened = PatternStore(db_path)
+    conn = sqlite3.connect(db_path)
+    tables = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+    version = conn.execute("PRAGMA user_version").fetchone()[0]
+    conn.close()
+    assert version == 2
+    assert {"pattern_sets", "jobs", "records", "diagnoses", "figures", "identifications"} <= tables
+    assert reopened.get(kept.id) == kept
 
 
 def test_default_path_comes_from_the_environment(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

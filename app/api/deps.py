@@ -12,7 +12,9 @@ from pydantic import BaseModel, ValidationError
 from app.core.config import Settings
 from app.jobs import JobManager
 from app.records_io import ACCEPTED_UNITS_DOC, UNITS_SYNTAX, RecordFormatError, parse_units, record_from_csv
+from app.services.diagnosis_requests import DiagnosisRequest
 from app.services.errors import InvalidInputError
+from app.services.sync_diagnosis import SyncDiagnoses
 from engine.constants import MAX_SAMPLE_INTERVAL, MIN_SAMPLE_INTERVAL, SAMPLE_INTERVAL
 from engine.plants import DEFAULT_PLANT
 from engine.records import Record
@@ -34,6 +36,10 @@ def get_jobs(request: Request) -> JobManager:
     return request.app.state.jobs
 
 
+def get_sync_diagnoses(request: Request) -> SyncDiagnoses:
+    return request.app.state.sync_diagnoses
+
+
 def get_dask(request: Request) -> Any:
     """The Dask client of ``BACKLASH_DASK_SCHEDULER``'s cluster, or None (jobs run in this process)."""
     return getattr(request.app.state, "dask", None)
@@ -43,6 +49,7 @@ SettingsDep = Annotated[Settings, Depends(get_settings)]
 DaskDep = Annotated[Any, Depends(get_dask)]
 StoreDep = Annotated[PatternStore, Depends(get_store)]
 JobsDep = Annotated[JobManager, Depends(get_jobs)]
+SyncDiagnosesDep = Annotated[SyncDiagnoses, Depends(get_sync_diagnoses)]
 
 
 # -- bodies that are JSON or a record's CSV form ---------------------------------------
@@ -119,10 +126,27 @@ class CSVRecordParams:
             float | None,
             Query(allow_inf_nan=False, description="CSV form: the motor's base torque [N*m] (for m_el in N*m)."),
         ] = None,
+        asset: Annotated[
+            str | None,
+            Query(
+                description="CSV form: the drive the record came from (letters, digits, '.', '_', '-').",
+                examples=["press-7"],
+            ),
+        ] = None,
+        measured_at: Annotated[
+            str | None,
+            Query(
+                description="CSV form: when the record was taken, ISO 8601 with a UTC offset "
+                "(e.g. 2026-11-20T08:00:00Z).",
+                examples=["2026-11-20T08:00:00Z"],
+            ),
+        ] = None,
     ) -> None:
         self.sample_interval = sample_interval
         self.event_index = event_index
         self.units_text = units
+        self.asset = asset
+        self.measured_at = measured_at
         given = {"J1": J1, "c": c, "c1": c1, "K": K, BASE_TORQUE: base_torque}
         self.conditions = {k: v for k, v in given.items() if v is not None}
 
@@ -138,6 +162,17 @@ class CSVRecordParams:
             return parse_units(self.units_text)
         except RecordFormatError as exc:
             raise InvalidInputError(f"query parameter {exc}") from None
+
+    def as_params(self) -> dict[str, Any]:
+        """The parameters as a JSON-able dict (how a stored CSV record keeps them)."""
+        return {
+            "sample_interval": self.sample_interval,
+            "event_index": self.event_index,
+            "units": self.units_text,
+            "conditions": dict(self.conditions),
+            "asset": self.asset,
+            "measured_at": self.measured_at,
+        }
 
 
 CSVRecordDep = Annotated[CSVRecordParams, Depends()]
@@ -164,7 +199,26 @@ def reject_query(request: Request, names: tuple[str, ...]) -> None:
 
 
 #: Query parameters of the CSV form of record bodies.
-CSV_QUERY = ("sample_interval", "event_index", "units", "J1", "c", "c1", "K", BASE_TORQUE)
+CSV_QUERY = ("sample_interval", "event_index", "units", "J1", "c", "c1", "K", BASE_TORQUE, "asset", "measured_at")
+
+
+async def diagnosis_request(request: Request, params: CSVRecordParams) -> DiagnosisRequest:
+    """The diagnosis request as sent (JSON body, or CSV body with its query parameters); 415 for other bodies."""
+    kind = body_kind(request)
+    raw = await request.body()
+    if kind == "csv":
+        return DiagnosisRequest("csv", raw, params.as_params())
+    reject_query(request, CSV_QUERY)
+    if not raw.strip():
+        raise RequestValidationError([{"type": "missing", "loc": ("body",), "msg": "a JSON body is required"}])
+    return DiagnosisRequest("json", raw, {})
+
+
+def body_errors(exc: ValidationError) -> RequestValidationError:
+    """A body's pydantic errors as FastAPI's (located under ``body``), for the 422 answer."""
+    return RequestValidationError(
+        [{**e, "loc": ("body", *e["loc"])} for e in exc.errors(include_url=False, include_input=False)]
+    )
 
 
 def names_another_plant(raw: bytes) -> bool:

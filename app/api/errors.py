@@ -18,10 +18,12 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app.records_io import RecordFormatError
 from app.services.errors import (
+    ConflictError,
     IncompatibleError,
     InvalidInputError,
     NotFoundError,
     QueueFullError,
+    TimeLimitError,
 )
 from engine.diagnosis import CalibrationError
 from engine.diagnosis.space import BoundsError
@@ -52,6 +54,8 @@ USER_ERRORS: dict[type[Exception], int] = {
     NotFoundError: 404,
     PatternSetExists: 409,
     QueueFullError: 429,
+    ConflictError: 409,
+    TimeLimitError: 504,
 }
 
 #: Server-side errors: exception type -> (status, public message); details go to the log.
@@ -139,7 +143,8 @@ async def _http_exception(request: Request, exc: Exception) -> JSONResponse:
 async def _user_error(request: Request, exc: Exception) -> JSONResponse:
     status = next(USER_ERRORS[cls] for cls in type(exc).__mro__ if cls in USER_ERRORS)
     logger.info("%s %s -> %d %s: %s", request.method, request.url.path, status, type(exc).__name__, exc)
-    return JSONResponse(error_body(str(exc), type(exc).__name__), status_code=status)
+    headers = {"Retry-After": str(exc.retry_after)} if isinstance(exc, QueueFullError) else None
+    return JSONResponse(error_body(str(exc), type(exc).__name__), status_code=status, headers=headers)
 
 
 async def _server_error(request: Request, exc: Exception) -> JSONResponse:

@@ -30,13 +30,23 @@ async def _send_json(send: Send, status: int, body: dict, headers: list[tuple[by
 class ApiKeyMiddleware:
     """Every HTTP request but the exempt paths must carry ``X-API-Key: <key>`` (401 otherwise)."""
 
-    def __init__(self, app: ASGIApp, api_key: str, exempt: frozenset[str] = frozenset({"/healthz"})) -> None:
+    def __init__(
+        self,
+        app: ASGIApp,
+        api_key: str,
+        exempt: frozenset[str] = frozenset({"/healthz", "/"}),
+        exempt_prefixes: tuple[str, ...] = ("/static/",),
+    ) -> None:
+        """``exempt``: exact paths served without the key (health, the report page, which then asks for the key);
+        ``exempt_prefixes``: path prefixes likewise (the page's script and stylesheet, which hold no data)."""
         self.app = app
         self._key = api_key.encode()
         self._exempt = exempt
+        self._exempt_prefixes = exempt_prefixes
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http" or scope["path"] in self._exempt:
+        path = scope.get("path", "")
+        if scope["type"] != "http" or path in self._exempt or path.startswith(self._exempt_prefixes):
             await self.app(scope, receive, send)
             return
         given = next((v for k, v in scope["headers"] if k == API_KEY_HEADER.lower().encode()), None)

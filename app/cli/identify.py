@@ -24,7 +24,13 @@ def cmd_identify(args: argparse.Namespace) -> int:
     record = read_record(args)
     output.write_json(
         identify_from_store(
-            open_store(args), record, args.channel, args.pattern_set, args.kind, continuous=args.continuous
+            open_store(args),
+            record,
+            args.channel,
+            args.pattern_set,
+            args.kind,
+            continuous=args.continuous,
+            any_set=args.any_set,
         )
     )
     return EXIT_OK
@@ -65,6 +71,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     p.add_argument("--pattern-set", help="pattern-set id (default: the stored set with the nearest c)")
     p.add_argument("--kind", help="only choose pattern sets of this kind")
+    p.add_argument(
+        "--any-set",
+        action="store_true",
+        help="also choose sets trained with effects or on another J1 grid (default: only sets trained as the paper)",
+    )
     p.add_argument(
         "--continuous",
         action="store_true",

@@ -8,8 +8,12 @@ environment variable        meaning                                default
                             needs the header ``X-API-Key``
 ``BACKLASH_MAX_BODY_BYTES`` largest request body [bytes] (413)    32 MiB
 ``BACKLASH_MAX_BATCH_CASES`` most cases in one batch simulation    64
-``BACKLASH_WORKERS``        background training threads            1
+``BACKLASH_WORKERS``        trainings at once                      1
+``BACKLASH_TRAINING_RUNS_IN`` process or thread                      process
 ``BACKLASH_MAX_PENDING_JOBS`` queued + running jobs before 429     16
+``BACKLASH_DIAGNOSIS_WORKERS`` worker processes of diagnosis jobs    1
+``BACKLASH_MAX_SYNC_DIAGNOSES`` synchronous diagnoses at once (429)  2
+``BACKLASH_SYNC_DIAGNOSE_TIMEOUT`` time limit of one [s] (504)       120
 ``BACKLASH_LOG_LEVEL``      DEBUG, INFO, WARNING, ERROR            INFO
 =========================  =====================================  ==========================
 """
@@ -60,10 +64,28 @@ class Settings(BaseSettings):
         default=64, description="Most cases in one POST /v1/simulate/batch request."
     )
     workers: Annotated[int, Field(ge=1, le=64)] = Field(
-        default=1, description="Background threads that train pattern sets."
+        default=1, description="Pattern sets trained at once (worker processes, or threads; see training_runs_in)."
     )
     max_pending_jobs: Annotated[int, Field(ge=1, le=10_000)] = Field(
-        default=16, description="Queued plus running training jobs before new ones are refused with 429."
+        default=16, description="Queued plus running jobs (training, diagnosis) before new ones are refused with 429."
+    )
+    training_runs_in: Literal["process", "thread"] = Field(
+        default="process",
+        description="Where training jobs run: worker processes (the default; cancelling stops one at once and "
+        "a long training does not slow the API) or threads of the service (lighter for tiny sets). With a Dask "
+        "scheduler a training is sent there and a thread waits for it.",
+    )
+    diagnosis_workers: Annotated[int, Field(ge=1, le=64)] = Field(
+        default=1,
+        description="Worker processes that run diagnosis jobs (POST /v1/diagnoses); one diagnosis uses one core.",
+    )
+    max_sync_diagnoses: Annotated[int, Field(ge=1, le=64)] = Field(
+        default=2, description="Synchronous diagnoses (POST /v1/diagnose) running at once; more get 429."
+    )
+    sync_diagnose_timeout: Annotated[float, Field(gt=0, le=3600)] = Field(
+        default=120.0,
+        description="Time limit of a synchronous diagnosis [s]; beyond it the diagnosis is stopped (504). "
+        "Diagnosis jobs have no limit.",
     )
     log_level: LogLevel = Field(default="INFO", description="Log level of the service and the engine.")
     dask_scheduler: str | None = Field(

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, FiniteFloat
 
 from app.records_io import ACCEPTED_UNITS_DOC
+from app.schemas.assets import AssetName, MeasuredAt
 from engine.constants import (
     CHANNEL_UNITS,
     CHANNELS,
@@ -94,6 +95,8 @@ class RecordIn(BaseModel):
     event_time: FiniteFloat | None = Field(
         default=None, description="t_e [s] since switch-on, when known (simulated records carry it)."
     )
+    asset: AssetName | None = None
+    measured_at: MeasuredAt | None = None
 
     def to_record(self) -> Record:
         """The engine's record, read by :func:`engine.records.record_from_data`.

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from datetime import datetime
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, FiniteFloat
 
+from app.schemas.assets import AssetName, MeasuredAt
 from app.schemas.common import RecordIn
 from engine.plants.brfd import BrfdRecord
 from engine.plants.brfd.record import from_json_object
@@ -43,6 +45,8 @@ class EmpsRecordIn(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     name: str = Field(default="record", max_length=200, description="Name of the record (echoed in the answer).")
+    asset: AssetName | None = None
+    measured_at: MeasuredAt | None = None
     t: list[FiniteFloat] = Field(description="Sample instants [s], uniform at 1 ms.")
     qm: list[FiniteFloat] = Field(description="Measured motor position, load side [m].")
     qg: list[FiniteFloat] = Field(description="Reference position [m].")
@@ -70,6 +74,8 @@ class BrfdRecordIn(BaseModel):
     model_config = ConfigDict(extra="forbid", populate_by_name=True)
 
     name: str = Field(default="record", max_length=200, description="Name of the record (echoed in the answer).")
+    asset: AssetName | None = None
+    measured_at: MeasuredAt | None = None
     data: list[list[FiniteFloat]] = Field(
         description="One row per sample: time [s], displacement, friction force (then velocity and the actuator "
         "forces, which are not used)."
@@ -83,7 +89,7 @@ class BrfdRecordIn(BaseModel):
 
     def to_record(self) -> BrfdRecord:
         """The engine's record, in SI units and checked (RecordError, 422, says what to fix)."""
-        obj = self.model_dump(by_alias=True, exclude_none=True, exclude={"name"})
+        obj = self.model_dump(by_alias=True, exclude_none=True, exclude={"name", "asset", "measured_at"})
         return from_json_object(obj, self.name)
 
 
@@ -115,3 +121,54 @@ class PlantDiagnoseCreate(BaseModel):
     hold_calibration: bool = Field(
         default=False, description="Hold the calibrated parameters while fitting effects (default: refit them)."
     )
+
+
+class DiagnosisAnswer(BaseModel):
+    """A diagnosis: the shape of issues 4 and 10 (backlash drive) or of the plant interface (``emps``, ``brfd``).
+
+    Only the fields every diagnosis has are declared; the others are described in the README's
+    gap-diagnosis sections and kept as they come (``extra="allow"``).
+    """
+
+    model_config = ConfigDict(extra="allow")
+
+    verdict: dict[str, Any] = Field(
+        description="status (backlash drive; the plants give it at the top level), effect, value, effects "
+        "[{effect, value, uncertainty, share}], locus."
+    )
+    calibration: dict[str, Any] = Field(description="The calibrated parameters with their uncertainties.")
+    record: dict[str, Any] | str | None = Field(default=None, description="How the record was read.")
+    status: str | None = Field(default=None, description="The plants' verdict status.")
+
+
+class DiagnosisAccepted(BaseModel):
+    """A queued diagnosis job (202)."""
+
+    job_id: str
+    diagnosis_id: str
+    record_id: str = Field(description="The stored record (GET /v1/records/{id}).")
+    job_url: str
+    diagnosis_url: str
+
+
+class DiagnosisPublic(BaseModel):
+    """A stored diagnosis: its job's state and, once done, the result (the answer of POST /v1/diagnose)."""
+
+    id: str
+    job_id: str
+    record_id: str
+    plant: str
+    asset: str | None = None
+    measured_at: datetime | None = None
+    created_at: datetime
+    state: Literal["queued", "running", "done", "failed", "interrupted", "cancelled"]
+    status: str | None = Field(default=None, description="The verdict's status, once done.")
+    effect: str | None = Field(default=None, description="The verdict's effect, once done.")
+    K: float | None = Field(default=None, description="The backlash width the diagnosis found [m], where it has one.")
+    K_sigma: float | None = Field(default=None, description="Its 1-sigma uncertainty [m].")
+    figures: list[str] = Field(default_factory=list, description="GET /v1/diagnoses/{id}/figures/{name} (PNG).")
+    result: DiagnosisAnswer | None = Field(default=None, description="The diagnosis, once done.")
+
+
+class DiagnosesPublic(BaseModel):
+    items: list[DiagnosisPublic] = Field(description="Newest first, without their results.")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from datetime import datetime
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -24,6 +25,11 @@ class IdentifyCreate(BaseModel):
         f"record's conditions.c (nominal c = {C_NOMINAL:g} when the record does not give c).",
     )
     kind: str | None = Field(default=None, description="Only choose pattern sets of this identifier kind.")
+    any_set: bool = Field(
+        default=False,
+        description="Also choose among sets trained with effects or on another J1 grid than the paper's (by default "
+        "only sets trained as the paper trains are chosen; a set named by pattern_set is always used).",
+    )
     continuous: bool = Field(
         default=False,
         description="Also estimate K as a continuous width by fitting the simulator to the channel (a few "
@@ -85,6 +91,17 @@ class IdentificationPublic(BaseModel):
     c_source: Literal["record", "nominal"] | None = Field(
         description=f"Where c_used came from: the record's conditions, or the nominal c = {C_NOMINAL:g}."
     )
+    c_distance: float | None = Field(
+        default=None,
+        description="|c of the set - c_used| [pu] (null when the set was requested); a set farther than "
+        "max_c_distance is never chosen (422).",
+    )
+    max_c_distance: float = Field(description="The farthest c a chosen set may have from the record's [pu].")
+    identification_id: str | None = Field(
+        default=None, description="Where the identification of a named asset is stored (its history)."
+    )
+    asset: str | None = Field(default=None, description="The record's asset, when it names one.")
+    measured_at: datetime | None = Field(default=None, description="When the record was taken (or received).")
     continuous: ContinuousWidthPublic | None = Field(
         default=None, description="The calibrated K as a continuous width (only when requested)."
     )
@@ -121,3 +138,8 @@ class PlantWidthPublic(BaseModel):
     paper: list[dict[str, Any]] | None = Field(
         default=None, description="Per record, the seed's W3/D/argmin width on a grid of six widths."
     )
+    identification_id: str | None = Field(
+        default=None, description="Where the identification of a named asset is stored (its history)."
+    )
+    asset: str | None = Field(default=None, description="The record's asset, when it names one.")
+    measured_at: datetime | None = Field(default=None, description="When the record was taken (or received).")

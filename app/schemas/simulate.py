@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field, FiniteFloat
+from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, field_validator
 
 from app.records_io import ACCEPTED_UNITS_DOC
 from app.schemas.common import ChannelName, RecordPublic
-from app.services.simulation import Rendering
+from app.services.simulation import MAX_RENDERED_SAMPLES, Rendering
 from engine.constants import (
     C1_NOMINAL,
     C_NOMINAL,
@@ -19,12 +19,18 @@ from engine.constants import (
     PRE_EVENT_TIME,
     SAMPLE_INTERVAL,
 )
+from engine.records.grid import GridError, SampleGrid
 
 _EFFECTS_DOC = (
     'Unmodelled effects by catalogue name and value, e.g. {"motor_coulomb_friction": 0.02}; see the '
     "effects catalogue (engine.simulation.CATALOGUE) and the held-back family (engine.simulation.HELD_BACK: "
     "effects outside the diagnosis's catalogue) for names, meanings and ranges."
 )
+
+#: Longest span rendered before or after the event [s]: the most samples a request renders, at the longest
+#: interval (a bound against spans whose sample count does not fit a number; shorter spans are checked
+#: against MAX_RENDERED_SAMPLES when rendered).
+MAX_SPAN = MAX_RENDERED_SAMPLES * MAX_SAMPLE_INTERVAL
 
 
 class SimulateCase(BaseModel):
@@ -54,11 +60,15 @@ class RenderIn(BaseModel):
     )
     before: FiniteFloat = Field(
         default=PRE_EVENT_TIME,
-        description=f"Time rendered before the event [s]; at least {PRE_EVENT_TIME * 1e3:g} ms (MODEL.md's window).",
+        le=MAX_SPAN,
+        description=f"Time rendered before the event [s]; at least {PRE_EVENT_TIME * 1e3:g} ms (MODEL.md's window), "
+        f"at most {MAX_SPAN:g} s.",
     )
     after: FiniteFloat = Field(
         default=POST_EVENT_TIME,
-        description=f"Time rendered from the event on [s]; at least {POST_EVENT_TIME * 1e3:g} ms (MODEL.md's window).",
+        le=MAX_SPAN,
+        description=f"Time rendered from the event on [s]; at least {POST_EVENT_TIME * 1e3:g} ms (MODEL.md's "
+        f"window), at most {MAX_SPAN:g} s.",
     )
     units: dict[ChannelName, str] = Field(
         default_factory=dict,
@@ -78,6 +88,16 @@ class RenderIn(BaseModel):
         default=None,
         description="The motor's base torque [N*m], stated in the record's conditions; needed for m_el in N*m.",
     )
+
+    @field_validator("sample_interval")
+    @classmethod
+    def _check_sample_interval(cls, value: float) -> float:
+        """Refuse an interval outside 10 us - 1 ms here, with the engine's message, before any span is divided by it."""
+        try:
+            SampleGrid(sample_interval=value, n_samples=2, event_index=0)
+        except GridError as exc:
+            raise ValueError(str(exc)) from None
+        return value
 
     def rendering(self) -> Rendering:
         """The service's :class:`~app.services.simulation.Rendering` of these options."""
@@ -122,7 +142,19 @@ class SimulateCreate(SimulateCase, RenderIn):
 class SimulateBatchCreate(RenderIn):
     """Several cases simulated in one call (at most BACKLASH_MAX_BATCH_CASES), all rendered the same way."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(
+        extra="forbid",
+        json_schema_extra={
+            "examples": [
+                {
+                    "cases": [{"K": K_GRID[0]}, {"K": K_NOMINAL, "J1": J1_NOMINAL, "effects": {}}],
+                    "sample_interval": 2e-4,
+                    "channels": ["a2", "v2"],
+                    "units": {"a2": "g"},
+                }
+            ]
+        },
+    )
 
     cases: list[SimulateCase] = Field(min_length=1, description="The cases, simulated in this order.")
 

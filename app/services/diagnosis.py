@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -15,13 +15,19 @@ from engine.records import Record
 from engine.simulation import CATALOGUE, EffectLibrary
 
 
-def run(record: Record, effects: Sequence[str] | None = None, bounds: Bounds | None = None) -> DiagnosisResult:
+def run(
+    record: Record,
+    effects: Sequence[str] | None = None,
+    bounds: Bounds | None = None,
+    progress: Callable[[float, str], None] | None = None,
+) -> DiagnosisResult:
     """Diagnose ``record`` against the catalogue (or the named subset of it), with identification before/after.
 
-    ``bounds`` narrows or moves the calibration's search box (:func:`engine.diagnosis.space.check_bounds`).
+    ``bounds`` narrows or moves the calibration's search box (:func:`engine.diagnosis.space.check_bounds`);
+    ``progress(fraction, stage)`` hears of each stage.
     """
     library = CATALOGUE if not effects else EffectLibrary([CATALOGUE[name] for name in effects])
-    return engine_diagnose(record, library=library, identify=identification_hook(), bounds=bounds)
+    return engine_diagnose(record, library=library, identify=identification_hook(), bounds=bounds, progress=progress)
 
 
 def diagnose(record: Record, effects: Sequence[str] | None = None, bounds: Bounds | None = None) -> dict[str, Any]:

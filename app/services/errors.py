@@ -16,7 +16,27 @@ class IncompatibleError(ServiceError, ValueError):
 
 
 class QueueFullError(ServiceError):
-    """Too many training jobs are queued or running."""
+    """Too many jobs are queued or running, or too many synchronous diagnoses run at once (429).
+
+    Parameters
+    ----------
+    message : str
+        What happened and what to do.
+    retry_after : int
+        Seconds after which a retry may succeed (the answer's ``Retry-After`` header).
+    """
+
+    def __init__(self, message: str, retry_after: int = 30) -> None:
+        super().__init__(message)
+        self.retry_after = int(retry_after)
+
+
+class ConflictError(ServiceError):
+    """The request does not fit the current state of what it names (e.g. cancelling a finished job): 409."""
+
+
+class TimeLimitError(ServiceError):
+    """A synchronous computation ran past its time limit and was stopped (504); the message says what to use."""
 
 
 class InvalidInputError(ServiceError, ValueError):

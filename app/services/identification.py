@@ -6,11 +6,13 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-from app.services.errors import IncompatibleError, NotFoundError
+import numpy as np
+
+from app.services.errors import IncompatibleError, InvalidInputError, NotFoundError
 from app.services.patterns import identifier_from_pattern_set
 from engine.constants import C_NOMINAL, K_GRID, MODEL_VERSION
 from engine.identification import IdentificationResult
-from engine.identification.selection import nearest_pattern_set
+from engine.identification.selection import MAX_C_DISTANCE, is_plain, nearest_pattern_set
 from engine.identification.training import DEFAULT_KIND
 from engine.identification.width import estimate_width, nearest_grid_width
 from engine.records import Record, to_protocol_grid
@@ -61,13 +63,16 @@ def select_pattern_set(
     record: Record,
     set_id: str | None = None,
     kind: str | None = None,
+    any_set: bool = False,
 ) -> Selection:
     """The set named by ``set_id``, else the stored set of ``channel`` whose c is nearest the record's c.
 
     The record's c comes from ``record.conditions["c"]``; without it the nominal c
     (:data:`engine.constants.C_NOMINAL`) is used. Only sets of the current model version
-    (and of ``kind``, if given) are chosen; among equally near sets the default kind wins,
-    then the newest.
+    (and of ``kind``, if given) are chosen, and only sets trained as the paper trains (no
+    effects, its J1 grid) unless ``any_set``; among equally near sets the default kind wins,
+    then the newest. A set farther than :data:`~engine.identification.selection.MAX_C_DISTANCE`
+    from the record's c is refused (:class:`IncompatibleError`).
     """
     if set_id is not None:
         requested = get_pattern_set(store, set_id)
@@ -87,12 +92,29 @@ def select_pattern_set(
     c = record.conditions.get("c")
     source: Literal["record", "nominal"] = "record" if c is not None else "nominal"
     c_used = float(c) if c is not None else C_NOMINAL
-    ps = nearest_pattern_set(store, channel, c_used, kind=kind, model_version=MODEL_VERSION, prefer_kind=DEFAULT_KIND)
+    ps = nearest_pattern_set(
+        store, channel, c_used, kind=kind, model_version=MODEL_VERSION, prefer_kind=DEFAULT_KIND, plain_only=not any_set
+    )
+    train = f'POST /v1/pattern-sets {{"channel": "{channel}", "c": {c_used:g}}}'
     if ps is None:
         what = f"channel {channel!r}" + (f" and kind {kind!r}" if kind else "")
+        others = [s for s in store.list(channel, kind=kind, model_version=MODEL_VERSION) if not is_plain(s)]
+        skipped = (
+            f"; {len(others)} set(s) trained with effects or on another J1 grid are chosen only when named "
+            f"(pattern_set: {', '.join(s.id for s in others[:3])})"
+            if others
+            else ""
+        )
         raise NotFoundError(
-            f"no pattern set for {what} (model version {MODEL_VERSION}) is stored; train one first, e.g. "
-            f'POST /v1/pattern-sets {{"channel": "{channel}", "c": {c_used:g}}}'
+            f"no pattern set for {what} (model version {MODEL_VERSION}) trained as the paper trains (no effects, "
+            f"its J1 grid) is stored{skipped}; train one first, e.g. {train}, or allow any set (any_set)"
+        )
+    distance = abs(ps.c - c_used)
+    if distance > MAX_C_DISTANCE + 1e-12:
+        raise IncompatibleError(
+            f"the nearest stored set ({ps.id}) has c = {ps.c:g} pu, {distance:.3g} pu from the record's c = {c_used:g} "
+            f"({source}); the limit is {MAX_C_DISTANCE:g} pu (patterns of a farther c were trained on another "
+            f"deceleration); train a set at that c, e.g. {train}, or name a set with pattern_set"
         )
     how: Literal["exact", "nearest"] = "exact" if math.isclose(ps.c, c_used, rel_tol=1e-9, abs_tol=1e-12) else "nearest"
     return Selection(ps, how, c_used, source)
@@ -148,15 +170,22 @@ def identify_from_store(
     set_id: str | None = None,
     kind: str | None = None,
     continuous: bool = False,
+    any_set: bool = False,
 ) -> dict:
     """Choose the pattern set (:func:`select_pattern_set`), identify, and describe the outcome (JSON-ready).
 
     With ``continuous``, also the calibrated K as a continuous width (:func:`continuous_width`, a few seconds).
     """
     check_record(record, channel)
-    sel = select_pattern_set(store, channel, record, set_id=set_id, kind=kind)
+    sel = select_pattern_set(store, channel, record, set_id=set_id, kind=kind, any_set=any_set)
     res = identify(record, channel, sel.pattern_set)
     analysed, window = record.test_window()
+    if not (np.all(np.isfinite(res.D)) and np.isfinite(res.rms)):
+        largest = float(np.max(np.abs(record[channel])))
+        raise InvalidInputError(
+            f"the identification gave non-finite numbers: channel {channel!r} of the record reaches |x| = {largest:.3g}, "
+            "far outside what the pattern set was trained on; check the record's units and values"
+        )
     return {
         "D": [float(d) for d in res.D],
         "index": int(res.index),
@@ -172,6 +201,8 @@ def identify_from_store(
         "selection": sel.how,
         "c_used": sel.c_used,
         "c_source": sel.c_source,
+        "c_distance": None if sel.c_used is None else abs(sel.pattern_set.c - sel.c_used),
+        "max_c_distance": MAX_C_DISTANCE,
         "continuous": continuous_width(record, channel) if continuous else None,
         "record": {
             "sample_interval": record.sample_interval,

@@ -11,9 +11,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
-from app.jobs import ProgressFn
+from app.jobs import JobKind, ProgressFn
 from app.services import simulation
 from app.services.errors import InvalidInputError
 from app.services.patterns import check_identifier
@@ -109,3 +110,52 @@ def train_pattern_set(
     saved = store.save(pattern_set)
     progress(1.0, "done")
     return saved
+
+
+#: The training job's kind.
+TRAIN_JOB = "train_pattern_set"
+
+
+def job_spec(spec: TrainingSpec, set_id: str) -> dict[str, Any]:
+    """The job's stored spec (JSON): what to train and the id announced for the set."""
+    return {
+        "pattern_set_id": set_id,
+        "channel": spec.channel,
+        "c": spec.c,
+        "J1_values": list(spec.J1_values),
+        "kind": spec.kind,
+        "params": dict(spec.params),
+        "effects": dict(spec.effects),
+    }
+
+
+def _spec_of(stored: dict[str, Any]) -> TrainingSpec:
+    return TrainingSpec(
+        channel=stored["channel"],
+        c=float(stored["c"]),
+        J1_values=tuple(float(v) for v in stored["J1_values"]),
+        kind=stored["kind"],
+        params=dict(stored["params"]),
+        effects={k: float(v) for k, v in stored["effects"].items()},
+    )
+
+
+def run_job(db_path: Path, stored: dict[str, Any], progress: ProgressFn) -> dict[str, Any]:
+    """A training job in a worker process: train the set and store it under the announced id."""
+    set_id = stored["pattern_set_id"]
+    train_pattern_set(_spec_of(stored), PatternStore(db_path), set_id=set_id, progress=progress)
+    return {"pattern_set_id": set_id}
+
+
+def job_kind(store: PatternStore, cluster: Any = None, runs_in: str = "process") -> JobKind:
+    """Training as a job kind: in a worker process (``runs_in="process"``, the default), or on a thread of the
+    service (``"thread"``; always so with a Dask ``cluster``, where the thread only waits for it)."""
+    if cluster is None and runs_in == "process":
+        return JobKind(TRAIN_JOB, "process", run_job, pool="training")
+
+    def run(stored: dict[str, Any], progress: ProgressFn) -> dict[str, Any]:
+        set_id = stored["pattern_set_id"]
+        train_pattern_set(_spec_of(stored), store, set_id=set_id, progress=progress, cluster=cluster)
+        return {"pattern_set_id": set_id}
+
+    return JobKind(TRAIN_JOB, "thread", run)

@@ -631,6 +631,7 @@ def diagnose(
     identify: IdentificationHook | None = None,
     noise: Mapping[str, float] | None = None,
     bounds: Bounds | None = None,
+    progress: Callable[[float, str], None] | None = None,
 ) -> DiagnosisResult:
     """Diagnose the sim-to-real gap of one record.
 
@@ -652,6 +653,9 @@ def diagnose(
         unit (K [m], J1 [kg m^2], c [pu], c1 [pu]); parameters not given keep
         :data:`~engine.diagnosis.space.DEFAULT_BOUNDS`, the plausible box (see
         :func:`~engine.diagnosis.space.check_bounds`).
+    progress : callable, optional
+        ``progress(fraction, stage)`` at each stage (calibration, candidates, sets, verdict,
+        identification), fraction 0..1 of the stages (not of the time, which the candidates dominate).
 
     Returns
     -------
@@ -673,7 +677,11 @@ def diagnose(
     diagnosed (their candidates say so).
     """
     with single_threaded_blas():
-        return _diagnose(record, library, settings, identify, noise, bounds)
+        return _diagnose(record, library, settings, identify, noise, bounds, progress or _no_progress)
+
+
+def _no_progress(fraction: float, stage: str) -> None:
+    """Default progress callback: ignore."""
 
 
 def _diagnose(
@@ -683,11 +691,13 @@ def _diagnose(
     identify: IdentificationHook | None,
     noise: Mapping[str, float] | None,
     bounds: Bounds | None = None,
+    progress: Callable[[float, str], None] = _no_progress,
 ) -> DiagnosisResult:
     t0 = time.perf_counter()
     whole = record
     record, window = whole.test_window()
     space = default_space(record, bounds)
+    progress(0.0, "calibrating the nominal model")
     nominal = calibrate(record, space, settings.calibration, noise=noise)
     cells = localise(record, nominal.simulated_record(record), nominal.sigma, DEFAULT_WINDOWS_MS)
     gap_before = gap_of(nominal)
@@ -699,7 +709,10 @@ def _diagnose(
     )
     use_sets = set_settings.max_size >= 2 and not _fits_noise(nominal, settings)
     staged = use_sets and set_settings.before_escalation
+    progress(0.15, f"fitting {len(library)} candidate effects one at a time")
     cands = fit_candidates(record, nominal, space, library, cs, escalate=not staged)
+    if use_sets and not _explains_single(cands, settings):
+        progress(0.55, "no single effect explains the record: searching sets of effects")
     sets: list[CandidateSet] = []
     if staged and not _explains_single(cands, settings):
         # pairs from the seeded single fits first, the best with a global search in its joint space;
@@ -722,6 +735,7 @@ def _diagnose(
     n_sim += sum(s.calibration.n_simulations for s in sets if s.calibration)
     if sets:
         _reweight(nominal, cands, sets)
+    progress(0.85, "deciding the verdict")
     verdict = _with_alternatives(decide(nominal, cands, settings, sets), library)
 
     after = None
@@ -759,6 +773,7 @@ def _diagnose(
         shrinkage=shrinkage,
     )
     if identify is not None:
+        progress(0.9, "identifying the width before and after")
         result.identification = identify(whole, result)
     result.seconds = time.perf_counter() - t0
     logger.info(

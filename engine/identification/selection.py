@@ -12,18 +12,39 @@ from __future__ import annotations
 import logging
 import math
 
-from engine.constants import C_GROUPS, MODEL_VERSION
+from engine.constants import C_GROUPS, J1_GRID, MODEL_VERSION
 from engine.storage import PatternSet, PatternSetNotFound, PatternSetSummary, PatternStore
 from engine.storage.validation import require_c, require_channel, require_text
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["TIE_ABS_TOL", "TIE_REL_TOL", "nearest_c_group", "nearest_pattern_set"]
+__all__ = ["MAX_C_DISTANCE", "TIE_ABS_TOL", "TIE_REL_TOL", "is_plain", "nearest_c_group", "nearest_pattern_set"]
 
 #: Two sets are equally near ``c`` for ``prefer_kind`` when their distances to it agree to
 #: these tolerances (``math.isclose``) [-] and [pu].
 TIE_REL_TOL = 1e-9
 TIE_ABS_TOL = 1e-12
+
+#: Farthest a chosen set's c may lie from the record's [pu]: a quarter of a pu, the widest gap
+#: between two of the paper's groups (1.0 -> 1.25), so that a store holding the four groups
+#: serves every c from 0.55 to 1.65 pu; beyond it the patterns were trained on a visibly
+#: different deceleration and the service refuses rather than answers (train a set at that c).
+MAX_C_DISTANCE = 0.25
+
+
+def is_plain(summary: PatternSetSummary | PatternSet) -> bool:
+    """Whether a set was trained as the paper trains: no effects, on the paper's J1 grid (any order).
+
+    Only such sets are chosen automatically; a set trained with effects or on another J1 grid
+    identifies a record only when it is asked for by id.
+    """
+    effects = (summary.params or {}).get("effects") or {}
+    grid = sorted(float(v) for v in summary.j1_values)
+    paper = sorted(J1_GRID)
+    same_grid = len(grid) == len(paper) and all(
+        math.isclose(a, b, rel_tol=1e-9) for a, b in zip(grid, paper, strict=True)
+    )
+    return not effects and same_grid
 
 
 def nearest_c_group(c: float) -> float:
@@ -63,6 +84,7 @@ def nearest_pattern_set(
     model_version: str = MODEL_VERSION,
     *,
     prefer_kind: str | None = None,
+    plain_only: bool = True,
 ) -> PatternSet | None:
     """Return the stored set of ``channel`` whose ``c`` is nearest to the requested one.
 
@@ -78,6 +100,8 @@ def nearest_pattern_set(
         Only sets of this identifier kind (any kind if ``None``).
     model_version : str
         Only sets of this reference-model version (sets of other versions are never returned).
+    plain_only : bool
+        Only sets trained as the paper trains (:func:`is_plain`: no effects, the paper's J1 grid).
     prefer_kind : str or None
         Among equally near sets (distances equal to :data:`TIE_REL_TOL` / :data:`TIE_ABS_TOL`),
         the nearest set of this kind wins over sets of other kinds (``None``: no preference).
@@ -106,6 +130,8 @@ def nearest_pattern_set(
     channel = require_channel(channel)
     while True:
         candidates = store.list(channel, kind=kind, model_version=version)
+        if plain_only:
+            candidates = [s for s in candidates if is_plain(s)]
         if not candidates:
             return None
         chosen = _nearest(candidates, cv, prefer_kind)

@@ -98,6 +98,10 @@ class SimulationError(RuntimeError):
         more = "" if len(self.failures) <= 3 else f" (and {len(self.failures) - 3} more)"
         super().__init__(f"{len(self.failures)} case(s) failed: {first}{more}")
 
+    def __reduce__(self) -> tuple[type[SimulationError], tuple[dict[int, str]]]:
+        """Pickled by its failures (it crosses process boundaries: worker pools, Dask)."""
+        return (SimulationError, (self.failures,))
+
 
 @dataclass(frozen=True)
 class SimulationResult:

@@ -46,10 +46,102 @@ def _migrate_0_to_1(conn: sqlite3.Connection) -> None:
     conn.execute("CREATE INDEX pattern_sets_lookup ON pattern_sets (channel, model_version, kind, c)")
 
 
+def _migrate_1_to_2(conn: sqlite3.Connection) -> None:
+    """Add the service's tables: jobs, the records it received, diagnoses (with their figures) and identifications.
+
+    The pattern sets' table is unchanged. Timestamps are ISO 8601 text in UTC; JSON documents
+    are zlib-compressed UTF-8 (``*_z`` columns); ``asset`` and ``measured_at`` index a drive's history.
+    """
+    conn.execute(
+        """
+        CREATE TABLE jobs (
+            seq            INTEGER PRIMARY KEY AUTOINCREMENT,
+            id             TEXT NOT NULL UNIQUE,
+            kind           TEXT NOT NULL,
+            state          TEXT NOT NULL,
+            progress       REAL NOT NULL,
+            stage          TEXT,
+            error          TEXT,
+            created_at     TEXT NOT NULL,
+            started_at     TEXT,
+            finished_at    TEXT,
+            meta           TEXT NOT NULL,
+            spec           TEXT NOT NULL,
+            retry_of       TEXT
+        )
+        """
+    )
+    conn.execute("CREATE INDEX jobs_state ON jobs (state)")
+    conn.execute(
+        """
+        CREATE TABLE records (
+            seq            INTEGER PRIMARY KEY AUTOINCREMENT,
+            id             TEXT NOT NULL UNIQUE,
+            plant          TEXT NOT NULL,
+            name           TEXT,
+            asset          TEXT,
+            measured_at    TEXT,
+            n_samples      INTEGER NOT NULL,
+            created_at     TEXT NOT NULL,
+            media          TEXT NOT NULL,
+            params         TEXT NOT NULL,
+            body_z         BLOB NOT NULL
+        )
+        """
+    )
+    conn.execute("CREATE INDEX records_asset ON records (asset, measured_at)")
+    conn.execute(
+        """
+        CREATE TABLE diagnoses (
+            seq            INTEGER PRIMARY KEY AUTOINCREMENT,
+            id             TEXT NOT NULL UNIQUE,
+            job_id         TEXT NOT NULL,
+            record_id      TEXT NOT NULL,
+            plant          TEXT NOT NULL,
+            asset          TEXT,
+            measured_at    TEXT,
+            created_at     TEXT NOT NULL,
+            status         TEXT,
+            effect         TEXT,
+            width          REAL,
+            width_sigma    REAL,
+            result_z       BLOB
+        )
+        """
+    )
+    conn.execute("CREATE INDEX diagnoses_asset ON diagnoses (asset, measured_at)")
+    conn.execute(
+        """
+        CREATE TABLE figures (
+            owner_id       TEXT NOT NULL,
+            name           TEXT NOT NULL,
+            png            BLOB NOT NULL,
+            PRIMARY KEY (owner_id, name)
+        )
+        """
+    )
+    conn.execute(
+        """
+        CREATE TABLE identifications (
+            seq            INTEGER PRIMARY KEY AUTOINCREMENT,
+            id             TEXT NOT NULL UNIQUE,
+            asset          TEXT NOT NULL,
+            measured_at    TEXT NOT NULL,
+            created_at     TEXT NOT NULL,
+            channel        TEXT,
+            width          REAL,
+            width_sigma    REAL,
+            result_z       BLOB NOT NULL
+        )
+        """
+    )
+    conn.execute("CREATE INDEX identifications_asset ON identifications (asset, measured_at)")
+
+
 #: Migration hook: ``MIGRATIONS[v]`` upgrades a database from schema version ``v`` to
 #: ``v + 1`` inside the opening transaction. Append a function to change the schema;
 #: :data:`SCHEMA_VERSION` follows.
-MIGRATIONS: list[Callable[[sqlite3.Connection], None]] = [_migrate_0_to_1]
+MIGRATIONS: list[Callable[[sqlite3.Connection], None]] = [_migrate_0_to_1, _migrate_1_to_2]
 #: Schema version written by this code (``PRAGMA user_version``).
 SCHEMA_VERSION = len(MIGRATIONS)
 

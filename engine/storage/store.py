@@ -138,6 +138,18 @@ class PatternStore:
                 raise
             conn.execute("COMMIT")
 
+    def reading(self) -> contextlib.AbstractContextManager[sqlite3.Connection]:
+        """A connection for reads (closed on exit); errors become :class:`PatternStoreError`.
+
+        For the other tables of the same file (the service's jobs, records, diagnoses, ...):
+        one file, one schema (:mod:`engine.storage.schema`), one way to open it.
+        """
+        return self._connect()
+
+    def writing(self) -> contextlib.AbstractContextManager[sqlite3.Connection]:
+        """One write transaction (``BEGIN IMMEDIATE`` ... ``COMMIT``, ``ROLLBACK`` on error), as :meth:`reading`."""
+        return self._write()
+
     def _in_transaction_hook(self, operation: str, set_id: str) -> None:
         """Called inside a write transaction just before ``COMMIT`` (a no-op; tests override it)."""
 

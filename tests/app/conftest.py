@@ -67,7 +67,8 @@ def gated(monkeypatch: pytest.MonkeyPatch) -> Iterator[GatedTraining]:
 @pytest.fixture
 def inprocess(tmp_path: Path, gated: GatedTraining) -> Iterator[InProcessServer]:
     """The application served in a thread of this process (one training worker), its training gated."""
-    server = InProcessServer(create_app(Settings(db_path=tmp_path / "inprocess" / "patterns.sqlite3", workers=1)))
+    settings = Settings(db_path=tmp_path / "inprocess" / "patterns.sqlite3", workers=1, training_runs_in="thread")
+    server = InProcessServer(create_app(settings))  # training on a thread of this process: the gate holds it
     server.start()
     try:
         yield server

@@ -37,6 +37,37 @@ FAILING_TRAINING = {
 }
 
 
+def wait_until(condition: Callable[[], Any], timeout: float = TIMEOUT, what: str = "the condition") -> Any:
+    """Poll ``condition`` until it is truthy (return it) or ``timeout`` [s] passes (AssertionError naming ``what``)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        value = condition()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout:g} s waiting for {what}")
+        time.sleep(0.02)
+
+
+def process_alive(pid: int) -> bool:
+    """Whether process ``pid`` exists and is not a zombie."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def sleeping_job(db_path: Path, spec: dict[str, Any], progress: Callable[[float, str], None]) -> dict[str, Any]:
+    """A process job of the tests: writes its pid to ``spec["pid_file"]``, then sleeps ``spec["seconds"]``."""
+    Path(spec["pid_file"]).write_text(str(os.getpid()))
+    progress(0.1, "sleeping")
+    deadline = time.monotonic() + float(spec["seconds"])
+    while time.monotonic() < deadline:
+        time.sleep(0.01)
+    return {"slept": spec["seconds"]}
+
+
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -100,7 +131,7 @@ def wait_for_job(client: httpx.Client, job_id: str, timeout: float = 120.0) -> d
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         job = client.get(f"/v1/jobs/{job_id}").json()
-        if job["state"] in ("done", "failed"):
+        if job["state"] in ("done", "failed", "interrupted", "cancelled"):
             return job
         time.sleep(0.05)
     raise AssertionError(f"job {job_id} did not finish within {timeout} s: {job}")

@@ -70,7 +70,7 @@ def test_simulate_train_identify_round_trip(env: Path, tmp_path: Path, capsys: p
     assert env.exists()
     assert (stored["channel"], stored["c"], stored["J1_values"]) == ("v2", 1.0, SMALL_TRAINING["J1_values"])
 
-    code, out, err = run(capsys, "identify", str(csv_path), "--channel", "v2", "--c", "1.0")
+    code, out, err = run(capsys, "identify", str(csv_path), "--channel", "v2", "--c", "1.0", "--any-set")
     assert code == 0, err
     from_csv = json.loads(out)
     assert (from_csv["index"], from_csv["width"], from_csv["pattern_set"]) == (3, 0.005, stored["id"])
@@ -78,7 +78,7 @@ def test_simulate_train_identify_round_trip(env: Path, tmp_path: Path, capsys: p
     code, out, _ = run(capsys, "identify", str(json_path), "--channel", "v2", "--pattern-set", stored["id"])
     assert code == 0 and json.loads(out)["D"] == from_csv["D"]
     assert from_csv["continuous"] is None
-    code, out, err = run(capsys, "identify", str(json_path), "--channel", "v2", "--continuous")
+    code, out, err = run(capsys, "identify", str(json_path), "--channel", "v2", "--continuous", "--any-set")
     assert code == 0, err
     cont = json.loads(out)["continuous"]
     assert abs(cont["K"] - 0.005) < 1e-5 and cont["nearest_width"] == 0.005 and cont["sigma_K"] > 0

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import httpx
 
+from app.core.config import Settings
+from app.main import create_app
 from engine.constants import MODEL_VERSION
 
 
@@ -70,3 +73,31 @@ def test_openapi_documents_records_as_a_bench_gives_them(client: httpx.Client) -
     assert "maximum" not in json.dumps(query["event_index"]["schema"])  # the engine checks the record's length
     # the names a JSON body must not come with are exactly the CSV form's query parameters
     assert set(CSV_QUERY) == set(inspect.signature(CSVRecordParams.__init__).parameters) - {"self"}
+
+
+def test_openapi_documents_every_answer_with_its_model(tmp_path: Path) -> None:
+    """Every success answer has a schema in each of its media types (a PNG's: a binary string); every error
+    answer is ErrorPublic's (the shape the handlers send), FastAPI's own validation-error schema is gone, and
+    with an API key every operation but /healthz documents 401."""
+    for api_key in (None, "a-long-enough-key"):
+        doc = create_app(Settings(db_path=tmp_path / "never-opened.sqlite3", api_key=api_key)).openapi()
+        text = json.dumps(doc)
+        assert "HTTPValidationError" not in text and "#/components/schemas/ValidationError" not in text
+        error_ref = {"$ref": "#/components/schemas/ErrorPublic"}
+        for path, item in doc["paths"].items():
+            for method, op in item.items():
+                where = f"{method.upper()} {path}"
+                answers = op["responses"]
+                assert "500" in answers, where
+                if "requestBody" in op:
+                    assert {"400", "413", "415", "422"} <= set(answers), where
+                if op.get("parameters"):
+                    assert "422" in answers, where
+                assert ("401" in answers) == (api_key is not None and path != "/healthz"), where
+                for status, answer in answers.items():
+                    content = answer.get("content", {})
+                    if status.startswith("2"):
+                        for media, entry in content.items():
+                            assert (entry or {}).get("schema"), f"{where} {status} {media}: no schema"
+                    if status[0] in "45":
+                        assert content["application/json"]["schema"] == error_ref, f"{where} {status}"

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import httpx
+import pytest
 from servicekit import SMALL_TRAINING, train
 
 from engine.constants import K_GRID
@@ -33,16 +34,28 @@ def test_identify_chooses_by_the_records_c(
     client: httpx.Client, trained_set: dict[str, Any], sim_record: dict[str, Any]
 ) -> None:
     set_id = trained_set["pattern_set_id"]
-    res = client.post("/v1/identify", json={"record": sim_record, "channel": "v2"}).json()
+    res = client.post("/v1/identify", json={"record": sim_record, "channel": "v2", "any_set": True}).json()
     _check_result(res, set_id)
     assert (res["selection"], res["c_used"], res["c_source"], res["pattern_set_c"]) == ("exact", 1.0, "record", 1.0)
 
-    far = {**sim_record, "conditions": {"c": 1.4}}
-    res = client.post("/v1/identify", json={"record": far, "channel": "v2"}).json()
-    assert (res["selection"], res["c_used"], res["c_source"]) == ("nearest", 1.4, "record")
+    near = {**sim_record, "conditions": {"c": 1.2}}
+    res = client.post("/v1/identify", json={"record": near, "channel": "v2", "any_set": True}).json()
+    assert (res["selection"], res["c_used"], res["c_source"]) == ("nearest", 1.2, "record")
+    assert res["c_distance"] == pytest.approx(0.2) and res["max_c_distance"] == 0.25
+
+    far = {**sim_record, "conditions": {"c": 1.4}}  # 0.4 pu from the only set: refused, with what to do
+    r = client.post("/v1/identify", json={"record": far, "channel": "v2", "any_set": True})
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"]
+    assert "0.4 pu from the record's c = 1.4" in detail and "limit is 0.25 pu" in detail and '"c": 1.4' in detail
+
+    # a set trained on another J1 grid than the paper's (these two inertias) is chosen only when asked
+    r = client.post("/v1/identify", json={"record": sim_record, "channel": "v2"})
+    assert r.status_code == 404, r.text
+    assert "chosen only when named" in r.json()["detail"] and set_id in r.json()["detail"]
 
     bare = {"channels": {"v2": sim_record["channels"]["v2"]}, "event_index": 48}  # no conditions: nominal c
-    res = client.post("/v1/identify", json={"record": bare, "channel": "v2"}).json()
+    res = client.post("/v1/identify", json={"record": bare, "channel": "v2", "any_set": True}).json()
     assert (res["selection"], res["c_used"], res["c_source"]) == ("exact", 1.0, "nominal")
 
 
@@ -52,7 +65,7 @@ def test_identify_prefers_the_set_with_the_nearest_c(
     other = train(client, {**SMALL_TRAINING, "c": 1.4})
     try:
         rec = {**sim_record, "conditions": {"c": 1.3}}
-        res = client.post("/v1/identify", json={"record": rec, "channel": "v2"}).json()
+        res = client.post("/v1/identify", json={"record": rec, "channel": "v2", "any_set": True}).json()
         assert (res["pattern_set"], res["selection"]) == (other["pattern_set_id"], "nearest")
     finally:
         client.delete(f"/v1/pattern-sets/{other['pattern_set_id']}")
@@ -64,11 +77,11 @@ def test_identify_csv_form(client: httpx.Client, trained_set: dict[str, Any], si
         "/v1/identify",
         content=csv_text,
         headers={"Content-Type": "text/csv"},
-        params={"channel": "v2", "c": 1.0, "sample_interval": 1e-4, "event_index": 48},
+        params={"channel": "v2", "c": 1.0, "sample_interval": 1e-4, "event_index": 48, "any_set": True},
     )
     assert r.status_code == 200, r.text
     res = r.json()
-    json_res = client.post("/v1/identify", json={"record": sim_record, "channel": "v2"}).json()
+    json_res = client.post("/v1/identify", json={"record": sim_record, "channel": "v2", "any_set": True}).json()
     assert res["D"] == json_res["D"]  # the same record as CSV gives the same answer
     assert (res["selection"], res["c_source"]) == ("exact", "record")
 
@@ -97,9 +110,11 @@ def test_identify_prefers_the_default_kind_among_equally_near_sets(
     default = train(client, {**request, "kind": DEFAULT_KIND})
     newer = train(client, {**request, "kind": other_kind})  # newest, same c, other kind
     try:
-        res = client.post("/v1/identify", json={"record": sim_record, "channel": "a1"}).json()
+        res = client.post("/v1/identify", json={"record": sim_record, "channel": "a1", "any_set": True}).json()
         assert res["pattern_set"] == default["pattern_set_id"]
-        res = client.post("/v1/identify", json={"record": sim_record, "channel": "a1", "kind": other_kind}).json()
+        res = client.post(
+            "/v1/identify", json={"record": sim_record, "channel": "a1", "kind": other_kind, "any_set": True}
+        ).json()
         assert res["pattern_set"] == newer["pattern_set_id"]
     finally:
         for out in (default, newer):
@@ -109,9 +124,9 @@ def test_identify_prefers_the_default_kind_among_equally_near_sets(
 def test_identify_offers_the_calibrated_K_as_a_continuous_width(
     client: httpx.Client, trained_set: dict[str, Any], sim_record: dict[str, Any]
 ) -> None:
-    plain = client.post("/v1/identify", json={"record": sim_record, "channel": "v2"}).json()
+    plain = client.post("/v1/identify", json={"record": sim_record, "channel": "v2", "any_set": True}).json()
     assert plain["continuous"] is None  # only on request: it fits the simulator (seconds)
-    r = client.post("/v1/identify", json={"record": sim_record, "channel": "v2", "continuous": True})
+    r = client.post("/v1/identify", json={"record": sim_record, "channel": "v2", "continuous": True, "any_set": True})
     assert r.status_code == 200, r.text
     res = r.json()
     assert res["D"] == plain["D"]
@@ -128,6 +143,7 @@ def test_identify_offers_the_calibrated_K_as_a_continuous_width(
         params={
             "channel": "v2",
             "continuous": "true",
+            "any_set": "true",
             "event_index": 48,
             **{k: sim_record["conditions"][k] for k in ("J1", "c", "c1")},
         },
@@ -154,10 +170,15 @@ def test_identify_a_20_khz_csv_with_time_in_rpm_and_g_as_its_json(
         "/v1/identify",
         content=csv_r.text,
         headers={"Content-Type": "text/csv"},
-        params={"channel": "v2", "units": csv_r.headers["x-units"], "c": 1.0},  # Ts from t, no event_index
+        params={
+            "channel": "v2",
+            "units": csv_r.headers["x-units"],
+            "c": 1.0,
+            "any_set": True,
+        },  # Ts from t, no event_index
     )
     assert by_csv.status_code == 200, by_csv.text
-    by_json = client.post("/v1/identify", json={"record": json_rec, "channel": "v2"})
+    by_json = client.post("/v1/identify", json={"record": json_rec, "channel": "v2", "any_set": True})
     assert by_json.status_code == 200, by_json.text
     assert by_csv.json()["D"] == by_json.json()["D"]
     assert by_csv.json()["width"] == 0.005

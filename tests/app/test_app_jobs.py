@@ -1,4 +1,4 @@
-"""Background jobs: the JobManager (app/jobs.py) and GET /v1/jobs/{id} (app/api/routes/jobs.py).
+"""Background jobs: the JobManager (app/jobs/) and /v1/jobs (app/api/routes/jobs.py).
 
 No test waits a fixed time for a job: the jobs block on events the test sets, and
 the test waits for the manager's notifications (:meth:`JobManager.wait`) or for
@@ -8,36 +8,61 @@ events the jobs set (see ``GatedTraining`` in servicekit.py).
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import httpx
 import pytest
-from servicekit import FAILING_TRAINING, SMALL_TRAINING, TIMEOUT, GatedTraining, InProcessServer, wait_for_job
+from servicekit import (
+    FAILING_TRAINING,
+    SMALL_TRAINING,
+    TIMEOUT,
+    GatedTraining,
+    InProcessServer,
+    process_alive,
+    sleeping_job,
+    wait_for_job,
+    wait_until,
+)
 
-from app.jobs import JobManager, JobState
-from app.services.errors import NotFoundError, QueueFullError
+from app.db.jobs import JobRepository
+from app.jobs import JobKind, JobManager, JobState
+from app.services.errors import ConflictError, NotFoundError, QueueFullError
+from engine.storage import PatternStore
 
 # -- the manager, in process ------------------------------------------------------------
 
 
-def test_manager_runs_a_job_with_monotonic_progress() -> None:
-    manager = JobManager(workers=1, max_pending=4)
+def make_manager(tmp_path: Path, run: Callable[..., Any], *, workers: int = 1, max_pending: int = 4) -> JobManager:
+    """A manager of one thread kind ``test`` and one process kind ``sleep`` on a fresh file."""
+    kinds = {
+        "test": JobKind("test", "thread", run),
+        "sleep": JobKind("sleep", "process", sleeping_job),
+    }
+    return JobManager(
+        PatternStore(tmp_path / "jobs.sqlite3"), kinds, workers=workers, pools={"default": 1}, max_pending=max_pending
+    )
+
+
+def test_manager_runs_a_job_with_monotonic_progress(tmp_path: Path) -> None:
     go, inside, release = threading.Event(), threading.Event(), threading.Event()
     seen: list[float] = []
 
-    def work(progress: Callable[..., None]) -> str:
+    def work(spec: dict[str, Any], progress: Callable[..., None]) -> dict[str, Any]:
         assert go.wait(TIMEOUT)  # `job` is assigned before the job looks itself up
         progress(0.5, "half")
         progress(0.2, "back")  # never decreases
         seen.append(manager.get(job.id).progress)
-        progress(7.0)  # clamped to 1
+        progress(7.0, None)  # clamped to 1; the stage stays
         seen.append(manager.get(job.id).progress)
         inside.set()
         assert release.wait(TIMEOUT)
-        return "result"
+        return {"answer": spec["question"] * 2}
 
-    job = manager.submit(work, kind="test", meta={"k": "v"})
+    manager = make_manager(tmp_path, work)
+    job = manager.submit("test", {"question": 21}, meta={"k": "v"})
     assert job.state is JobState.queued
     go.set()
     assert inside.wait(TIMEOUT)
@@ -47,59 +72,117 @@ def test_manager_runs_a_job_with_monotonic_progress() -> None:
     release.set()
     done = manager.wait(job.id, TIMEOUT)
     assert seen == [0.5, 1.0]
-    assert (done.state, done.progress, done.result, done.error) == (JobState.done, 1.0, "result", None)
-    assert done.created_at <= done.started_at <= done.finished_at
+    assert (done.state, done.progress, done.meta, done.error) == (JobState.done, 1.0, {"k": "v", "answer": 42}, None)
+    assert done.spec == {"question": 21}
+    assert done.created_at <= done.started_at <= done.finished_at  # type: ignore[operator]
     assert manager.find(k="v")[0].id == job.id
     manager.shutdown()
 
 
-def test_manager_records_a_failure_and_keeps_going() -> None:
-    manager = JobManager(workers=1, max_pending=4)
-
-    def boom(progress: Callable[..., None]) -> None:
+def test_manager_records_a_failure_and_keeps_going(tmp_path: Path) -> None:
+    def work(spec: dict[str, Any], progress: Callable[..., None]) -> None:
         progress(0.3, "about to fail")
-        raise ValueError("the reason")
+        if spec["fail"]:
+            raise ValueError("the reason")
 
-    failed = manager.wait(manager.submit(boom, kind="test").id, TIMEOUT)
+    manager = make_manager(tmp_path, work)
+    failed = manager.wait(manager.submit("test", {"fail": True}).id, TIMEOUT)
     assert failed.state is JobState.failed
     assert failed.error == "ValueError: the reason"
     assert failed.progress == pytest.approx(0.3)
-    ok = manager.wait(manager.submit(lambda progress: 1, kind="test").id, TIMEOUT)
-    assert (ok.state, ok.result) == (JobState.done, 1)
+    ok = manager.wait(manager.submit("test", {"fail": False}).id, TIMEOUT)
+    assert ok.state is JobState.done
     manager.shutdown()
 
 
-def test_manager_limits_pending_jobs_and_fails_queued_jobs_on_shutdown() -> None:
-    manager = JobManager(workers=1, max_pending=2)
+def test_manager_limits_pending_jobs_and_interrupts_unfinished_ones_on_shutdown(tmp_path: Path) -> None:
     started, release = threading.Event(), threading.Event()
 
-    def first_job(progress: Callable[..., None]) -> bool:
+    def work(spec: dict[str, Any], progress: Callable[..., None]) -> None:
         started.set()
-        return release.wait(TIMEOUT)
+        assert release.wait(TIMEOUT)
+        progress(0.9, "after the gate")  # a shut-down manager stops the job here
 
-    first = manager.submit(first_job, kind="test")
-    second = manager.submit(lambda progress: None, kind="test")
-    with pytest.raises(QueueFullError, match="limit is 2"):
-        manager.submit(lambda progress: None, kind="test")
+    manager = make_manager(tmp_path, work, max_pending=2)
+    first = manager.submit("test", {})
+    second = manager.submit("test", {})
+    with pytest.raises(QueueFullError, match="limit is 2") as refused:
+        manager.submit("test", {})
+    assert refused.value.retry_after > 0
     assert started.wait(TIMEOUT)  # the first job runs, the second is queued behind it
     assert manager.get(second.id).state is JobState.queued
-
-    def release_once_the_queued_job_failed() -> None:
-        manager.wait(second.id, TIMEOUT)  # shutdown fails the queued job first ...
-        release.set()  # ... then the running one may finish
-
-    helper = threading.Thread(target=release_once_the_queued_job_failed)
-    helper.start()
-    manager.shutdown(wait=True)  # returns only once the running job has finished
-    at_return = manager.get(first.id)
-    helper.join(TIMEOUT)
-    assert at_return.state is JobState.done and at_return.result is True
-    assert manager.get(second.id).state is JobState.failed
-    assert "shut down" in (manager.get(second.id).error or "")
+    threading.Timer(0.2, release.set).start()
+    manager.shutdown(wait=True)
+    for job_id in (first.id, second.id):
+        job = manager.get(job_id)
+        assert job.state is JobState.interrupted, job
+        assert "shut down" in (job.error or "") and "retry" in (job.error or "")
     with pytest.raises(QueueFullError, match="shutting down"):
-        manager.submit(lambda progress: None, kind="test")
+        manager.submit("test", {})
     with pytest.raises(NotFoundError, match="no job with id"):
         manager.get("nope")
+
+
+def test_a_restart_marks_unfinished_jobs_interrupted_and_a_retry_runs_them_again(tmp_path: Path) -> None:
+    def work(spec: dict[str, Any], progress: Callable[..., None]) -> dict[str, Any]:
+        return {"ran": spec["n"]}
+
+    store = PatternStore(tmp_path / "jobs.sqlite3")
+    repo = JobRepository(store)
+    queued = repo.create("test", meta={}, spec={"n": 1})  # a previous process queued one ...
+    running = repo.create("test", meta={}, spec={"n": 2})
+    assert repo.start(running.id)  # ... and was running another when it died
+    finished = repo.create("test", meta={}, spec={"n": 3})
+    assert repo.start(finished.id) and repo.finish(finished.id)
+    manager = make_manager(tmp_path, work)
+    assert sorted(manager.recover()) == sorted([queued.id, running.id])
+    for job_id in (queued.id, running.id):
+        job = manager.get(job_id)
+        assert job.state is JobState.interrupted and "retry" in (job.error or "")
+    assert manager.get(finished.id).state is JobState.done
+    with pytest.raises(ConflictError, match="only failed, interrupted or cancelled"):
+        manager.retry(finished.id)
+    again = manager.wait(manager.retry(running.id).id, TIMEOUT)
+    assert (again.state, again.retry_of, again.meta) == (JobState.done, running.id, {"ran": 2})
+    manager.shutdown()
+
+
+def test_cancelling_a_running_process_job_terminates_its_worker_at_once(tmp_path: Path) -> None:
+    manager = make_manager(tmp_path, lambda spec, progress: None)
+    pid_file = tmp_path / "worker.pid"
+    job = manager.submit("sleep", {"pid_file": str(pid_file), "seconds": 120})
+    running = wait_until(lambda: manager.get(job.id).stage == "sleeping", what="the process job to start")
+    assert running
+    pid = int(pid_file.read_text())
+    assert process_alive(pid)
+    cancelled_at = time.monotonic()
+    assert manager.cancel(job.id).state is JobState.cancelled
+    assert wait_until(lambda: not process_alive(pid), timeout=5, what="the worker to end")
+    freed_after = time.monotonic() - cancelled_at
+    assert freed_after < 1.0, f"the worker ran on for {freed_after:.2f} s after the cancel"
+    with pytest.raises(ConflictError, match="already finished"):
+        manager.cancel(job.id)
+    quick = manager.wait(manager.submit("sleep", {"pid_file": str(pid_file), "seconds": 0}).id, TIMEOUT)
+    assert quick.state is JobState.done  # the pool started a fresh worker
+    manager.shutdown()
+
+
+def test_cancelling_a_queued_job_means_it_never_starts(tmp_path: Path) -> None:
+    started, release = threading.Event(), threading.Event()
+
+    def work(spec: dict[str, Any], progress: Callable[..., None]) -> None:
+        started.set()
+        assert release.wait(TIMEOUT)
+
+    manager = make_manager(tmp_path, work)
+    first = manager.submit("test", {"n": 1})
+    second = manager.submit("test", {"n": 2})
+    assert started.wait(TIMEOUT)
+    assert manager.cancel(second.id).state is JobState.cancelled
+    release.set()
+    assert manager.wait(first.id, TIMEOUT).state is JobState.done
+    assert manager.get(second.id).started_at is None
+    manager.shutdown()
 
 
 # -- over HTTP, with training held by the test -------------------------------------------

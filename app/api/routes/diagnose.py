@@ -1,41 +1,37 @@
-"""POST /v1/diagnose: the sim-to-real gap diagnosis (issue 4; the engine's :func:`engine.diagnosis.diagnose`)."""
+"""POST /v1/diagnose: the sim-to-real gap diagnosis, synchronously (the engine's :func:`engine.diagnosis.diagnose`).
+
+For long records or many at once, ``POST /v1/diagnoses`` runs the same diagnosis as a stored job.
+"""
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 from fastapi import APIRouter, Request
+from pydantic import ValidationError
 from starlette.concurrency import run_in_threadpool
 
-from app.api.deps import CSV_QUERY, CSVRecordDep, body_kind, csv_record, json_body, names_another_plant, reject_query
+from app.api.deps import CSVRecordDep, SyncDiagnosesDep, body_errors, diagnosis_request
 from app.api.openapi import body_schema
 from app.schemas.common import ErrorPublic
-from app.schemas.diagnose import BrfdDiagnoseCreate, DiagnoseCreate, PlantDiagnoseCreate
-from app.services import diagnosis, plant_diagnosis
-from app.services.plant_diagnosis import PlantRecords
-from engine.diagnosis.space import check_bounds
-from engine.plants import get_plant
-from engine.simulation import CATALOGUE
-
-#: Request schema per plant other than the default.
-PLANT_SCHEMAS: dict[str, type[PlantDiagnoseCreate] | type[BrfdDiagnoseCreate]] = {
-    "emps": PlantDiagnoseCreate,
-    "brfd": BrfdDiagnoseCreate,
-}
+from app.schemas.diagnose import DiagnoseCreate, DiagnosisAnswer
+from app.services.diagnosis_requests import PLANT_SCHEMAS, parse
 
 router = APIRouter(prefix="/diagnose", tags=["diagnose"])
 
 
 @router.post(
     "",
-    summary="Diagnose the gap between a record and the model",
+    summary="Diagnose the gap between a record and the model (synchronous)",
+    response_model=DiagnosisAnswer,
     openapi_extra=body_schema(DiagnoseCreate, csv=True, alternatives=tuple(PLANT_SCHEMAS.values())),
     responses={
         422: {"model": ErrorPublic, "description": "Invalid record, unknown effect, or a record the model cannot fit"},
+        429: {"model": ErrorPublic, "description": "Too many synchronous diagnoses at once (see Retry-After)"},
+        504: {"model": ErrorPublic, "description": "The diagnosis ran past the time limit and was stopped"},
     },
 )
-async def diagnose(request: Request, csv_params: CSVRecordDep) -> Any:
+async def diagnose(request: Request, csv_params: CSVRecordDep, sync: SyncDiagnosesDep) -> Any:
     """Where the record differs from the calibrated simulation, which unmodelled effect explains it and how far
     the gap shrinks with it. The body is ``{"record": ..., "effects": [...], "bounds": {...}}`` as JSON, or the
     record's CSV form
@@ -51,27 +47,14 @@ async def diagnose(request: Request, csv_params: CSVRecordDep) -> Any:
     located, any accepted units); it is fitted on its own instants, ``record`` in the answer says how it was
     read (event, window of samples used), and ``records.before`` / ``records.after`` come back on its grid and
     in its units.
+
+    At most ``BACKLASH_MAX_SYNC_DIAGNOSES`` run at once (429 with ``Retry-After`` beyond), each within
+    ``BACKLASH_SYNC_DIAGNOSE_TIMEOUT`` seconds (504 beyond, the work stopped). Nothing is stored: submit to
+    ``POST /v1/diagnoses`` to keep the result, follow its progress, or cancel it.
     """
-    bounds = None
-    if body_kind(request) != "csv" and names_another_plant(await request.body()):
-        reject_query(request, CSV_QUERY)
-        raw = json.loads(await request.body())
-        schema = PLANT_SCHEMAS.get(str(raw.get("plant")), PlantDiagnoseCreate)  # an unknown name: 422 from the schema
-        other = await json_body(request, schema)
-        records = PlantRecords(
-            get_plant(other.plant),
-            other.record.to_record(),
-            other.calibrate_on.to_record() if other.calibrate_on else None,
-        )
-        result = await run_in_threadpool(plant_diagnosis.run, records, other.hold_calibration)
-        return result.to_dict()
-    if body_kind(request) == "csv":
-        record, effects = await csv_record(request, csv_params), None
-    else:
-        reject_query(request, CSV_QUERY)
-        body = await json_body(request, DiagnoseCreate)
-        record, effects, bounds = body.record.to_record(), body.effects, body.bounds
-    for name in effects or ():
-        CATALOGUE[name]  # UnknownEffectError (422) names the known effects
-    check_bounds(bounds)  # BoundsError (422) says what to fix before any work is done
-    return await run_in_threadpool(diagnosis.diagnose, record, effects, bounds)
+    sent = await diagnosis_request(request, csv_params)
+    try:
+        parse(sent)  # every input error answered here (422/400), before a worker is used
+    except ValidationError as exc:
+        raise body_errors(exc) from None
+    return await run_in_threadpool(sync.run, sent)

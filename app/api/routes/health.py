@@ -8,6 +8,7 @@ from fastapi import APIRouter
 from starlette.concurrency import run_in_threadpool
 
 from app.api.deps import StoreDep
+from app.schemas.common import ErrorPublic
 from app.schemas.health import HealthPublic
 from engine.constants import MODEL_VERSION
 
@@ -21,7 +22,12 @@ def package_version() -> str:
         return "unknown"
 
 
-@router.get("/healthz", response_model=HealthPublic, summary="Health check")
+@router.get(
+    "/healthz",
+    response_model=HealthPublic,
+    summary="Health check",
+    responses={503: {"model": ErrorPublic, "description": "The pattern store does not answer"}},
+)
 async def healthz(store: StoreDep) -> HealthPublic:
     """``ok`` when the service runs and its pattern store answers (503 otherwise)."""
     count = await run_in_threadpool(len, store)

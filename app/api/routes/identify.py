@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from datetime import datetime
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request
@@ -20,7 +21,9 @@ from app.api.deps import (
 from app.api.openapi import body_schema
 from app.schemas.common import ChannelName, ErrorPublic
 from app.schemas.identify import IdentificationPublic, IdentifyCreate, PlantIdentifyCreate, PlantWidthPublic
+from app.services import assets as asset_service
 from app.services import identification, plant_identification
+from app.services.diagnosis_requests import named_asset
 from app.services.errors import InvalidInputError
 
 router = APIRouter(prefix="/identify", tags=["identify"])
@@ -46,10 +49,17 @@ async def identify(
     pattern_set: Annotated[str | None, Query(description="CSV form: id of the pattern set.")] = None,
     kind: Annotated[str | None, Query(description="CSV form: only choose sets of this kind.")] = None,
     continuous: Annotated[bool, Query(description="CSV form: also the calibrated K as a continuous width.")] = False,
+    any_set: Annotated[
+        bool, Query(description="CSV form: also choose sets trained with effects or on another J1 grid.")
+    ] = False,
 ) -> Any:
     """Identify with the pattern set ``pattern_set``, or else the stored set of ``channel`` whose c
     is nearest the record's ``conditions.c`` (the nominal c if the record has none); the answer
     says which set was used and why.
+
+    A record that names its drive (``"asset"``, and ``"measured_at"`` when it was taken; CSV: query parameters)
+    is stored in that drive's history (``GET /v1/assets/{asset}/history``) with its continuous width, which is
+    then always computed.
 
     With ``continuous`` the answer also carries the calibrated K as a continuous width with
     its standard deviation (the simulator fitted to the channel; a few seconds).
@@ -70,17 +80,40 @@ async def identify(
     seed's W3/D/argmin width beside it.
     """
     if body_kind(request) != "csv" and names_another_plant(await request.body()):
-        reject_query(request, (*CSV_QUERY, "channel", "pattern_set", "kind", "continuous"))
+        reject_query(request, (*CSV_QUERY, "channel", "pattern_set", "kind", "continuous", "any_set"))
         other = await json_body(request, PlantIdentifyCreate)
         records = [other.record.to_record(), *(r.to_record() for r in other.joint)]
-        return await run_in_threadpool(plant_identification.identify_records, other.plant, records)
+        answer = await run_in_threadpool(plant_identification.identify_records, other.plant, records)
+        return await _keep(store, answer, other.record.asset, other.record.measured_at, None)
     if body_kind(request) == "csv":
         if channel is None:
             raise InvalidInputError("with a CSV body, give the channel to identify from as query parameter ?channel=")
         record = await csv_record(request, csv_params)
-        args = (record, channel, pattern_set, kind, continuous)
+        asset, measured_at = named_asset(csv_params.asset, csv_params.measured_at)
+        args = (record, channel, pattern_set, kind, continuous or asset is not None, any_set)
     else:
-        reject_query(request, (*CSV_QUERY, "channel", "pattern_set", "kind", "continuous"))
+        reject_query(request, (*CSV_QUERY, "channel", "pattern_set", "kind", "continuous", "any_set"))
         body = await json_body(request, IdentifyCreate)
-        args = (body.record.to_record(), body.channel, body.pattern_set, body.kind, body.continuous)
-    return await run_in_threadpool(identification.identify_from_store, store, *args)
+        asset, measured_at = body.record.asset, body.record.measured_at
+        args = (
+            body.record.to_record(),
+            body.channel,
+            body.pattern_set,
+            body.kind,
+            body.continuous or asset is not None,
+            body.any_set,
+        )
+    answer = await run_in_threadpool(identification.identify_from_store, store, *args)
+    return await _keep(store, answer, asset, measured_at, args[1])
+
+
+async def _keep(
+    store: Any, answer: dict[str, Any], asset: str | None, measured_at: datetime | None, channel: str | None
+) -> dict[str, Any]:
+    """Store the identification of a named asset (its history); the answer says where."""
+    if asset is None:
+        return answer
+    identification_id, when = await run_in_threadpool(
+        asset_service.store_identification, store, asset, measured_at, channel, answer
+    )
+    return {**answer, "identification_id": identification_id, "asset": asset, "measured_at": when}

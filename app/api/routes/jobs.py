@@ -1,15 +1,21 @@
-"""GET /v1/jobs/{job_id}: state and progress of a background job."""
+"""Background jobs: state and progress, list, cancel, retry (persisted: they survive a restart)."""
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from typing import Annotated, Any
 
-from app.api.deps import JobsDep
-from app.jobs import Job
+from fastapi import APIRouter, Query, Response, status
+
+from app.api.deps import JobsDep, StoreDep
+from app.core.config import API_V1_STR
+from app.jobs import Job, JobState
 from app.schemas.common import ErrorPublic
-from app.schemas.jobs import JobPublic
+from app.schemas.jobs import JobPublic, JobsPublic, JobStateName
+from app.services import jobs as job_service
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
+
+_NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"model": ErrorPublic, "description": "No such job"}}
 
 
 def job_public(job: Job) -> JobPublic:
@@ -24,15 +30,55 @@ def job_public(job: Job) -> JobPublic:
         started_at=job.started_at,
         finished_at=job.finished_at,
         pattern_set_id=job.meta.get("pattern_set_id"),
+        diagnosis_id=job.meta.get("diagnosis_id"),
+        retry_of=job.retry_of,
     )
 
 
-@router.get(
+@router.get("", response_model=JobsPublic, summary="List jobs")
+def list_jobs(
+    jobs: JobsDep,
+    state: Annotated[JobStateName | None, Query(description="Only jobs in this state.")] = None,
+    kind: Annotated[str | None, Query(max_length=100, description="Only jobs of this kind.")] = None,
+    limit: Annotated[int, Query(ge=1, le=1000, description="At most this many, newest first.")] = 100,
+) -> Any:
+    found = jobs.list(kind=kind, state=JobState(state) if state else None, limit=limit)
+    return JobsPublic(items=[job_public(j) for j in found])
+
+
+@router.get("/{job_id}", response_model=JobPublic, summary="State of a background job", responses=_NOT_FOUND)
+def read_job(job_id: str, jobs: JobsDep) -> JobPublic:
+    """``queued`` -> ``running`` -> ``done`` | ``failed`` | ``cancelled`` (or ``interrupted`` by a restart), with
+    progress 0..1 and the error when it did not finish well."""
+    return job_public(jobs.get(job_id))
+
+
+@router.delete(
     "/{job_id}",
     response_model=JobPublic,
-    summary="State of a background job",
-    responses={404: {"model": ErrorPublic, "description": "No such job (jobs are forgotten on restart)"}},
+    summary="Cancel a queued or running job",
+    responses={**_NOT_FOUND, 409: {"model": ErrorPublic, "description": "The job has already finished"}},
 )
-def read_job(job_id: str, jobs: JobsDep) -> JobPublic:
-    """``queued`` -> ``running`` -> ``done`` | ``failed``, with progress 0..1 and, if failed, the error."""
-    return job_public(jobs.get(job_id))
+def cancel_job(job_id: str, jobs: JobsDep) -> JobPublic:
+    """A queued job never starts; a running diagnosis's worker process is stopped at once (its core is free); a
+    running training stops at its next progress report. The job's record stays, in state ``cancelled``."""
+    return job_public(jobs.cancel(job_id))
+
+
+@router.post(
+    "/{job_id}/retry",
+    status_code=status.HTTP_202_ACCEPTED,
+    response_model=JobPublic,
+    summary="Run a failed, interrupted or cancelled job again",
+    responses={
+        **_NOT_FOUND,
+        409: {"model": ErrorPublic, "description": "The job is queued, running or done"},
+        429: {"model": ErrorPublic, "description": "Too many jobs pending"},
+    },
+)
+def retry_job(job_id: str, jobs: JobsDep, store: StoreDep, response: Response) -> JobPublic:
+    """A new job with the same request (``retry_of`` names the old one); a diagnosis keeps its id and now follows
+    the new job; a training stores its set under the id announced the first time."""
+    job = job_service.retry(store, jobs, job_id)
+    response.headers["Location"] = f"{API_V1_STR}/jobs/{job.id}"
+    return job_public(job)

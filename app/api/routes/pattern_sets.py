@@ -7,23 +7,28 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Response, status
 
-from app.api.deps import DaskDep, JobsDep, StoreDep
+from app.api.deps import JobsDep, StoreDep
 from app.core.config import API_V1_STR
-from app.jobs import JobManager, JobState, ProgressFn
+from app.jobs import JobManager, JobState
 from app.schemas.common import ChannelName, ErrorPublic
 from app.schemas.pattern_sets import PatternSetCreate, PatternSetPublic, PatternSetsPublic, TrainingAccepted
 from app.services import training
 from app.services.errors import NotFoundError
 from app.services.identification import not_found_message
 from app.services.patterns import describe
+from app.services.training import TRAIN_JOB
 from engine.constants import J1_GRID
 from engine.storage import PatternSetNotFound
 
 router = APIRouter(prefix="/pattern-sets", tags=["pattern-sets"])
 
-TRAIN_JOB = "train_pattern_set"
+#: The pattern store (SQLite) busy or unavailable (app/api/errors.py, PatternStoreError).
+_STORE_BUSY: dict[int | str, dict[str, Any]] = {
+    503: {"model": ErrorPublic, "description": "The pattern store is busy or unavailable; retry shortly"}
+}
 _NOT_FOUND: dict[int | str, dict[str, Any]] = {
-    404: {"model": ErrorPublic, "description": "No pattern set with this id"}
+    404: {"model": ErrorPublic, "description": "No pattern set with this id"},
+    **_STORE_BUSY,
 }
 
 
@@ -47,11 +52,13 @@ def _missing(jobs: JobManager, set_id: str) -> NotFoundError:
     status_code=status.HTTP_202_ACCEPTED,
     response_model=TrainingAccepted,
     summary="Train a pattern set (background job)",
-    responses={422: {"model": ErrorPublic}, 429: {"model": ErrorPublic, "description": "Too many jobs pending"}},
+    responses={
+        422: {"model": ErrorPublic},
+        429: {"model": ErrorPublic, "description": "Too many jobs pending"},
+        **_STORE_BUSY,
+    },
 )
-def create_pattern_set(
-    body: PatternSetCreate, store: StoreDep, jobs: JobsDep, dask: DaskDep, response: Response
-) -> Any:
+def create_pattern_set(body: PatternSetCreate, jobs: JobsDep, response: Response) -> Any:
     """Queue the training of one pattern set and answer at once with the job's and the set's ids.
 
     The job simulates the six widths x ``J1_values`` at ``c`` (with ``effects``),
@@ -72,11 +79,7 @@ def create_pattern_set(
     training.check(spec)
     set_id = uuid.uuid4().hex
 
-    def run(progress: ProgressFn) -> str:
-        training.train_pattern_set(spec, store, set_id=set_id, progress=progress, cluster=dask)
-        return set_id
-
-    job = jobs.submit(run, kind=TRAIN_JOB, meta={"pattern_set_id": set_id})
+    job = jobs.submit(TRAIN_JOB, training.job_spec(spec, set_id), meta={"pattern_set_id": set_id})
     job_url = f"{API_V1_STR}/jobs/{job.id}"
     response.headers["Location"] = job_url
     return {
@@ -87,7 +90,7 @@ def create_pattern_set(
     }
 
 
-@router.get("", response_model=PatternSetsPublic, summary="List stored pattern sets")
+@router.get("", response_model=PatternSetsPublic, summary="List stored pattern sets", responses=_STORE_BUSY)
 def list_pattern_sets(
     store: StoreDep,
     channel: Annotated[ChannelName | None, Query(description="Only sets of this channel.")] = None,

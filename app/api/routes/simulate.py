@@ -45,7 +45,7 @@ def _wants_csv(request: Request) -> bool:
     responses={
         **_ERRORS,
         200: {
-            "content": {"text/csv": {}},
+            "content": {"text/csv": {"schema": {"type": "string"}}},
             "description": "The record (CSV form with Accept: text/csv; headers X-Sample-Interval, "
             "X-Event-Index (unless include_event_index is false), X-Event-Time and, when some channel is not "
             "in its model unit, X-Units as CHANNEL:UNIT pairs separated by commas)",

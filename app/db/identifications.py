@@ -1,0 +1,96 @@
+"""The ``identifications`` table: identifications of named assets (a drive's width history)."""
+
+from __future__ import annotations
+
+import builtins
+import uuid
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+from app.db.codec import from_text, now, pack, to_text, unpack
+from engine.storage import PatternStore
+
+__all__ = ["IdentificationRepository", "StoredIdentification"]
+
+_COLUMNS = "id, asset, measured_at, created_at, channel, width, width_sigma"
+
+
+@dataclass(frozen=True)
+class StoredIdentification:
+    """One stored identification: the continuous width [m] with its 1-sigma uncertainty, and the whole answer."""
+
+    id: str
+    asset: str
+    measured_at: datetime
+    created_at: datetime
+    channel: str | None
+    width: float | None
+    width_sigma: float | None
+    result: dict[str, Any] | None = None
+
+
+class IdentificationRepository:
+    """Identifications of named assets in the store's SQLite file."""
+
+    def __init__(self, store: PatternStore) -> None:
+        self.store = store
+
+    def add(
+        self,
+        *,
+        asset: str,
+        measured_at: datetime,
+        channel: str | None,
+        width: float | None,
+        width_sigma: float | None,
+        result: dict[str, Any],
+    ) -> str:
+        identification_id = uuid.uuid4().hex
+        with self.store.writing() as conn:
+            conn.execute(
+                f"INSERT INTO identifications ({_COLUMNS}, result_z) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                (
+                    identification_id,
+                    asset,
+                    to_text(measured_at),
+                    to_text(now()),
+                    channel,
+                    width,
+                    width_sigma,
+                    pack(result),
+                ),
+            )
+        return identification_id
+
+    def list(self, *, asset: str | None = None, limit: int = 10_000) -> builtins.list[StoredIdentification]:
+        """Identifications without their answers, oldest measurement first (of one asset if given)."""
+        sql, args = f"SELECT {_COLUMNS} FROM identifications", []
+        if asset is not None:
+            sql += " WHERE asset = ?"
+            args.append(asset)
+        with self.store.reading() as conn:
+            rows = conn.execute(sql + " ORDER BY measured_at, seq LIMIT ?", (*args, int(limit))).fetchall()
+        return [self._row(r) for r in rows]
+
+    def get(self, identification_id: str) -> StoredIdentification | None:
+        with self.store.reading() as conn:
+            row = conn.execute(
+                f"SELECT {_COLUMNS}, result_z FROM identifications WHERE id = ?", (identification_id,)
+            ).fetchone()
+        return None if row is None else self._row(row[:7], unpack(row[7]))
+
+    @staticmethod
+    def _row(row: tuple[Any, ...], result: dict[str, Any] | None = None) -> StoredIdentification:
+        measured, created = from_text(row[2]), from_text(row[3])
+        assert measured is not None and created is not None
+        return StoredIdentification(
+            id=row[0],
+            asset=row[1],
+            measured_at=measured,
+            created_at=created,
+            channel=row[4],
+            width=row[5],
+            width_sigma=row[6],
+            result=result,
+        )

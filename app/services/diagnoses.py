@@ -1,0 +1,132 @@
+"""Diagnoses as stored jobs: submit one (record stored, job queued), run it in a worker process, read it back.
+
+A submitted diagnosis is three rows written before the answer (202): the record as sent
+(:mod:`app.db.records`), the diagnosis without a result (:mod:`app.db.diagnoses`) and its job
+(:mod:`app.db.jobs`). The job runs :func:`run_job` in a worker process, which stores the result
+and the figures in one transaction. A diagnosis is therefore either complete or has none of its
+result; a retried job computes it again from the stored record.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Any
+
+from app.db.codec import now
+from app.db.diagnoses import DiagnosisRepository, StoredDiagnosis
+from app.db.jobs import JobState
+from app.db.records import RecordRepository, StoredRecord
+from app.jobs import Job, JobKind, JobManager, ProgressFn
+from app.services.diagnosis_requests import DiagnosisRequest, compute, n_samples, parse
+from app.services.errors import NotFoundError
+from engine.storage import PatternStore
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["DIAGNOSE_JOB", "JOB_KIND", "delete", "get", "run_job", "submit"]
+
+#: The diagnosis job's kind.
+DIAGNOSE_JOB = "diagnose"
+
+
+def run_job(db_path: Path, spec: dict[str, Any], progress: ProgressFn) -> dict[str, Any]:
+    """A diagnosis job, in a worker process: read the stored record, diagnose it, store the result and figures."""
+    store = PatternStore(db_path)
+    progress(0.02, "reading the stored record")
+    stored = RecordRepository(store).get(spec["record_id"])
+    if stored is None:
+        raise NotFoundError(f"record {spec['record_id']} was deleted before its diagnosis ran")
+    parsed = parse(DiagnosisRequest(stored.media, stored.body or b"", stored.params))
+    progress(0.05, f"diagnosing {stored.n_samples} samples")
+
+    def stage(fraction: float, what: str) -> None:  # the diagnosis's stages between 5 % and 95 %
+        progress(0.05 + 0.9 * fraction, what)
+
+    outcome = compute(parsed, figures=True, progress=stage)
+    progress(0.95, f"storing the result and {len(outcome.figures)} figures")
+    kept = DiagnosisRepository(store).complete(
+        spec["diagnosis_id"],
+        outcome.result,
+        status=outcome.status,
+        effect=outcome.effect,
+        width=outcome.width,
+        width_sigma=outcome.width_sigma,
+        figures=outcome.figures,
+    )
+    if not kept:
+        logger.info("diagnosis %s was deleted while it ran; its result is dropped", spec["diagnosis_id"])
+    return {"diagnosis_id": spec["diagnosis_id"]}
+
+
+#: The process pool of diagnosis jobs (``Settings.diagnosis_workers`` processes).
+POOL = "diagnosis"
+#: Diagnosis as a job kind: in a worker process, so that cancelling it frees its core at once.
+JOB_KIND = JobKind(DIAGNOSE_JOB, "process", run_job, pool=POOL)
+
+
+def store_record(store: PatternStore, request: DiagnosisRequest) -> StoredRecord:
+    """Read and check the request (raises with what to fix), then store its record as sent."""
+    parsed = parse(request)
+    return RecordRepository(store).add(
+        request.body,
+        media=request.media,
+        params=request.params,
+        plant=parsed.plant,
+        name=parsed.name,
+        asset=parsed.asset,
+        measured_at=parsed.measured_at or now(),
+        n_samples=n_samples(parsed.record),
+    )
+
+
+def submit(store: PatternStore, jobs: JobManager, request: DiagnosisRequest) -> tuple[Job, str, StoredRecord]:
+    """Check and store the record, create the diagnosis and queue its job; return (job, diagnosis id, record).
+
+    Nothing is left behind when the queue is full (``QueueFullError``) or the request is invalid.
+    """
+    record = store_record(store, request)
+    return (*submit_stored(store, jobs, record), record)
+
+
+def submit_stored(store: PatternStore, jobs: JobManager, record: StoredRecord) -> tuple[Job, str]:
+    """Diagnose a stored record: create the diagnosis and queue its job; return (job, diagnosis id)."""
+    diagnoses = DiagnosisRepository(store)
+    diagnosis_id = diagnoses.create(
+        job_id="", record_id=record.id, plant=record.plant, asset=record.asset, measured_at=record.measured_at
+    )
+    try:
+        job = jobs.submit(
+            DIAGNOSE_JOB,
+            {"diagnosis_id": diagnosis_id, "record_id": record.id},
+            meta={"diagnosis_id": diagnosis_id, "record_id": record.id},
+        )
+    except BaseException:
+        diagnoses.delete(diagnosis_id)
+        raise
+    diagnoses.set_job(diagnosis_id, job.id)
+    return job, diagnosis_id
+
+
+def get(store: PatternStore, diagnosis_id: str, *, with_result: bool = True) -> StoredDiagnosis:
+    found = DiagnosisRepository(store).get(diagnosis_id, with_result=with_result)
+    if found is None:
+        raise NotFoundError(f"no diagnosis with id {diagnosis_id!r}; GET /v1/diagnoses lists the stored ones")
+    return found
+
+
+def job_state(jobs: JobManager, diagnosis: StoredDiagnosis) -> str:
+    """The state of the diagnosis's job (``done`` for a stored result whose job is gone)."""
+    job = jobs.repo.get(diagnosis.job_id) if diagnosis.job_id else None
+    if job is not None:
+        return job.state.value
+    return JobState.done.value if diagnosis.status is not None else JobState.queued.value
+
+
+def delete(store: PatternStore, jobs: JobManager, diagnosis_id: str) -> None:
+    """Cancel the diagnosis's job if it is still queued or running, then delete the diagnosis and its figures."""
+    found = get(store, diagnosis_id, with_result=False)
+    job = jobs.repo.get(found.job_id) if found.job_id else None
+    if job is not None and not job.finished:
+        jobs.cancel(job.id)
+    DiagnosisRepository(store).delete(diagnosis_id)

@@ -1,0 +1,246 @@
+"""A diagnosis request as the service receives it, read the same way wherever it runs.
+
+The HTTP layer validates a request (:func:`parse`) before it answers, then hands the request as
+it was sent (:class:`DiagnosisRequest`: the body's bytes and the CSV form's query parameters)
+to a worker process, which reads it again with the same code and computes the diagnosis
+(:func:`compute`). Keeping the body as sent means a stored record can be diagnosed again (a
+retried job, a record picked in the report page) by exactly the reading that accepted it.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import TypeAdapter, ValidationError
+
+from app.records_io import RecordFormatError, parse_units, record_from_csv
+from app.schemas.assets import AssetName, MeasuredAt
+from app.schemas.diagnose import BrfdDiagnoseCreate, DiagnoseCreate, PlantDiagnoseCreate
+from app.services import diagnosis, plant_diagnosis
+from app.services.errors import InvalidInputError
+from app.services.plant_diagnosis import PlantRecords
+from engine.diagnosis.space import check_bounds
+from engine.plants import DEFAULT_PLANT, get_plant
+from engine.simulation import CATALOGUE
+
+__all__ = ["DiagnosisOutcome", "DiagnosisRequest", "ParsedDiagnosis", "compute", "parse", "run_sync"]
+
+#: Request schema per plant other than the default.
+PLANT_SCHEMAS: dict[str, type[PlantDiagnoseCreate] | type[BrfdDiagnoseCreate]] = {
+    "emps": PlantDiagnoseCreate,
+    "brfd": BrfdDiagnoseCreate,
+}
+
+_ASSET = TypeAdapter(AssetName)
+_MEASURED_AT = TypeAdapter(MeasuredAt)
+
+
+@dataclass(frozen=True)
+class DiagnosisRequest:
+    """A diagnosis request as sent.
+
+    Attributes
+    ----------
+    media : {"json", "csv"}
+        The body's form.
+    body : bytes
+        The body as received.
+    params : dict
+        The CSV form's query parameters (``sample_interval``, ``event_index``, ``units``,
+        ``conditions``, ``asset``, ``measured_at``); empty for JSON.
+    """
+
+    media: Literal["json", "csv"]
+    body: bytes
+    params: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ParsedDiagnosis:
+    """What a request asks for, read and checked (nothing computed yet)."""
+
+    plant: str
+    record: Any
+    calibrate_on: Any | None = None
+    hold: bool = False
+    effects: list[str] | None = None
+    bounds: dict[str, tuple[float, float]] | None = None
+    asset: str | None = None
+    measured_at: datetime | None = None
+    name: str | None = None
+
+
+@dataclass(frozen=True)
+class DiagnosisOutcome:
+    """A computed diagnosis: the answer, its figures (PNG bytes by name) and the summary a drive's history keeps.
+
+    Attributes
+    ----------
+    width, width_sigma : float or None
+        The backlash width the diagnosis found [m] and its 1-sigma uncertainty, where the plant has
+        one and the record did not fix it.
+    """
+
+    result: dict[str, Any]
+    figures: dict[str, bytes]
+    status: str | None
+    effect: str | None
+    width: float | None
+    width_sigma: float | None
+
+
+def _names_another_plant(raw: bytes) -> str | None:
+    try:
+        body = json.loads(raw)
+    except ValueError:
+        return None
+    if isinstance(body, dict) and body.get("plant", DEFAULT_PLANT) != DEFAULT_PLANT:
+        return str(body.get("plant"))
+    return None
+
+
+def parse(request: DiagnosisRequest) -> ParsedDiagnosis:
+    """Read and check a request without computing anything.
+
+    Raises
+    ------
+    pydantic.ValidationError
+        A JSON body that does not fit its schema (the HTTP layer answers 422 with the fields).
+    RecordFormatError, engine.records.RecordError, InvalidInputError, UnknownEffectError, BoundsError
+        A record or parameter the diagnosis cannot use; the message says what to fix.
+    """
+    if request.media == "csv":
+        return _parse_csv(request.body, request.params)
+    other = _names_another_plant(request.body)
+    if other is not None:
+        schema = PLANT_SCHEMAS.get(other, PlantDiagnoseCreate)  # an unknown name: the schema's 422
+        plant_body = schema.model_validate_json(request.body)
+        return ParsedDiagnosis(
+            plant=plant_body.plant,
+            record=plant_body.record.to_record(),
+            calibrate_on=plant_body.calibrate_on.to_record() if plant_body.calibrate_on else None,
+            hold=plant_body.hold_calibration,
+            asset=plant_body.record.asset,
+            measured_at=plant_body.record.measured_at,
+            name=plant_body.record.name,
+        )
+    body = DiagnoseCreate.model_validate_json(request.body)
+    for name in body.effects or ():
+        CATALOGUE[name]  # UnknownEffectError (422) names the known effects
+    check_bounds(body.bounds)  # BoundsError (422) says what to fix before any work is done
+    return ParsedDiagnosis(
+        plant=DEFAULT_PLANT,
+        record=body.record.to_record(),
+        effects=body.effects,
+        bounds=body.bounds,
+        asset=body.record.asset,
+        measured_at=body.record.measured_at,
+    )
+
+
+def _parse_csv(raw: bytes, params: dict[str, Any]) -> ParsedDiagnosis:
+    asset, measured_at = named_asset(params.get("asset"), params.get("measured_at"))
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise RecordFormatError(f"the CSV is not UTF-8 text (byte {exc.start} is invalid)") from None
+    try:
+        units = parse_units(params.get("units"))
+    except RecordFormatError as exc:
+        raise InvalidInputError(f"query parameter {exc}") from None
+    record = record_from_csv(
+        text, params.get("sample_interval"), params.get("event_index"), params.get("conditions") or {}, units
+    )
+    return ParsedDiagnosis(plant=DEFAULT_PLANT, record=record, asset=asset, measured_at=measured_at)
+
+
+def named_asset(asset: str | None, measured_at: str | None) -> tuple[str | None, datetime | None]:
+    """The CSV form's ``asset`` and ``measured_at`` query parameters, checked (``InvalidInputError`` says what to fix)."""
+    try:
+        name = None if asset is None else _ASSET.validate_python(asset)
+    except ValidationError:
+        raise InvalidInputError(
+            f"query parameter asset {asset!r}: use letters, digits, '.', '_', '-' (at most 100 characters)"
+        ) from None
+    try:
+        when = None if measured_at is None else _MEASURED_AT.validate_python(measured_at)
+    except ValidationError as exc:
+        raise InvalidInputError(
+            f"query parameter measured_at {measured_at!r}: {exc.errors()[0]['msg']}; give ISO 8601 with a UTC "
+            "offset, e.g. 2026-11-20T08:00:00Z"
+        ) from None
+    return name, when
+
+
+def n_samples(record: Any) -> int:
+    """Samples of a record of any plant."""
+    for attr in ("t", "time"):
+        value = getattr(record, attr, None)
+        if value is not None and hasattr(value, "__len__"):
+            return len(value)
+    grid = getattr(record, "grid", None)
+    return int(getattr(grid, "n_samples", 0) or 0)
+
+
+def compute(
+    parsed: ParsedDiagnosis, *, figures: bool = True, progress: Callable[[float, str], None] | None = None
+) -> DiagnosisOutcome:
+    """Diagnose the record (and draw its figures, PNG, when ``figures``); ``progress(fraction, stage)`` hears of
+    the stages (the backlash drive's diagnosis reports them; the plants' diagnoses do not)."""
+    pngs: dict[str, bytes] = {}
+    with tempfile.TemporaryDirectory(prefix="backlash-figures-") as tmp:
+        out_dir = Path(tmp)
+        if parsed.plant == DEFAULT_PLANT:
+            result = diagnosis.run(parsed.record, parsed.effects, parsed.bounds, progress=progress)
+            answer = result.to_dict()
+            if figures and progress is not None:
+                progress(1.0, "drawing the figures")
+            paths = diagnosis.write_plots(parsed.record, result, out_dir) if figures else []
+            cal = answer.get("calibration") or {}
+            width = (cal.get("values") or {}).get("K")
+            sigma = (cal.get("uncertainties") or {}).get("K")
+            if "K" in (cal.get("fixed") or {}):
+                width = sigma = None  # given by the record's conditions, not measured
+        else:
+            records = PlantRecords(get_plant(parsed.plant), parsed.record, parsed.calibrate_on)
+            plant_result = plant_diagnosis.run(records, parsed.hold)
+            answer = plant_result.to_dict()
+            paths = plant_diagnosis.write_plots(plant_result, out_dir) if figures else []
+            width, sigma = _effect_value(answer, "backlash")
+        for path in paths:
+            pngs[path.stem] = path.read_bytes()
+    verdict = answer.get("verdict") or {}
+    return DiagnosisOutcome(
+        result=answer,
+        figures=pngs,
+        status=verdict.get("status") or answer.get("status"),
+        effect=verdict.get("effect"),
+        width=_finite(width),
+        width_sigma=_finite(sigma),
+    )
+
+
+def _effect_value(answer: dict[str, Any], effect: str) -> tuple[Any, Any]:
+    for row in (answer.get("verdict") or {}).get("effects") or ():
+        if isinstance(row, dict) and row.get("effect") == effect:
+            return row.get("value"), row.get("uncertainty")
+    return None, None
+
+
+def _finite(value: Any) -> float | None:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return None
+    return number if number == number and abs(number) != float("inf") else None
+
+
+def run_sync(request: DiagnosisRequest) -> dict[str, Any]:
+    """The synchronous ``POST /v1/diagnose``'s work in a worker process: read, diagnose, answer (no figures)."""
+    return compute(parse(request), figures=False).result

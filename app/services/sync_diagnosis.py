@@ -1,0 +1,90 @@
+"""The synchronous ``POST /v1/diagnose``: a few diagnoses at once, each in a worker process, each with a time limit.
+
+Beyond :attr:`Settings.max_sync_diagnoses` running at once, a request is refused at once
+(429 with ``Retry-After``) rather than queued behind the others while its client waits; a
+diagnosis that runs past :attr:`Settings.sync_diagnose_timeout` has its worker process
+terminated (so its core is free) and is answered 504 with the way to run it without a limit
+(``POST /v1/diagnoses``, a job).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from concurrent.futures import TimeoutError as FutureTimeout
+from typing import Any
+
+from pebble import ProcessExpired, ProcessPool
+
+from app.jobs.manager import new_process_pool
+from app.services.diagnosis_requests import DiagnosisRequest, run_sync
+from app.services.errors import QueueFullError, TimeLimitError
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["SyncDiagnoses"]
+
+#: Seconds a refused client is told to wait (``Retry-After``): about one diagnosis of a single-effect record.
+RETRY_AFTER = 15
+
+
+class SyncDiagnoses:
+    """Runs synchronous diagnoses in a pool of worker processes, at most ``max_concurrent`` at once.
+
+    Parameters
+    ----------
+    max_concurrent : int
+        Diagnoses running at once; one more is refused with :class:`QueueFullError` (429).
+    timeout : float
+        Time limit of one diagnosis [s]; beyond it :class:`TimeLimitError` (504).
+    """
+
+    def __init__(self, max_concurrent: int, timeout: float) -> None:
+        if max_concurrent < 1 or not timeout > 0:
+            raise ValueError("max_concurrent must be >= 1 and timeout > 0")
+        self.max_concurrent = max_concurrent
+        self.timeout = float(timeout)
+        self._slots = threading.BoundedSemaphore(max_concurrent)
+        self._lock = threading.Lock()
+        self._pool: ProcessPool | None = new_process_pool(max_concurrent)  # started here: see new_process_pool
+
+    @property
+    def running(self) -> int:
+        """Synchronous diagnoses running now."""
+        return self.max_concurrent - self._slots._value  # BoundedSemaphore keeps its count there
+
+    def run(self, request: DiagnosisRequest) -> dict[str, Any]:
+        """Diagnose (blocking the calling thread); the answer of ``POST /v1/diagnose``."""
+        if not self._slots.acquire(blocking=False):
+            raise QueueFullError(
+                f"{self.max_concurrent} synchronous diagnoses are running (the limit); retry later, or submit "
+                "the record as a job with POST /v1/diagnoses, which queues it",
+                retry_after=RETRY_AFTER,
+            )
+        try:
+            future = self._get_pool().schedule(run_sync, args=(request,), timeout=self.timeout)
+            try:
+                return future.result()
+            except FutureTimeout:
+                raise TimeLimitError(
+                    f"the diagnosis took longer than the synchronous limit of {self.timeout:g} s and was stopped; "
+                    "submit it as a job with POST /v1/diagnoses (no limit, progress, cancellable)"
+                ) from None
+            except ProcessExpired as exc:
+                raise RuntimeError(f"the worker process running the diagnosis died ({exc})") from exc
+        finally:
+            self._slots.release()
+
+    def close(self) -> None:
+        """Terminate the worker processes (running diagnoses are stopped)."""
+        with self._lock:
+            pool, self._pool = self._pool, None
+        if pool is not None:
+            pool.stop()
+            pool.join(timeout=10)
+
+    def _get_pool(self) -> ProcessPool:
+        with self._lock:
+            if self._pool is None:
+                raise RuntimeError("the synchronous diagnoses are closed (the service is shutting down)")
+            return self._pool
