@@ -110,7 +110,10 @@ LOAD_INERTIA_RIVALS = ("resilient_stiffness", "absorber_discontinuity", "sensor_
 
 @pytest.mark.parametrize(
     "whole_catalogue",
-    [pytest.param(False, id="rivals"), pytest.param(True, id="catalogue", marks=pytest.mark.slow)],
+    [
+        pytest.param(False, id="rivals", marks=pytest.mark.slow),  # 37 s; tests/test_locus.py covers held-back
+        pytest.param(True, id="catalogue", marks=pytest.mark.slow),  # effects in the default run
+    ],
 )
 def test_left_out_effect_is_unexplained(whole_catalogue: bool) -> None:
     """An effect outside the library is not named as one inside it (default run: its closest rivals
@@ -278,6 +281,7 @@ def test_blind_validation_ten_cases(tmp_path):
     assert len(wrong) <= 1, wrong
 
 
+@pytest.mark.slow  # 20 s
 def test_candidate_fits_do_not_depend_on_the_number_of_threads():
     """Fitting candidates on two threads (each on one core) gives exactly the one-by-one result,
     escalation included (no candidate of this library explains the record, so every one is escalated)."""

@@ -122,6 +122,7 @@ def test_a_validation_gives_the_same_answers_on_local_clusters_of_any_size(
     assert _answers(root) == in_process
 
 
+@pytest.mark.slow  # 70 s: a scheduler and two workers started, two validation cases, one worker killed
 def test_a_separate_scheduler_gives_the_same_answers_and_survives_a_lost_worker(
     in_process: dict[str, Any], tmp_path: Path
 ) -> None:

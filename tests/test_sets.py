@@ -205,6 +205,7 @@ def compound():
     return truth, res, len(escalated)
 
 
+@pytest.mark.slow  # the compound fixture: 30 s against the whole catalogue
 def test_a_pair_found_from_the_seeded_fits_costs_no_escalation(compound) -> None:
     """The seeded pair fits to the noise with both members strong: no single candidate is escalated."""
     truth, res, n_escalations = compound
@@ -213,6 +214,7 @@ def test_a_pair_found_from_the_seeded_fits_costs_no_escalation(compound) -> None
     assert all(c.calibration is None or c.calibration.reduced_chi2 > 1.1 for c in res.candidates)
 
 
+@pytest.mark.slow  # the compound fixture
 def test_two_effects_at_once_are_named_with_values_and_a_gap_budget(compound) -> None:
     truth, res, _ = compound
     v = res.verdict

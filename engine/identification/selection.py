@@ -84,7 +84,7 @@ def nearest_pattern_set(
     model_version: str = MODEL_VERSION,
     *,
     prefer_kind: str | None = None,
-    plain_only: bool = True,
+    plain_only: bool = False,
 ) -> PatternSet | None:
     """Return the stored set of ``channel`` whose ``c`` is nearest to the requested one.
 
@@ -101,7 +101,8 @@ def nearest_pattern_set(
     model_version : str
         Only sets of this reference-model version (sets of other versions are never returned).
     plain_only : bool
-        Only sets trained as the paper trains (:func:`is_plain`: no effects, the paper's J1 grid).
+        Only sets trained as the paper trains (:func:`is_plain`: no effects, the paper's J1 grid); the
+        service's automatic choice asks for this (``any_set`` widens it).
     prefer_kind : str or None
         Among equally near sets (distances equal to :data:`TIE_REL_TOL` / :data:`TIE_ABS_TOL`),
         the nearest set of this kind wins over sets of other kinds (``None``: no preference).
