@@ -8,7 +8,8 @@ removed afterwards; the base image and the layer of the dependencies (tag ``back
 replaced when they change) are kept for the next run.
 
 The base image: ``$BACKLASH_BASE_IMAGE`` if set, else ``python:3.11-slim`` if the engine has it, else the
-stand-in built from Debian's packages by ``../shared/tools/local-python-base.sh`` (for a machine without a
+stand-in built from Debian's packages by ``../shared/tools/local-python-base.sh`` (beside this checkout or
+the repository it was cloned from, or ``$BACKLASH_BASE_SCRIPT``; for a machine without a
 container registry; it needs root and debootstrap). Without a Docker engine (``make system-deps`` installs and
 starts one as root on Debian) the module skips with the reason.
 """
@@ -41,7 +42,23 @@ from engine.simulation import PlantParameters, add_white_noise, simulate
 pytestmark = pytest.mark.container
 
 REPO = Path(__file__).resolve().parents[2]
-BASE_SCRIPT = REPO.parent / "shared" / "tools" / "local-python-base.sh"
+SCRIPT_IN_SHARED = Path("shared") / "tools" / "local-python-base.sh"
+
+
+def _base_script() -> Path:
+    """``../shared/tools/local-python-base.sh`` beside this checkout, or beside the repository it was cloned from
+    (a CI clone of a local checkout lives elsewhere), or ``$BACKLASH_BASE_SCRIPT``."""
+    candidates = [Path(os.environ["BACKLASH_BASE_SCRIPT"])] if os.environ.get("BACKLASH_BASE_SCRIPT") else []
+    candidates.append(REPO.parent / SCRIPT_IN_SHARED)
+    origin = subprocess.run(
+        ["git", "-C", str(REPO), "remote", "get-url", "origin"], capture_output=True, text=True, check=False
+    ).stdout.strip()
+    if origin and "://" not in origin and ":" not in origin.split("/")[0]:  # a local path, not a URL
+        candidates.append(Path(origin).expanduser().resolve().parent / SCRIPT_IN_SHARED)
+    return next((c for c in candidates if c.is_file()), candidates[0] if candidates else REPO.parent / SCRIPT_IN_SHARED)
+
+
+BASE_SCRIPT = _base_script()
 DEFAULT_BASE = "python:3.11-slim"
 #: The Dockerfile's health check, polled often enough for a test (its own interval, 30 s, stays the image's).
 HEALTH_OPTIONS = ["--health-interval=1s", "--health-timeout=5s", "--health-start-period=120s", "--health-retries=3"]
