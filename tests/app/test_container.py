@@ -24,6 +24,8 @@ import os
 import re
 import shutil
 import subprocess
+import tempfile
+import threading
 import time
 import uuid
 from collections.abc import Iterator
@@ -203,27 +205,82 @@ class Container:
             raise AssertionError(f"{type(exc).__name__}: {exc}\n{self.logs()}") from exc
 
 
-@pytest.fixture(scope="module")
-def container(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Container]:
-    """The image built from this tree and run with a fresh volume, healthy; everything but the base removed after."""
-    if problem := engine_problem():
-        pytest.skip(problem)
-    base = base_image()
-    suffix = uuid.uuid4().hex[:12]
-    image, name = f"backlash-test:{suffix}", f"backlash-test-{suffix}"
-    build_log = tmp_path_factory.mktemp("container") / "build.log"
-    started = time.monotonic()
-    try:
-        with open(build_log, "w") as log:
+@dataclass
+class ImageBuild:
+    """One ``docker build`` of this tree, run in a background thread (:func:`start_build`) or in place."""
+
+    image: str
+    log: Path
+    base: str | None = None
+    seconds: float = 0.0
+    returncode: int | None = None
+    skip: str | None = None
+    thread: threading.Thread | None = None
+
+    def run(self) -> None:
+        if problem := engine_problem():
+            self.skip = problem
+            return
+        try:
+            self.base = base_image()
+        except pytest.skip.Exception as exc:
+            self.skip = str(exc)
+            return
+        started = time.monotonic()
+        command = ["docker", "build", "--network", "host", "--build-arg", f"BASE_IMAGE={self.base}"]
+        with open(self.log, "w") as log:
             built = subprocess.run(
-                ["docker", "build", "--network", "host", "--build-arg", f"BASE_IMAGE={base}", "-t", image, str(REPO)],
+                [*command, "-t", self.image, str(REPO)],
                 stdout=log,
                 stderr=subprocess.STDOUT,
                 timeout=1800,
             )
-        if built.returncode != 0:
-            pytest.fail(f"docker build on {base} failed:\n{build_log.read_text(errors='replace')[-5000:]}")
-        box = Container(name, image, name, free_port(), time.monotonic() - started, base)
+        self.returncode, self.seconds = built.returncode, time.monotonic() - started
+
+    def result(self) -> ImageBuild:
+        """Wait for a background build; skip or fail the module as it went."""
+        if self.thread is not None:
+            self.thread.join()
+        if self.skip is not None:
+            pytest.skip(self.skip)
+        if self.returncode != 0:
+            pytest.fail(f"docker build on {self.base} failed:\n{self.log.read_text(errors='replace')[-5000:]}")
+        return self
+
+
+#: The build started while the other tests run (:func:`start_build`), if any.
+EARLY_BUILD: ImageBuild | None = None
+
+
+def _new_build() -> ImageBuild:
+    return ImageBuild(
+        f"backlash-test:{uuid.uuid4().hex[:12]}", Path(tempfile.mkdtemp(prefix="backlash-build-")) / "log"
+    )
+
+
+def start_build() -> None:
+    """Start building the image in a background thread (the conftest does so when the session will run this
+    module, and runs the module last): the build's downloads and installs overlap the other tests."""
+    global EARLY_BUILD
+    if EARLY_BUILD is None:
+        EARLY_BUILD = _new_build()
+        EARLY_BUILD.thread = threading.Thread(target=EARLY_BUILD.run, name="docker-build", daemon=True)
+        EARLY_BUILD.thread.start()
+
+
+@pytest.fixture(scope="module")
+def container() -> Iterator[Container]:
+    """The image built from this tree and run with a fresh volume, healthy; everything but the base removed after."""
+    build = EARLY_BUILD
+    if build is None:
+        build = _new_build()
+        build.run()
+    build.result()
+    assert build.base is not None
+    image = build.image
+    name = image.replace(":", "-")
+    try:
+        box = Container(name, image, name, free_port(), build.seconds, build.base)
         docker("volume", "create", box.volume)
         docker(
             "run",

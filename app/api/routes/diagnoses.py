@@ -12,7 +12,7 @@ from app.api.deps import CSVRecordDep, JobsDep, StoreDep, body_errors, diagnosis
 from app.api.openapi import body_schema
 from app.core.config import API_V1_STR
 from app.db.diagnoses import DiagnosisRepository, StoredDiagnosis
-from app.jobs import JobManager
+from app.jobs import Job, JobManager
 from app.schemas.assets import AssetName
 from app.schemas.common import ErrorPublic
 from app.schemas.diagnose import DiagnoseCreate, DiagnosesPublic, DiagnosisAccepted, DiagnosisPublic
@@ -44,6 +44,19 @@ def diagnosis_public(d: StoredDiagnosis, jobs: JobManager) -> DiagnosisPublic:
     )
 
 
+def accepted(job: Job, diagnosis_id: str, record_id: str, response: Response) -> DiagnosisAccepted:
+    """The 202 answer of a queued diagnosis, with its ``Location``."""
+    url = f"{API_V1_STR}/diagnoses/{diagnosis_id}"
+    response.headers["Location"] = url
+    return DiagnosisAccepted(
+        job_id=job.id,
+        diagnosis_id=diagnosis_id,
+        record_id=record_id,
+        job_url=f"{API_V1_STR}/jobs/{job.id}",
+        diagnosis_url=url,
+    )
+
+
 @router.post(
     "",
     status_code=status.HTTP_202_ACCEPTED,
@@ -72,15 +85,7 @@ async def create_diagnosis(
         job, diagnosis_id, record = await run_in_threadpool(diagnoses.submit, store, jobs, sent)
     except ValidationError as exc:
         raise body_errors(exc) from None
-    url = f"{API_V1_STR}/diagnoses/{diagnosis_id}"
-    response.headers["Location"] = url
-    return DiagnosisAccepted(
-        job_id=job.id,
-        diagnosis_id=diagnosis_id,
-        record_id=record.id,
-        job_url=f"{API_V1_STR}/jobs/{job.id}",
-        diagnosis_url=url,
-    )
+    return accepted(job, diagnosis_id, record.id, response)
 
 
 @router.get("", response_model=DiagnosesPublic, summary="List stored diagnoses")

@@ -8,7 +8,7 @@ from fastapi import APIRouter, Query, Response, status
 from starlette.concurrency import run_in_threadpool
 
 from app.api.deps import JobsDep, StoreDep
-from app.core.config import API_V1_STR
+from app.api.routes.diagnoses import accepted
 from app.db.records import RecordRepository, StoredRecord
 from app.schemas.assets import AssetName
 from app.schemas.common import ErrorPublic
@@ -86,15 +86,7 @@ def read_record_body(record_id: str, store: StoreDep) -> Response:
 async def diagnose_record(record_id: str, store: StoreDep, jobs: JobsDep, response: Response) -> Any:
     found = _get(store, record_id)
     job, diagnosis_id = await run_in_threadpool(diagnoses.submit_stored, store, jobs, found)
-    url = f"{API_V1_STR}/diagnoses/{diagnosis_id}"
-    response.headers["Location"] = url
-    return DiagnosisAccepted(
-        job_id=job.id,
-        diagnosis_id=diagnosis_id,
-        record_id=found.id,
-        job_url=f"{API_V1_STR}/jobs/{job.id}",
-        diagnosis_url=url,
-    )
+    return accepted(job, diagnosis_id, found.id, response)
 
 
 @router.delete(
