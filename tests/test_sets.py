@@ -14,7 +14,7 @@ from engine.diagnosis.candidate import Candidate
 from engine.diagnosis.diagnose import DiagnosisSettings, choose_model, decide
 from engine.diagnosis.sets import CandidateSet, SetSettings, same_physics
 from engine.records import Record
-from engine.simulation import CATALOGUE, HELD_BACK, PlantParameters, simulate
+from engine.simulation import CATALOGUE, HELD_BACK, EffectLibrary, PlantParameters, simulate
 from engine.simulation.noise import noise_std
 
 diagnose_module = importlib.import_module("engine.diagnosis.diagnose")
@@ -184,6 +184,18 @@ def test_a_weak_but_real_gap_is_weak_gap_not_no_gap() -> None:
     assert v.status == "weak_gap" and v.effect is None
     # the nominal model at the noise: no_gap
     assert decide(fake_cal(1.0, k=4), [], s).status == "no_gap"
+    # the nominal model at the noise and a weak effect with evidence (a noiseless record's refinements): no_gap
+    v = decide(fake_cal(1.0, k=4), [single("load_inertia", 0.99, 2.0)], s)
+    assert v.status == "no_gap" and v.effect is None and "moves the record by only 2.00" in v.reason
+
+
+def test_a_noiseless_record_of_the_nominal_model_is_no_gap() -> None:
+    """A simulated record without noise (the conditions as simulated, the event located): judged against the
+    noise floor, not a zero noise, so no refinement of the fit counts as an effect (was: explained, strength 1e296)."""
+    rec = simulate(PlantParameters(K=0.005, J1=0.87, c=1.0, c1=0.2))
+    res = diagnose(rec, library=EffectLibrary([CATALOGUE["contact_stiffness"], CATALOGUE["motor_viscous_friction"]]))
+    assert res.verdict.status == "no_gap", res.verdict.reason
+    assert all(c.strength is None or c.strength < 1e6 for c in res.candidates)
 
 
 @pytest.fixture(scope="module")

@@ -239,7 +239,7 @@ def _finish(
         cands[i] = Candidate.from_fit(library[c.effect], cal, nominal)
     cands = _order(cands)
     strengths = {
-        i: runner.submit(effect_strength, c, space, record, nominal.noise)
+        i: runner.submit(effect_strength, c, space, record, nominal.sigma)  # the floored noise of the fit
         for i, c in enumerate(cands[:n_pol])
         if c.calibration is not None and c.strength is None
     }

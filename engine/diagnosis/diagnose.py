@@ -50,8 +50,12 @@ Weak gaps
 ``weak_gap`` replaces the former ``no_gap`` answers for gaps that are
 statistically real but too weak to attribute: the nominal misfit beyond the
 noise but at most ``min_strength`` noise RMS in every channel, or an effect
-with evidence whose fit moves the record by at most ``min_strength``.
-``no_gap`` is kept for records the nominal model fits to the noise.
+with evidence whose fit moves the record by at most ``min_strength`` while the
+nominal model does not fit to the noise itself. ``no_gap`` is kept for records
+the nominal model fits to the noise, with or without such a weak effect. The
+strengths are in units of the noise the fit used, floored at 60 dB below each
+channel's RMS (:data:`engine.diagnosis.noise.NOISE_FLOOR_REL`): a noiseless
+(simulated) record is judged against that floor, not against a zero noise.
 
 Locus
 -----
@@ -513,6 +517,16 @@ def decide(
     strength = _strength(model)
     sure = float(expit((strength - settings.min_strength) / settings.strength_scatter))
     if _fits_noise(m_cal, settings):
+        if strength <= settings.min_strength and _fits_noise(nominal, settings):
+            # as without a candidate: nothing beyond the noise, and what the best fit adds is too weak to count
+            # (a noiseless record, judged against the noise floor, gets here: its BIC favours any refinement)
+            return Verdict.without_effect(
+                "no_gap",
+                _adequacy(nominal, settings),
+                f"the calibrated nominal model fits to the noise (chi2/n = {total:.3g}, worst channel {worst:.3g}); "
+                f"the best candidate, {_named(rows)}, moves the record by only {strength:.2f} noise RMS "
+                f"(<= {settings.min_strength:g})",
+            )
         if strength <= settings.min_strength:
             return Verdict.without_effect(
                 "weak_gap",

@@ -688,7 +688,7 @@ def _search(
         for g in groups:
             st, cal = sets[g], fits[g]
             members = [effects[n] for n in g]
-            st.strengths = _strengths(record, cal, space, members, nominal.noise)
+            st.strengths = _strengths(record, cal, space, members, nominal.sigma)  # the floored noise of the fit
             st.shares, st.left = gap_budget(record, cal, space, members, nominal)
 
     finish(sorted(sets, key=lambda g: sets[g].bic)[: ss.n_polish])
