@@ -15,9 +15,10 @@ from engine.storage import PatternSet, PatternSetSummary
 
 
 def check_identifier(kind: str, channel: str, params: dict[str, Any]) -> None:
-    """Raise :class:`InvalidInputError` if the engine cannot build this identifier (unknown kind or parameter)."""
+    """Raise :class:`InvalidInputError` if the engine cannot build this identifier (unknown kind or parameter, or a
+    value it would refuse only once training: a wavelet PyWavelets lacks, a network too large, ...)."""
     try:
-        engine_training.make_identifier(kind, channel, **params)
+        engine_training.make_identifier(kind, channel, **params).validate_params()
     except (TypeError, ValueError) as exc:
         raise InvalidInputError(str(exc)) from None
 

@@ -17,7 +17,7 @@ from typing import Any, Protocol, Self, runtime_checkable
 
 import numpy as np
 
-__all__ = ["IdentificationResult", "Identifier", "NotFittedError"]
+__all__ = ["IdentificationResult", "Identifier", "NotFittedError", "check_wavelet"]
 
 
 class NotFittedError(ValueError, AttributeError):
@@ -72,6 +72,10 @@ class Identifier(Protocol):
         """Constructor parameters by name (scikit-learn convention)."""
         ...
 
+    def validate_params(self) -> None:
+        """Raise ``ValueError`` saying what to fix unless every constructor parameter is acceptable."""
+        ...
+
     def fit(self, X: Any, y: Any, groups: Any = None) -> Self:
         """Learn from raw records X (n_records, 2048) of widths y [m]; groups (e.g. J1) where used. Returns self."""
         ...
@@ -100,3 +104,17 @@ class Identifier(Protocol):
     def from_arrays(cls, params: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> Self:
         """Rebuild a fitted identifier from :meth:`get_params` and :meth:`to_arrays`."""
         ...
+
+
+def check_wavelet(wavelet: str | None, level: object, mode: str | None = None) -> None:
+    """Raise ``ValueError`` unless ``wavelet`` (None: the channel's default) is a discrete wavelet of PyWavelets,
+    ``level`` an integer from 1 to 11 (a 2048-sample record halves at most 11 times) and ``mode`` (if given) one
+    of PyWavelets' signal extension modes; the message names the accepted values."""
+    import pywt
+
+    if wavelet is not None and wavelet not in pywt.wavelist(kind="discrete"):
+        raise ValueError(f"wavelet {wavelet!r} is not a discrete wavelet of PyWavelets (e.g. sym5, db4, coif3)")
+    if not (isinstance(level, int) and not isinstance(level, bool) and 1 <= level <= 11):
+        raise ValueError(f"level must be an integer from 1 to 11, got {level!r}")
+    if mode is not None and mode not in pywt.Modes.modes:
+        raise ValueError(f"mode must be one of {', '.join(pywt.Modes.modes)}, got {mode!r}")

@@ -49,7 +49,7 @@ import numpy as np
 from engine.constants import CHANNEL_WAVELETS, K_GRID, N_SAMPLES, WAVELET_LEVEL
 from engine.features.wavelet import wavelet_coefficients
 from engine.identification._network import TrainResult, Weights, initial_weights, train
-from engine.identification.base import IdentificationResult, NotFittedError
+from engine.identification.base import IdentificationResult, NotFittedError, check_wavelet
 from engine.identification.normalisation import TERM_NAMES, normalisation_terms, normalise
 
 logger = logging.getLogger(__name__)
@@ -82,6 +82,12 @@ def _init_row_values(m1_rows: np.ndarray, n_rows: int) -> np.ndarray:
 # --------------------------------------------------------------------------
 # the estimator
 # --------------------------------------------------------------------------
+
+
+#: Largest hidden layer accepted [neurons] (the paper's network has 15).
+MAX_HIDDEN = 1000
+#: Most training epochs accepted (the paper's cap is 500).
+MAX_EPOCHS = 100_000
 
 
 class PaperIdentifier:
@@ -213,7 +219,16 @@ class PaperIdentifier:
         args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
         return f"{type(self).__name__}({args})"
 
+    def validate_params(self) -> None:
+        """Raise ``ValueError`` with what to fix unless every parameter is acceptable (also done by ``fit``).
+
+        Beyond the types: the wavelet, level and mode exist in PyWavelets; ``n_hidden`` <= :data:`MAX_HIDDEN`
+        and ``max_epochs`` <= :data:`MAX_EPOCHS` (larger networks or runs take hours or exhaust memory).
+        """
+        self._validate_params()
+
     def _validate_params(self) -> None:
+        check_wavelet(self.wavelet, self.level, self.mode)
         if self.wavelet is None:
             if self.channel not in CHANNEL_WAVELETS:
                 raise ValueError(
@@ -226,10 +241,10 @@ class PaperIdentifier:
             if not (isinstance(self.wavelet, str) and self.wavelet):
                 raise ValueError(f"wavelet must be a wavelet name or None, got {self.wavelet!r}")
         self._grid()
-        if not (isinstance(self.n_hidden, (int, np.integer)) and self.n_hidden >= 1):
-            raise ValueError(f"n_hidden must be a positive integer, got {self.n_hidden!r}")
-        if not (isinstance(self.max_epochs, (int, np.integer)) and self.max_epochs >= 1):
-            raise ValueError(f"max_epochs must be a positive integer, got {self.max_epochs!r}")
+        if not (isinstance(self.n_hidden, (int, np.integer)) and 1 <= self.n_hidden <= MAX_HIDDEN):
+            raise ValueError(f"n_hidden must be an integer from 1 to {MAX_HIDDEN}, got {self.n_hidden!r}")
+        if not (isinstance(self.max_epochs, (int, np.integer)) and 1 <= self.max_epochs <= MAX_EPOCHS):
+            raise ValueError(f"max_epochs must be an integer from 1 to {MAX_EPOCHS}, got {self.max_epochs!r}")
         if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
             raise ValueError(f"learning_rate must be a positive number, got {self.learning_rate!r}")
         if not (math.isfinite(self.delta1) and self.delta1 > 0):

@@ -30,7 +30,7 @@ import numpy as np
 
 from engine.constants import CHANNEL_WAVELETS, CHANNELS, K_GRID, N_SAMPLES, WAVELET_LEVEL
 from engine.features.wavelet import level_slices, wavelet_coefficients
-from engine.identification.base import IdentificationResult, NotFittedError
+from engine.identification.base import IdentificationResult, NotFittedError, check_wavelet
 
 logger = logging.getLogger(__name__)
 
@@ -108,6 +108,20 @@ class TemplateIdentifier:
         params = {name: getattr(self, name) for name in self._PARAM_NAMES}
         params["windows"] = [int(w) for w in params["windows"]]
         return params
+
+    def validate_params(self) -> None:
+        """Raise ``ValueError`` with what to fix unless every parameter is acceptable: a known channel, a discrete
+        wavelet and level of PyWavelets, windows of 1 to 2048 samples, ``window`` one of them (or None)."""
+        if self.channel not in CHANNELS:
+            raise ValueError(f"unknown channel {self.channel!r}; known channels: {', '.join(CHANNELS)}")
+        check_wavelet(self.wavelet, self.level)
+        windows = list(self.windows)
+        if not windows or not all(
+            isinstance(w, int) and not isinstance(w, bool) and 1 <= w <= N_SAMPLES for w in windows
+        ):
+            raise ValueError(f"windows must be integers from 1 to {N_SAMPLES} samples, got {self.windows!r}")
+        if self.window is not None and self.window not in windows:
+            raise ValueError(f"window must be one of the windows {windows} or None, got {self.window!r}")
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in self.get_params().items())})"

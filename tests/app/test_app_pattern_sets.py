@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import httpx
+import pytest
 from servicekit import SMALL_TRAINING, train
 
 
@@ -74,3 +75,23 @@ def test_default_kind_is_the_engines(client: httpx.Client, sim_record: dict[str,
         assert len(res["D"]) == 6 and 1 <= res["index"] <= 6
     finally:
         client.delete(out["pattern_set_url"])
+
+
+@pytest.mark.parametrize(
+    ("params", "says"),
+    [
+        ({"n_hidden": 100_000_000}, "n_hidden must be an integer from 1 to 1000"),
+        ({"wavelet": "nope"}, "not a discrete wavelet"),
+        ({"level": 1000}, "level must be an integer from 1 to 11"),
+        ({"mode": "xx"}, "mode must be one of"),
+    ],
+)
+def test_identifier_values_are_checked_before_a_job_is_queued(
+    client: httpx.Client, params: dict[str, Any], says: str
+) -> None:
+    """Values the identifier would refuse only once training are refused with the request (422), no job queued."""
+    jobs_before = client.get("/v1/jobs").json()["items"]
+    r = client.post("/v1/pattern-sets", json={**SMALL_TRAINING, "kind": "paper", "params": params})
+    assert r.status_code == 422, r.text
+    assert says in r.json()["detail"]
+    assert client.get("/v1/jobs").json()["items"] == jobs_before
