@@ -193,8 +193,13 @@ def test_a_noiseless_record_of_the_nominal_model_is_no_gap() -> None:
     """A simulated record without noise (the conditions as simulated, the event located): judged against the
     noise floor, not a zero noise, so no refinement of the fit counts as an effect (was: explained, strength 1e296)."""
     rec = simulate(PlantParameters(K=0.005, J1=0.87, c=1.0, c1=0.2))
-    res = diagnose(rec, library=EffectLibrary([CATALOGUE["contact_stiffness"], CATALOGUE["motor_viscous_friction"]]))
+    heard: list[tuple[float, str]] = []
+    library = EffectLibrary([CATALOGUE["contact_stiffness"], CATALOGUE["motor_viscous_friction"]])
+    res = diagnose(rec, library=library, progress=lambda f, what: heard.append((f, what)))
     assert res.verdict.status == "no_gap", res.verdict.reason
+    fractions = [f for f, _ in heard]  # the stages, in order, as a service's job reports them
+    assert fractions == sorted(fractions) and fractions[0] == 0.0 and fractions[-1] == 0.85  # no identify hook
+    assert "fitted 2 of 2 candidate effects" in [what for _, what in heard]
     assert all(c.strength is None or c.strength < 1e6 for c in res.candidates)
 
 

@@ -36,6 +36,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Callable
 
 from engine.diagnosis.calibration import CalibrationResult, calibrate
 from engine.diagnosis.candidate import Candidate, CandidateSettings, effect_strength, fit_candidate, posterior_weights
@@ -63,6 +64,7 @@ def fit_candidates(
     library: EffectLibrary = CATALOGUE,
     settings: CandidateSettings | None = None,
     escalate: bool = True,
+    progress: Callable[[float, str], None] | None = None,
 ) -> list[Candidate]:
     """Fit every effect of a library and rank them by BIC (best first).
 
@@ -82,6 +84,8 @@ def fit_candidates(
         Run pass 2 (the escalation) when no seeded fit reaches the noise; with False the
         caller may escalate later with :func:`escalate_candidates` (the diagnosis first
         tries sets of effects from the seeded fits).
+    progress : callable, optional
+        ``progress(fraction, stage)`` as the seeded fits come in (fraction of them done).
 
     Returns
     -------
@@ -98,7 +102,12 @@ def fit_candidates(
         seeded = [
             runner.submit(fit_candidate, record, nominal, space, e, settings, polish=False) for e in library.values()
         ]
-        cands = _order([f.result() for f in seeded])
+        fitted = []
+        for i, f in enumerate(seeded):  # in order: a later fit may be done first, the count is still right
+            fitted.append(f.result())
+            if progress is not None:
+                progress((i + 1) / len(seeded), f"fitted {i + 1} of {len(seeded)} candidate effects")
+        cands = _order(fitted)
         logger.info("seeded fits of %d candidates: %.1f s", len(cands), time.perf_counter() - t0)
         if escalate:
             cands = _escalate(record, nominal, space, library, cands, settings, runner)

@@ -723,8 +723,16 @@ def _diagnose(
     )
     use_sets = set_settings.max_size >= 2 and not _fits_noise(nominal, settings)
     staged = use_sets and set_settings.before_escalation
-    progress(0.15, f"fitting {len(library)} candidate effects one at a time")
-    cands = fit_candidates(record, nominal, space, library, cs, escalate=not staged)
+    progress(0.15, f"fitting {len(library)} candidate effects")
+    cands = fit_candidates(
+        record,
+        nominal,
+        space,
+        library,
+        cs,
+        escalate=not staged,
+        progress=lambda f, what: progress(0.15 + 0.35 * f, what),
+    )
     if use_sets and not _explains_single(cands, settings):
         progress(0.55, "no single effect explains the record: searching sets of effects")
     sets: list[CandidateSet] = []
