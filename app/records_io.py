@@ -148,6 +148,14 @@ def _csv_columns(text: str) -> tuple[list[str], list[list[float]]]:
     return header, columns
 
 
+def decode_csv_body(raw: bytes) -> str:
+    """A CSV request body as text (UTF-8, with or without a byte-order mark); ``RecordFormatError`` otherwise."""
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise RecordFormatError(f"the CSV is not UTF-8 text (byte {exc.start} is invalid)") from None
+
+
 def record_from_csv(
     text: str,
     sample_interval: float | None = None,

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from typing import Annotated, Any, Literal, TypeVar
 
 from fastapi import Depends, HTTPException, Query, Request
@@ -11,12 +10,18 @@ from pydantic import BaseModel, ValidationError
 
 from app.core.config import Settings
 from app.jobs import JobManager
-from app.records_io import ACCEPTED_UNITS_DOC, UNITS_SYNTAX, RecordFormatError, parse_units, record_from_csv
+from app.records_io import (
+    ACCEPTED_UNITS_DOC,
+    UNITS_SYNTAX,
+    RecordFormatError,
+    decode_csv_body,
+    parse_units,
+    record_from_csv,
+)
 from app.services.diagnosis_requests import DiagnosisRequest
 from app.services.errors import InvalidInputError
 from app.services.sync_diagnosis import SyncDiagnoses
 from engine.constants import MAX_SAMPLE_INTERVAL, MIN_SAMPLE_INTERVAL, SAMPLE_INTERVAL
-from engine.plants import DEFAULT_PLANT
 from engine.records import Record
 from engine.records.units import BASE_TORQUE
 from engine.storage import PatternStore
@@ -79,9 +84,7 @@ async def json_body(request: Request, model: type[M]) -> M:
     try:
         return model.model_validate_json(raw)
     except ValidationError as exc:
-        raise RequestValidationError(
-            [{**e, "loc": ("body", *e["loc"])} for e in exc.errors(include_url=False, include_input=False)]
-        ) from None
+        raise body_errors(exc) from None
 
 
 class CSVRecordParams:
@@ -180,11 +183,7 @@ CSVRecordDep = Annotated[CSVRecordParams, Depends()]
 
 async def csv_record(request: Request, params: CSVRecordParams) -> Record:
     """The record sent in CSV form (header of channel names, optionally ``t``; one row per sample)."""
-    raw = await request.body()
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise RecordFormatError(f"the CSV is not UTF-8 text (byte {exc.start} is invalid)") from None
+    text = decode_csv_body(await request.body())
     return record_from_csv(text, params.sample_interval, params.event_index, params.conditions, params.units())
 
 
@@ -219,12 +218,3 @@ def body_errors(exc: ValidationError) -> RequestValidationError:
     return RequestValidationError(
         [{**e, "loc": ("body", *e["loc"])} for e in exc.errors(include_url=False, include_input=False)]
     )
-
-
-def names_another_plant(raw: bytes) -> bool:
-    """Whether a JSON body names a plant other than the default (malformed bodies are left to the validation)."""
-    try:
-        body = json.loads(raw)
-    except ValueError:
-        return False
-    return isinstance(body, dict) and body.get("plant", DEFAULT_PLANT) != DEFAULT_PLANT

@@ -122,6 +122,15 @@ class DiagnosisRepository:
             rows = conn.execute(sql + " ORDER BY seq DESC LIMIT ?", (*args, int(limit))).fetchall()
         return [self._row(r, None, ()) for r in rows]
 
+    def asset_spans(self) -> dict[str, tuple[int, datetime | None, datetime | None]]:
+        """Per named asset: how many rows, the first and the last ``measured_at`` (one query)."""
+        with self.store.reading() as conn:
+            rows = conn.execute(
+                "SELECT asset, count(*), min(measured_at), max(measured_at) FROM diagnoses "
+                "WHERE asset IS NOT NULL GROUP BY asset"
+            ).fetchall()
+        return {r[0]: (int(r[1]), from_text(r[2]), from_text(r[3])) for r in rows}
+
     def figure(self, diagnosis_id: str, name: str) -> bytes | None:
         with self.store.reading() as conn:
             row = conn.execute(

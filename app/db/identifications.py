@@ -73,6 +73,15 @@ class IdentificationRepository:
             rows = conn.execute(sql + " ORDER BY measured_at, seq LIMIT ?", (*args, int(limit))).fetchall()
         return [self._row(r) for r in rows]
 
+    def asset_spans(self) -> dict[str, tuple[int, datetime | None, datetime | None]]:
+        """Per named asset: how many rows, the first and the last ``measured_at`` (one query)."""
+        with self.store.reading() as conn:
+            rows = conn.execute(
+                "SELECT asset, count(*), min(measured_at), max(measured_at) FROM identifications "
+                "WHERE asset IS NOT NULL GROUP BY asset"
+            ).fetchall()
+        return {r[0]: (int(r[1]), from_text(r[2]), from_text(r[3])) for r in rows}
+
     def get(self, identification_id: str) -> StoredIdentification | None:
         with self.store.reading() as conn:
             row = conn.execute(

@@ -42,38 +42,25 @@ def store_identification(
 
 
 def assets(store: PatternStore) -> list[dict[str, Any]]:
-    """Every asset with its counts and the span of its measurements, by name."""
-    seen: dict[str, dict[str, Any]] = {}
-
-    def entry(name: str) -> dict[str, Any]:
-        return seen.setdefault(
-            name,
+    """Every asset with its counts and the span of its measurements, by name (two grouped queries)."""
+    idents = IdentificationRepository(store).asset_spans()
+    diags = DiagnosisRepository(store).asset_spans()
+    out = []
+    for name in sorted(idents.keys() | diags.keys()):
+        n_i, first_i, last_i = idents.get(name, (0, None, None))
+        n_d, first_d, last_d = diags.get(name, (0, None, None))
+        firsts = [t for t in (first_i, first_d) if t is not None]
+        lasts = [t for t in (last_i, last_d) if t is not None]
+        out.append(
             {
                 "asset": name,
-                "n_identifications": 0,
-                "n_diagnoses": 0,
-                "first_measured_at": None,
-                "last_measured_at": None,
-            },
+                "n_identifications": n_i,
+                "n_diagnoses": n_d,
+                "first_measured_at": min(firsts, default=None),
+                "last_measured_at": max(lasts, default=None),
+            }
         )
-
-    def span(e: dict[str, Any], moment: datetime | None) -> None:
-        if moment is None:
-            return
-        e["first_measured_at"] = min(filter(None, (e["first_measured_at"], moment)))
-        e["last_measured_at"] = max(filter(None, (e["last_measured_at"], moment)))
-
-    for ident in IdentificationRepository(store).list():
-        e = entry(ident.asset)
-        e["n_identifications"] += 1
-        span(e, ident.measured_at)
-    for diag in DiagnosisRepository(store).list(limit=1_000_000):
-        if diag.asset is None:
-            continue
-        e = entry(diag.asset)
-        e["n_diagnoses"] += 1
-        span(e, diag.measured_at)
-    return [seen[k] for k in sorted(seen)]
+    return out
 
 
 def history(store: PatternStore, asset: str) -> list[dict[str, Any]]:

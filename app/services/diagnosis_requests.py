@@ -19,7 +19,7 @@ from typing import Any, Literal
 
 from pydantic import TypeAdapter, ValidationError
 
-from app.records_io import RecordFormatError, parse_units, record_from_csv
+from app.records_io import RecordFormatError, decode_csv_body, parse_units, record_from_csv
 from app.schemas.assets import AssetName, MeasuredAt
 from app.schemas.diagnose import BrfdDiagnoseCreate, DiagnoseCreate, PlantDiagnoseCreate
 from app.services import diagnosis, plant_diagnosis
@@ -95,7 +95,8 @@ class DiagnosisOutcome:
     width_sigma: float | None
 
 
-def _names_another_plant(raw: bytes) -> str | None:
+def named_plant(raw: bytes) -> str | None:
+    """The plant a JSON body names when it is not the default one (malformed bodies are left to the validation)."""
     try:
         body = json.loads(raw)
     except ValueError:
@@ -117,7 +118,7 @@ def parse(request: DiagnosisRequest) -> ParsedDiagnosis:
     """
     if request.media == "csv":
         return _parse_csv(request.body, request.params)
-    other = _names_another_plant(request.body)
+    other = named_plant(request.body)
     if other is not None:
         schema = PLANT_SCHEMAS.get(other, PlantDiagnoseCreate)  # an unknown name: the schema's 422
         plant_body = schema.model_validate_json(request.body)
@@ -146,10 +147,7 @@ def parse(request: DiagnosisRequest) -> ParsedDiagnosis:
 
 def _parse_csv(raw: bytes, params: dict[str, Any]) -> ParsedDiagnosis:
     asset, measured_at = named_asset(params.get("asset"), params.get("measured_at"))
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise RecordFormatError(f"the CSV is not UTF-8 text (byte {exc.start} is invalid)") from None
+    text = decode_csv_body(raw)
     try:
         units = parse_units(params.get("units"))
     except RecordFormatError as exc:

@@ -46,12 +46,14 @@ class SyncDiagnoses:
         self.timeout = float(timeout)
         self._slots = threading.BoundedSemaphore(max_concurrent)
         self._lock = threading.Lock()
+        self._running = 0
         self._pool: ProcessPool | None = new_process_pool(max_concurrent)  # started here: see new_process_pool
 
     @property
     def running(self) -> int:
         """Synchronous diagnoses running now."""
-        return self.max_concurrent - self._slots._value  # BoundedSemaphore keeps its count there
+        with self._lock:
+            return self._running
 
     def run(self, request: DiagnosisRequest) -> dict[str, Any]:
         """Diagnose (blocking the calling thread); the answer of ``POST /v1/diagnose``."""
@@ -61,6 +63,8 @@ class SyncDiagnoses:
                 "the record as a job with POST /v1/diagnoses, which queues it",
                 retry_after=RETRY_AFTER,
             )
+        with self._lock:
+            self._running += 1
         try:
             future = self._get_pool().schedule(run_sync, args=(request,), timeout=self.timeout)
             try:
@@ -73,6 +77,8 @@ class SyncDiagnoses:
             except ProcessExpired as exc:
                 raise RuntimeError(f"the worker process running the diagnosis died ({exc})") from exc
         finally:
+            with self._lock:
+                self._running -= 1
             self._slots.release()
 
     def close(self) -> None:

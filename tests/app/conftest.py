@@ -78,6 +78,7 @@ def inprocess(tmp_path: Path, gated: GatedTraining) -> Iterator[InProcessServer]
         server.join()
 
 
+@pytest.hookimpl(trylast=True)  # after -m/-k have deselected: no build when the container's tests will not run
 def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config, items: list[pytest.Item]) -> None:
     """Run the container's tests last and start building its image now, in the background, so that the build
     (downloads, installs) overlaps the rest of the session instead of adding to it."""

@@ -15,7 +15,6 @@ from app.api.deps import (
     body_kind,
     csv_record,
     json_body,
-    names_another_plant,
     reject_query,
 )
 from app.api.openapi import body_schema
@@ -23,7 +22,7 @@ from app.schemas.common import ChannelName, ErrorPublic
 from app.schemas.identify import IdentificationPublic, IdentifyCreate, PlantIdentifyCreate, PlantWidthPublic
 from app.services import assets as asset_service
 from app.services import identification, plant_identification
-from app.services.diagnosis_requests import named_asset
+from app.services.diagnosis_requests import named_asset, named_plant
 from app.services.errors import InvalidInputError
 
 router = APIRouter(prefix="/identify", tags=["identify"])
@@ -79,7 +78,7 @@ async def identify(
     width as a continuous parameter with its 95 % interval, or not identifiable with the reason, and the
     seed's W3/D/argmin width beside it.
     """
-    if body_kind(request) != "csv" and names_another_plant(await request.body()):
+    if body_kind(request) != "csv" and named_plant(await request.body()) is not None:
         reject_query(request, (*CSV_QUERY, "channel", "pattern_set", "kind", "continuous", "any_set"))
         other = await json_body(request, PlantIdentifyCreate)
         records = [other.record.to_record(), *(r.to_record() for r in other.joint)]
