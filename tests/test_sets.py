@@ -323,3 +323,75 @@ def test_a_set_with_the_speed_quantum_fits_its_quantum_by_scans_not_least_square
     assert cal.values["speed_quantization"] == pytest.approx(0.3, abs=0.01)
     assert cal.values["load_inertia"] == pytest.approx(1.3, rel=0.01)
     assert cal.reduced_chi2 <= 1.05
+
+
+def test_the_set_search_tries_a_quantum_the_lattice_shows_even_when_the_screen_ranks_it_out(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Seed-107 case0061 (Coulomb friction 0.059 pu and q = 0.294 rad/s): the profiled screen, run on the
+    model's omega1 beside the friction, left the quantum out of the six additions; the pair was never fitted."""
+    sets_module = importlib.import_module("engine.diagnosis.sets")
+    rec = simulate(
+        PlantParameters(K=0.007, J1=0.95, c=1.3), effects={"motor_coulomb_friction": 0.06, "speed_quantization": 0.29}
+    )
+    rec = Record({"omega1": noisy(rec, 40.0, 10)["omega1"]}, rec.sample_interval, rec.event_index)
+    fitted: list[tuple[str, ...]] = []
+
+    def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0):
+        names = tuple(m.name for m in members)
+        fitted.append(names)
+        cal = fake_cal(3.0, k=3 + len(names))
+        cal.values.update({n: 1.0 for n in names})
+        cal.step = settings.final_step if polish else settings.search_step
+        return cal
+
+    def screen_without_quantum(record, space, values, members, additions, *args):
+        return [(e.name, 1.0, 0.0) for e in additions if e.name != "speed_quantization"]
+
+    monkeypatch.setattr(sets_module, "_fit_set", fake_fit)
+    monkeypatch.setattr(sets_module, "rank_additions", screen_without_quantum)
+    monkeypatch.setattr(sets_module, "_strengths", lambda record, cal, space, members, noise: {})
+    monkeypatch.setattr(sets_module, "gap_budget", lambda *a, **k: ({}, 0.0))
+    names = [n for n in CATALOGUE if n not in ("speed_quantization", "motor_coulomb_friction")]
+    singles = [single("motor_coulomb_friction", 20.0, 10.0)]
+    singles += [single(n, 40.0 + i, 10.0) for i, n in enumerate(names)]
+    singles.append(single("speed_quantization", 90.0, 10.0))
+    sets_module.search_sets(rec, fake_cal(100.0, k=3), None, CATALOGUE, singles, settings=SetSettings(escalate=False))
+    assert ("motor_coulomb_friction", "speed_quantization") in fitted
+
+    fitted.clear()  # without the lattice the screen decides alone
+    plain = simulate(PlantParameters(K=0.007, J1=0.95, c=1.3), effects={"motor_coulomb_friction": 0.06})
+    plain = Record({"omega1": noisy(plain, 40.0, 10)["omega1"]}, plain.sample_interval, plain.event_index)
+    sets_module.search_sets(plain, fake_cal(100.0, k=3), None, CATALOGUE, singles, settings=SetSettings(escalate=False))
+    assert fitted and ("motor_coulomb_friction", "speed_quantization") not in fitted
+
+
+@pytest.mark.parametrize("n_escalate", [1, 3])
+def test_the_best_pairs_get_the_global_search_when_no_seeded_set_fits(
+    monkeypatch: pytest.MonkeyPatch, n_escalate: int
+) -> None:
+    """Seed-107 case0072 (viscous friction + sensor gain): the right pair ranked below the best seeded
+    pair and was explained only once the three best pairs had the global search."""
+    from engine.diagnosis.candidate import CandidateSettings
+
+    sets_module = importlib.import_module("engine.diagnosis.sets")
+    cs = CandidateSettings()
+    searched: list[tuple[str, ...]] = []
+
+    def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0):
+        names = tuple(m.name for m in members)
+        if settings is cs.escalated:
+            searched.append(names)
+        cal = fake_cal(3.0 + 0.01 * sum(map(len, names)), k=3 + len(names))
+        cal.values.update({n: 1.0 for n in names})
+        cal.step = settings.final_step if polish else settings.search_step
+        return cal
+
+    monkeypatch.setattr(sets_module, "_fit_set", fake_fit)
+    monkeypatch.setattr(sets_module, "_strengths", lambda record, cal, space, members, noise: {})
+    monkeypatch.setattr(sets_module, "gap_budget", lambda *a, **k: ({}, 0.0))
+    singles = [single(n, 20.0 + i, 10.0) for i, n in enumerate(("load_inertia", "supply_voltage", "sensor_gain"))]
+    settings = SetSettings(n_base=0, n_escalate=n_escalate)
+    sets_module.search_sets(None, fake_cal(100.0, k=3), None, CATALOGUE, singles, cs, settings)
+    assert sum(len(g) == 2 for g in searched) == n_escalate
+    assert sum(len(g) == 3 for g in searched) == 1

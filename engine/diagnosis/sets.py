@@ -13,8 +13,11 @@ selection:
    first order) ranks best as the second member of the ``n_base`` best singles
    (forward selection: an effect that is weak beside a strong one, such as a sensor
    gain, ranks low as a single because its single fit cannot absorb the strong effect's
-   residual, yet it is what the best single lacks), less pairs that are the
-   same physics (two pure time shifts, or two effects on the same field). Each
+   residual, yet it is what the best single lacks), and the speed quantum
+   whenever the record's omega1 values lie on a lattice
+   (:func:`engine.diagnosis.quantisation.lattice_quantum`: the screen judges the
+   quantum by the model's omega1, which a strong effect beside it distorts), less
+   pairs that are the same physics (two pure time shifts, or two effects on the same field). Each
    pair is fitted from seeds built of its members' single fits (the better
    member's calibration with the other effect at its single-fit value and at
    its neutral value, and the best point of a scan of the other effect's value
@@ -26,9 +29,10 @@ selection:
    member's value at it; only when no pair fits to the noise, the best pair refined at the final
    integrator step first (the search step's integration error alone can lift a
    right pair's chi2/n above the threshold on a quiet record).
-3. **Escalation**: when no set fits to the noise after the seeded fits, the best
-   set of each size gets the full global search in its joint space (strong
-   effects can drag every single fit out of the true basin).
+3. **Escalation**: when no set fits to the noise after the seeded fits, the
+   ``n_escalate`` best pairs and the best triple get the full global search in
+   their joint space (strong effects can drag every single fit out of the true
+   basin).
 4. **Polish**: the best sets are refined at the final integrator step.
 5. **Backward elimination**: a polished set that fits to the noise is refitted
    without its weak members (those that move the record by at most
@@ -74,7 +78,7 @@ from engine.diagnosis.candidate import Candidate, CandidateSettings
 from engine.diagnosis.gap import Gap, gap_of, shrinkage_ratio
 from engine.diagnosis.noise import NoiseModel, noise_weights
 from engine.diagnosis.objective import Objective
-from engine.diagnosis.quantisation import fit_quantisation, is_speed_quantum
+from engine.diagnosis.quantisation import fit_quantisation, is_speed_quantum, record_lattice
 from engine.diagnosis.screening import rank_additions
 from engine.diagnosis.space import TIME_SHIFT_EFFECTS, ModelSpace
 from engine.parallel import Runner, single_threaded_blas
@@ -108,6 +112,10 @@ class SetSettings:
         (None: every effect).
     escalate : bool
         Global search for the best set of each size when no seeded set fits to the noise.
+    n_escalate : int
+        Best pairs (by BIC) that get the global search when no seeded set fits to the noise
+        (with the best triple): a right pair seeded from single fits distorted by each other's
+        residual can rank below wrong pairs until it leaves the wrong basin.
     escalate_above : float
         A set "fits to the noise" for the escalation rule when its search-step chi2/n is at most this.
     max_reduced_chi2 : float
@@ -137,6 +145,7 @@ class SetSettings:
     n_base: int = 1
     n_forward: int | None = 6
     escalate: bool = True
+    n_escalate: int = 3
     escalate_above: float = 1.1
     max_reduced_chi2: float = 1.05
     n_polish: int = 3
@@ -626,9 +635,26 @@ def _search(
     def compatible(n: str, g: Sequence[str]) -> bool:
         return n not in g and not any(same_physics(effects[n], effects[m]) for m in g)
 
+    # a speed quantum the record's own lattice of omega1 values shows is tried beside every base model:
+    # the profiled screen ranks it by the model's omega1, which a strong effect beside it distorts
+    lattice = [
+        n
+        for n in names
+        if is_speed_quantum(effects[n])
+        and "omega1" in record.channels
+        and record_lattice(np.asarray(record["omega1"]), effects[n].bounds) is not None
+    ]
+
     def screened(g: tuple[str, ...]) -> list[str]:
-        """The effects to try beside ``g``'s fit: the ``n_forward`` best of the profiled screen."""
+        """The effects to try beside ``g``'s fit: the ``n_forward`` best of the profiled screen, and a
+        speed quantum the record's lattice shows."""
         todo = [n for n in names if compatible(n, g)]
+        if ss.n_forward is None or len(todo) <= ss.n_forward:
+            return todo
+        shown = [n for n in lattice if n in todo]
+        return shown + [n for n in _screen(g, [n for n in todo if n not in shown]) if n not in shown]
+
+    def _screen(g: tuple[str, ...], todo: list[str]) -> list[str]:
         if ss.n_forward is None or len(todo) <= ss.n_forward:
             return todo
         try:
@@ -674,7 +700,7 @@ def _search(
         logger.info("set search: %d triples fitted, %.1f s", len(triples), time.perf_counter() - t0)
 
     if ss.escalate and sets and not any(fits_noise(g) for g in sets):
-        best = [b[0] for b in (best_of(2), best_of(3)) if b and not sets[b[0]].searched]
+        best = [g for g in best_of(2)[: ss.n_escalate] + best_of(3)[:1] if not sets[g].searched]
         if best:
             logger.info("no set fits to the noise; global search for %s", ", ".join("+".join(g) for g in best))
             # refined at the final step, so that it is compared like for like with refined fits
