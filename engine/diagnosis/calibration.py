@@ -113,11 +113,16 @@ class CalibrationSettings:
     polish_nfev : int
         Cap on residual evaluations of the final polish (it usually converges sooner).
     fd_step : float
-        Finite-difference step of the optimiser's Jacobian, in unit-box coordinates.
+        Finite-difference step of the optimiser's Jacobian in the global search's
+        refinements and the continuation, in unit-box coordinates. The cost's valleys
+        are so narrow in K (chi2 rises by thousands for a 0.02 % change) that a step of
+        2e-3 (0.5 % of K on the plausible box's log scale; the value until 2026-11-24)
+        gives a Jacobian along which the trust region cannot follow a valley where K
+        and the other parameters must move together: the fit stalls where it started
+        (docs/diagnosis.md section 1, "The optimiser's difference step").
     fd_step_uncertainty : float
-        Central-difference step of the Jacobian behind the uncertainties (unit box).
-        The cost is very sharp at the optimum (chi2 rises by thousands for a
-        0.02 % change of K), so this must be much smaller than ``fd_step``.
+        Central-difference step of the Jacobian behind the uncertainties (unit box);
+        the polish uses three times this step.
     min_separation : float
         Smallest unit-box distance between two starting points.
     seed : int
@@ -146,7 +151,7 @@ class CalibrationSettings:
     final_step: float = 2e-5
     max_nfev: int = 12
     polish_nfev: int = 30
-    fd_step: float = 2e-3
+    fd_step: float = 1e-4
     fd_step_uncertainty: float = 1e-4
     min_separation: float = 0.08
     seed: int = 0

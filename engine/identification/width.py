@@ -22,8 +22,9 @@ from engine.records import Record
 __all__ = ["WIDTH_SETTINGS", "WidthEstimate", "estimate_width", "nearest_grid_width"]
 
 #: Search settings of the continuous width estimate (two or three free parameters): the ones
-#: README's "calibrated K as a continuous width" table was measured with.
-WIDTH_SETTINGS = CalibrationSettings(n_global=128, n_starts=2)
+#: README's "calibrated K as a continuous width" table was measured with (with the optimiser's
+#: difference step of that time, 2e-3; the diagnosis's default is smaller since 2026-11-24).
+WIDTH_SETTINGS = CalibrationSettings(n_global=128, n_starts=2, fd_step=2e-3)
 
 
 @dataclass(frozen=True)

@@ -64,6 +64,7 @@ from engine.validation.protocol import (
     MAX_DRAWS_PER_CASE,
     MAX_DRAWS_PER_EFFECT_SET,
     OPERATING_BOX,
+    REFIT_FD_STEP,
     REFIT_NFEV,
     SAME_PHYSICS,
     SNR_RANGE_DB,
@@ -292,7 +293,7 @@ def absorbed_strength(
     if missing:  # the refit would start at the box centre instead of the truth
         raise ValueError(f"the truth lacks {', '.join(missing)}")
     seed = {k: v for k, v in truth.items() if k in space.names}
-    settings = CalibrationSettings(n_global=0, max_nfev=REFIT_NFEV, polish_nfev=REFIT_NFEV)
+    settings = CalibrationSettings(n_global=0, max_nfev=REFIT_NFEV, polish_nfev=REFIT_NFEV, fd_step=REFIT_FD_STEP)
     try:
         cal = calibrate(record, space, settings, noise=sd, seeds=[seed])
     except CalibrationError:

@@ -32,6 +32,7 @@ __all__ = [
     "MAX_DRAWS_PER_EFFECT_SET",
     "OPERATING_BOX",
     "PROTOCOL_VERSION",
+    "REFIT_FD_STEP",
     "REFIT_NFEV",
     "SAME_PHYSICS",
     "SNR_RANGE_DB",
@@ -97,6 +98,10 @@ GENERATOR_RULES: Final[tuple[str, ...]] = ("strength", "absorption")
 #: Cap on the residual evaluations of the absorption rule's local refit (a bounded least-squares
 #: fit started at the truth; :func:`engine.validation.cases.absorbed_strength`).
 REFIT_NFEV: Final[int] = 30
+#: Finite-difference step (unit box) of that refit: the optimiser's step when the rule was written,
+#: kept when the diagnosis's default became smaller (2026-11-24) so that a seed draws the same
+#: cases as before; the rule is a local test either way (docs/validation-v2.md).
+REFIT_FD_STEP: Final[float] = 2e-3
 
 
 @dataclass(frozen=True)
