@@ -106,6 +106,9 @@ class SetSettings:
         Forward selection: every effect of the library is tried as the second member of
         this many best singles, and as the third member of this many best pairs (the other
         extended pairs, and the other pairs, are built of the ``pool`` only; 0: the pool only).
+        Two, not one: the best single is often a stand-in (a stator resistance drift for a
+        supply voltage change) beside which the true partner screens last, while it screens
+        well beside the true member that ranks second (docs/diagnosis.md 8b, *Two bases*).
     n_forward : int or None
         Forward selection fits only this many of the library's effects beside a base model,
         the best ranked by the profiled scan of :func:`engine.diagnosis.screening.rank_additions`
@@ -142,7 +145,7 @@ class SetSettings:
     max_size: int = 3
     pool: int = 5
     n_extend: int = 2
-    n_base: int = 1
+    n_base: int = 2
     n_forward: int | None = 6
     escalate: bool = True
     n_escalate: int = 3
