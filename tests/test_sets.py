@@ -443,3 +443,77 @@ def test_the_second_best_single_is_extended_too_when_the_best_is_a_stand_in() ->
     assert found.values["trigger_offset"] == pytest.approx(-0.0007254, abs=2e-5)
     former = best(1)
     assert set(former.effects) != set(truth)
+
+
+def test_a_time_shift_is_scanned_twice_per_sample_interval_never_on_a_sample() -> None:
+    """A shift's chi-square jumps wherever a sample crosses the model's switch-off instant (the
+    shift a multiple of the sample interval) and has basins narrower than a 9-value scan's 0.5 ms."""
+    from engine.diagnosis.space import MAX_SHIFT_SCAN, default_space, scan_grid
+
+    clean = simulate(PlantParameters(K=0.005, J1=0.85, c=1.1, c1=0.2))
+    rec, _ = clean.test_window()
+    for name in ("trigger_offset", "measurement_delay"):
+        effect = CATALOGUE[name]
+        param = default_space(rec).with_effect(effect).params[-1]
+        u = scan_grid(param, effect, rec, 9)
+        values = np.array([param.value(x) for x in u])
+        ts = rec.sample_interval
+        lo, hi = effect.bounds
+        assert values.min() >= lo and values.max() <= hi
+        assert np.all(np.diff(values) == pytest.approx(ts / 2))  # twice per sample interval ...
+        assert values.size == round((hi - lo) / ts * 2)  # ... over the whole range
+        phase = values / ts - np.floor(values / ts)
+        assert np.all(np.abs(phase - 0.5) == pytest.approx(0.25))  # a quarter interval off every sample
+    viscous = CATALOGUE["motor_viscous_friction"]
+    param = default_space(rec).with_effect(viscous).params[-1]
+    assert np.array_equal(scan_grid(param, viscous, rec, 9), np.linspace(0.0, 1.0, 9))
+    fine = Record(
+        {k: np.repeat(v, 10) for k, v in rec.channels.items()}, rec.sample_interval / 10, rec.event_index * 10
+    )
+    trigger = CATALOGUE["trigger_offset"]
+    assert scan_grid(default_space(fine).with_effect(trigger).params[-1], trigger, fine, 9).size <= MAX_SHIFT_SCAN
+
+
+def test_a_large_trigger_offset_beside_a_weak_effect_is_found_by_the_fine_scan(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Seed-107 case0086 (a trigger offset of -1.19 ms, 245 noise RMS, and a viscous friction of
+    0.093, 5 noise RMS): with the scans of 9 values over +-2 ms the trigger offset's single fit
+    stopped at the scan value -1.0 ms (chi2/n 5400) and no pair reached the noise; scanned twice per
+    sample interval, off the samples, the pair is fitted to the noise."""
+    from scipy.signal import butter, lfilter
+
+    from engine.diagnosis.calibration import calibrate
+    from engine.diagnosis.candidate import CandidateSettings
+    from engine.diagnosis.candidates import fit_candidates
+    from engine.diagnosis.diagnose import NOMINAL_CALIBRATION
+    from engine.diagnosis.sets import search_sets
+    from engine.diagnosis.space import default_space
+
+    plant = PlantParameters(K=0.011678, J1=1.1263, c=1.9364, c1=0.2)
+    truth = {"motor_viscous_friction": 0.0934, "trigger_offset": -0.0011882}
+    clean = simulate(plant, effects=truth)
+    rng = np.random.default_rng(1)
+    b, a = butter(2, 1683.0, fs=1.0 / clean.sample_interval)
+    channels = {}
+    for k, v in clean.channels.items():
+        w = lfilter(b, a, rng.standard_normal(v.size))
+        channels[k] = v + w / w.std() * noise_std(v, 47.0)[0]
+    rec, _ = Record(channels, clean.sample_interval, clean.event_index, conditions={"c1": 0.2}).test_window()
+    space = default_space(rec)
+
+    def best() -> CandidateSet:
+        nominal = calibrate(rec, space, NOMINAL_CALIBRATION)
+        cs = CandidateSettings()
+        singles = fit_candidates(rec, nominal, space, CATALOGUE, cs, escalate=False)
+        return search_sets(rec, nominal, space, CATALOGUE, singles, cs, SetSettings(max_size=2, escalate=False))[0]
+
+    found = best()
+    assert set(found.effects) == set(truth)
+    assert found.calibration is not None and found.calibration.reduced_chi2 < 1.1
+    assert found.values["trigger_offset"] == pytest.approx(-0.0011882, abs=1e-5)
+    for module in ("candidate", "sets", "screening"):  # the former scans: 9 values evenly over the range
+        monkeypatch.setattr(
+            importlib.import_module(f"engine.diagnosis.{module}"), "scan_grid", lambda p, e, r, n: np.linspace(0, 1, n)
+        )
+    former = best()
+    assert former.calibration is not None
+    assert set(former.effects) != set(truth) or former.calibration.reduced_chi2 > 1.1

@@ -34,7 +34,7 @@ from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings,
 from engine.diagnosis.gap import Gap, gap_of, shrinkage_ratio
 from engine.diagnosis.objective import Objective
 from engine.diagnosis.quantisation import fit_quantisation, is_speed_quantum
-from engine.diagnosis.space import TIME_SHIFT_EFFECTS, ModelSpace
+from engine.diagnosis.space import TIME_SHIFT_EFFECTS, ModelSpace, scan_grid
 from engine.records import Record
 from engine.simulation import Effect, SolverSettings, run_cases
 
@@ -220,15 +220,17 @@ def _seeds(
 
     The nominal calibration with the effect at its neutral value (nearest bound
     when the neutral value is outside the range), and with the best value of a
-    1-D scan of the effect (``settings.n_scan`` values at ``search_step`` [s]).
+    1-D scan of the effect (``settings.n_scan`` values at ``search_step`` [s]; more for a time
+    shift, :func:`engine.diagnosis.space.scan_grid`).
     """
     if space.effect is None:
         raise ValueError("the seeds of a joint fit need a space with an effect")
     obj = Objective(record, space, nominal.sigma)
     base = space.unit(nominal.values)
     base[-1] = space.params[-1].unit_coord(space.effect.neutral)
+    grid = scan_grid(space.params[-1], space.effect, record, settings.n_scan)
     U, c2 = obj.axis_scan(
-        base, [space.dim - 1], settings.n_scan, record.n_samples, SolverSettings(max_step=search_step)
+        base, [space.dim - 1], grid.size, record.n_samples, SolverSettings(max_step=search_step), grid
     )
     seeds = [space.values(U[-1])]
     i = int(np.argmin(c2[:-1]))

@@ -166,7 +166,13 @@ class Objective:
         return out
 
     def axis_scan(
-        self, u: np.ndarray, axes: Sequence[int], n: int, horizon: int, solver: SolverSettings
+        self,
+        u: np.ndarray,
+        axes: Sequence[int],
+        n: int,
+        horizon: int,
+        solver: SolverSettings,
+        grid: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Scan of each of ``axes`` alone over its whole range around ``u``, one batch of simulations.
 
@@ -177,11 +183,14 @@ class Objective:
         axes : sequence of int
             Coordinates scanned, one after the other.
         n : int
-            Values of each scan, evenly spaced over [0, 1] in unit-box coordinates.
+            Values of each scan, evenly spaced over [0, 1] in unit-box coordinates (ignored when
+            ``grid`` is given).
         horizon : int
             Samples of the chi2.
         solver : SolverSettings
             Integrator settings.
+        grid : ndarray, optional
+            The unit-box coordinates of every scan (its size is then ``n``).
 
         Returns
         -------
@@ -190,8 +199,9 @@ class Objective:
         chi2 : ndarray, shape (len(axes) * n + 1,)
             Their chi2 [noise variances] on ``horizon`` (inf where the simulation failed).
         """
+        grid = np.linspace(0.0, 1.0, n) if grid is None else np.asarray(grid, dtype=float)
+        n = grid.size
         U = np.repeat(np.asarray(u, dtype=float)[None], len(axes) * n + 1, axis=0)
-        grid = np.linspace(0.0, 1.0, n)
         for k, j in enumerate(axes):
             U[k * n : (k + 1) * n, j] = grid
         return U, self.chi2(U, [horizon], solver)[:, 0]

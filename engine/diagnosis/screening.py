@@ -44,7 +44,7 @@ import numpy as np
 
 from engine.diagnosis.noise import NoiseModel, noise_weights
 from engine.diagnosis.objective import Objective
-from engine.diagnosis.space import ModelSpace
+from engine.diagnosis.space import ModelSpace, scan_grid
 from engine.records import Record
 from engine.simulation import Effect, SolverSettings
 
@@ -82,7 +82,8 @@ def rank_additions(
     noise : mapping of str to float
         Noise standard deviation per channel, or a :class:`~engine.diagnosis.noise.NoiseModel`.
     n_scan : int
-        Values of each addition scanned over its search interval (at least 2).
+        Values of each addition scanned over its search interval (at least 2; more for a time
+        shift, :func:`engine.diagnosis.space.scan_grid`).
     step : float
         Integrator step of the simulations [s].
     fd_step : float
@@ -128,7 +129,7 @@ def rank_additions(
         se = s0.with_effect(e)
         obj = Objective(record, se, weights)
         # the neutral value first (the score test's point), then the scan; each with a forward step
-        grid = np.append(se.params[-1].unit_coord(e.neutral), np.linspace(0.0, 1.0, n_scan))
+        grid = np.append(se.params[-1].unit_coord(e.neutral), scan_grid(se.params[-1], e, record, n_scan))
         steps = np.where(grid + fd_step <= 1.0, fd_step, -fd_step)
         U = np.repeat(np.append(u0, 0.0)[None], 2 * grid.size, axis=0)
         U[: grid.size, -1] = grid

@@ -80,7 +80,7 @@ from engine.diagnosis.noise import NoiseModel, noise_weights
 from engine.diagnosis.objective import Objective
 from engine.diagnosis.quantisation import fit_quantisation, is_speed_quantum, record_lattice
 from engine.diagnosis.screening import rank_additions
-from engine.diagnosis.space import TIME_SHIFT_EFFECTS, ModelSpace
+from engine.diagnosis.space import TIME_SHIFT_EFFECTS, ModelSpace, scan_grid
 from engine.parallel import Runner, single_threaded_blas
 from engine.records import Record
 from engine.simulation import Case, Effect, EffectLibrary, SolverSettings, run_cases, serial_kernel
@@ -430,12 +430,14 @@ def _scan_seed(
 
     The member's single fit was made at an operating point distorted by the other members'
     residual, so its value may lie far from the one it takes beside them; a scan over its
-    whole range (``n_scan`` values, one batch at integrator step ``step`` [s]) finds the
+    whole range (``n_scan`` values, more for a time shift: :func:`engine.diagnosis.space.scan_grid`;
+    one batch at integrator step ``step`` [s]) finds the
     basin cheaply, as for the single candidates (:func:`engine.diagnosis.candidate._seeds`).
     """
     obj = Objective(record, gspace, noise_weights(record, NoiseModel.of(noise)))
     i = gspace.names.index(name)
-    U, c2 = obj.axis_scan(gspace.unit(base), [i], n_scan, record.n_samples, SolverSettings(max_step=step))
+    grid = scan_grid(gspace.params[i], gspace.effects[gspace.effect_names.index(name)], record, n_scan)
+    U, c2 = obj.axis_scan(gspace.unit(base), [i], grid.size, record.n_samples, SolverSettings(max_step=step), grid)
     j = int(np.argmin(c2[:-1]))  # the scan's own points (the base, last, is a seed already)
     return [gspace.values(U[j])] if np.isfinite(c2[j]) else []
 

@@ -52,6 +52,7 @@ __all__ = [
     "check_bounds",
     "default_space",
     "indistinguishable",
+    "scan_grid",
 ]
 
 #: Search interval of c1 [pu]: it has no operating range (records usually give it).
@@ -69,6 +70,16 @@ CALIBRATED: tuple[str, ...] = ("K", "J1", "c", "c1")
 ALIGNMENT: str = "trigger_offset"
 #: Effects that are pure time shifts of every channel: absorbed by :data:`ALIGNMENT` when it is free.
 TIME_SHIFT_EFFECTS: frozenset[str] = frozenset({"trigger_offset", "measurement_delay"})
+
+#: Where a scan of a time shift (:data:`TIME_SHIFT_EFFECTS`) samples each sample interval of the
+#: record, as fractions of it: twice per interval (the chi-square of a shift has a basin per period
+#: of the record's fastest content, often narrower than the 0.5 ms between the values of a 9-value
+#: scan of +-2 ms), and never on a multiple of the interval, where a sample crosses the switch-off
+#: instant and the model's currents and torque jump to zero (docs/diagnosis.md 8b, *Scans of a
+#: time shift*).
+SHIFT_SCAN_OFFSETS: tuple[float, ...] = (0.25, 0.75)
+#: Most values of one scan of a time shift (a record on a very fine grid).
+MAX_SHIFT_SCAN: int = 201
 
 #: Effects whose value is best searched on a logarithmic scale.
 LOG_SCALED_EFFECTS: frozenset[str] = frozenset({"contact_stiffness", "contact_damping", "sensor_lowpass"})
@@ -103,6 +114,45 @@ def indistinguishable(name: str, value: float, library: EffectLibrary) -> tuple[
         for n in library
         if n != name and n in TIME_SHIFT_EFFECTS and library[n].bounds[0] <= value <= library[n].bounds[1]
     )
+
+
+def scan_grid(param: FreeParameter, effect: Effect, record: Record, n_scan: int) -> np.ndarray:
+    """Unit-box coordinates of a one-dimensional scan of ``effect``'s value over its range on ``record``.
+
+    ``n_scan`` values evenly spaced over the range for most effects. For a pure time shift
+    (:data:`TIME_SHIFT_EFFECTS`) the scan must land in the basin of the true shift, which is
+    often narrower than a coarse scan's spacing, and must avoid the shifts at which a sample
+    crosses the model's switch-off instant (multiples of the sample interval, the event
+    lying on a sample), where the chi-square jumps: :data:`SHIFT_SCAN_OFFSETS` within every
+    sample interval of the range (at most :data:`MAX_SHIFT_SCAN` values, thinned evenly).
+
+    Parameters
+    ----------
+    param : FreeParameter
+        The effect's free parameter in the space scanned (its search interval).
+    effect : Effect
+        The scanned effect.
+    record : Record
+        The record fitted (its sample interval [s]).
+    n_scan : int
+        Values of the scan of any other effect.
+
+    Returns
+    -------
+    ndarray
+        Unit-box coordinates of the scanned values, ascending.
+    """
+    if effect.name not in TIME_SHIFT_EFFECTS:
+        return np.linspace(0.0, 1.0, n_scan)
+    ts = record.sample_interval
+    m = np.arange(math.floor(param.lo / ts), math.ceil(param.hi / ts))
+    values = ((m[:, None] + np.asarray(SHIFT_SCAN_OFFSETS)[None]) * ts).ravel()
+    values = values[(values >= param.lo) & (values <= param.hi)]
+    if values.size > MAX_SHIFT_SCAN:
+        values = values[:: math.ceil(values.size / MAX_SHIFT_SCAN)]
+    if values.size < 2:
+        return np.linspace(0.0, 1.0, n_scan)
+    return np.array([param.unit_coord(v) for v in values])
 
 
 @dataclass(frozen=True)
