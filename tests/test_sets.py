@@ -517,3 +517,20 @@ def test_a_large_trigger_offset_beside_a_weak_effect_is_found_by_the_fine_scan(m
     former = best()
     assert former.calibration is not None
     assert set(former.effects) != set(truth) or former.calibration.reduced_chi2 > 1.1
+
+
+def test_a_shift_fitted_at_the_edge_of_the_switch_off_jump_is_refitted_from_the_other_side() -> None:
+    from engine.diagnosis.space import across_switch_off, default_space
+
+    rec, _ = simulate(PlantParameters(K=0.005, J1=0.85, c=1.1, c1=0.2)).test_window()
+    ts = rec.sample_interval
+    space = default_space(rec).with_effect(CATALOGUE["trigger_offset"])
+
+    def at(shift: float) -> list[float]:
+        u = space.unit({"K": 0.005, "J1": 0.85, "c": 1.1, "trigger_offset": shift})
+        return [space.values(w)["trigger_offset"] for w in across_switch_off(space, u, rec)]
+
+    assert at(-7 * ts + 0.003 * ts) == [pytest.approx(-7.25 * ts)]  # just above the jump at -7 Ts: below it
+    assert at(-7 * ts - 0.003 * ts) == [pytest.approx(-6.75 * ts)]
+    assert at(-7.3 * ts) == []  # inside an interval: nothing to try
+    assert across_switch_off(default_space(rec), default_space(rec).unit({"K": 0.005, "J1": 0.85, "c": 1.1}), rec) == []

@@ -53,7 +53,7 @@ from scipy.stats import qmc
 from engine.constants import CHANNELS
 from engine.diagnosis.noise import NoiseModel, estimate_noise, noise_weights
 from engine.diagnosis.objective import Objective
-from engine.diagnosis.space import CALIBRATED, ModelSpace, default_space
+from engine.diagnosis.space import CALIBRATED, ModelSpace, across_switch_off, default_space
 from engine.features.wavelet import level_for_interval
 from engine.parallel import single_threaded_blas
 from engine.records import Record, SampleGrid
@@ -436,6 +436,22 @@ def _calibrate(
                 best_chi2, u_best, stages = trace[-1]["chi2"], u, trace
         if not np.isfinite(best_chi2):
             raise CalibrationError("no start of the calibration reached a parameter set that can be simulated")
+        # 2b. a time shift stopped at the edge of the switch-off jump: refit from its other side
+        for w in across_switch_off(space, u_best, record):
+            u, c2, _, nfev = obj.local_fit(w, record.n_samples, coarse, settings.max_nfev, settings.fd_step)
+            logger.debug("across the switch-off jump: chi2 %.4g -> %.4g", best_chi2, c2)
+            if c2 < best_chi2:
+                best_chi2, u_best = c2, u
+                stages = [
+                    *stages,
+                    {
+                        "start": "across",
+                        "horizon": record.n_samples,
+                        "chi2": c2,
+                        "step": settings.search_step,
+                        "nfev": nfev,
+                    },
+                ]
 
         # 3. polish at the final integrator step, full horizon; small difference steps near the optimum
         if polish:

@@ -49,6 +49,7 @@ __all__ = [
     "BoundsError",
     "FreeParameter",
     "ModelSpace",
+    "across_switch_off",
     "check_bounds",
     "default_space",
     "indistinguishable",
@@ -80,6 +81,9 @@ TIME_SHIFT_EFFECTS: frozenset[str] = frozenset({"trigger_offset", "measurement_d
 SHIFT_SCAN_OFFSETS: tuple[float, ...] = (0.25, 0.75)
 #: Most values of one scan of a time shift (a record on a very fine grid).
 MAX_SHIFT_SCAN: int = 201
+#: A fitted time shift this close to a multiple of the sample interval (fraction of the interval) may
+#: have stopped at the edge of a jump of the chi-square; the fit is tried again from the other side.
+SHIFT_EDGE: float = 0.05
 
 #: Effects whose value is best searched on a logarithmic scale.
 LOG_SCALED_EFFECTS: frozenset[str] = frozenset({"contact_stiffness", "contact_damping", "sensor_lowpass"})
@@ -153,6 +157,50 @@ def scan_grid(param: FreeParameter, effect: Effect, record: Record, n_scan: int)
     if values.size < 2:
         return np.linspace(0.0, 1.0, n_scan)
     return np.array([param.unit_coord(v) for v in values])
+
+
+def across_switch_off(space: ModelSpace, u: np.ndarray, record: Record) -> list[np.ndarray]:
+    """Points on the other side of the chi-square's jump from a fit whose time shift stopped at its edge.
+
+    A least-squares fit of a time shift (:data:`TIME_SHIFT_EFFECTS`) cannot cross the shifts at which
+    a sample crosses the switch-off instant (multiples of the sample interval; see
+    :func:`scan_grid`): when the rest of the record pulls the shift towards the true value beyond
+    such a jump, the fit stops at its edge. For every shift of ``space`` within :data:`SHIFT_EDGE`
+    sample intervals of a multiple of the interval, the point ``u`` with that shift moved a quarter
+    interval to the other side of the jump.
+
+    Parameters
+    ----------
+    space : ModelSpace
+        The space fitted.
+    u : ndarray, shape (space.dim,)
+        The fit, in unit-box coordinates.
+    record : Record
+        The record fitted (its sample interval [s]).
+
+    Returns
+    -------
+    list of ndarray
+        The points to refit from (empty when no shift lies at an edge).
+    """
+    out: list[np.ndarray] = []
+    ts = record.sample_interval
+    for effect in space.effects:
+        if effect.name not in TIME_SHIFT_EFFECTS:
+            continue
+        i = space.names.index(effect.name)
+        param = space.params[i]
+        v = float(param.value(u[i]))
+        m = round(v / ts)
+        delta = v - m * ts
+        if abs(delta) > SHIFT_EDGE * ts:
+            continue
+        other = (m - math.copysign(0.25, delta)) * ts if delta != 0.0 else (m + 0.25) * ts
+        if param.lo <= other <= param.hi:
+            w = np.array(u, dtype=float)
+            w[i] = param.unit_coord(other)
+            out.append(w)
+    return out
 
 
 @dataclass(frozen=True)
