@@ -26,6 +26,20 @@ def noisy(record: Record, snr_db: float, seed: int) -> Record:
     return Record(ch, record.sample_interval, record.event_index, conditions={"c1": 0.2})
 
 
+def coloured(clean: Record, snr_db: float, cutoff_hz: float, order: int, seed: int) -> Record:
+    """``clean``'s test window with Butterworth low-passed noise of ``snr_db`` per channel (as a data
+    acquisition chain colours it; the validation's noise, :mod:`engine.validation.noise`)."""
+    from scipy.signal import butter, lfilter
+
+    rng = np.random.default_rng(seed)
+    b, a = butter(order, cutoff_hz, fs=1.0 / clean.sample_interval)
+    channels = {}
+    for k, v in clean.channels.items():
+        w = lfilter(b, a, rng.standard_normal(v.size))
+        channels[k] = v + w / w.std() * noise_std(v, snr_db)[0]
+    return Record(channels, clean.sample_interval, clean.event_index, conditions={"c1": 0.2}).test_window()[0]
+
+
 def fake_cal(reduced_chi2: float, n: int = 10_000, k: int = 4, ch: int = 5) -> CalibrationResult:
     """A calibration result with only the statistics the decision reads."""
     chi2 = reduced_chi2 * n
@@ -403,8 +417,6 @@ def test_the_second_best_single_is_extended_too_when_the_best_is_a_stand_in() ->
     ranks last of the screened additions beside that stand-in, ranks fourth beside the supply change,
     the second best single (on 33 dB of coloured noise, as in the case). Forward selection from the
     best single alone (``n_base=1``) never fits the true pair; from the two best (the default) it does, to the noise."""
-    from scipy.signal import butter, lfilter
-
     from engine.diagnosis.calibration import calibrate
     from engine.diagnosis.candidate import CandidateSettings
     from engine.diagnosis.candidates import fit_candidates
@@ -414,17 +426,9 @@ def test_the_second_best_single_is_extended_too_when_the_best_is_a_stand_in() ->
 
     plant = PlantParameters(K=0.007899, J1=0.977, c=0.723, c1=0.2)
     truth = {"supply_voltage": 0.886, "trigger_offset": -0.0007254}
-    clean = simulate(plant, effects=truth)
     # 33 dB of noise low-passed at 642 Hz (first order), as in the case (with white noise the supply
     # change ranks first and the search from one base finds the pair)
-    rng = np.random.default_rng(0)
-    b, a = butter(1, 642.0, fs=1.0 / clean.sample_interval)
-    channels = {}
-    for k, v in clean.channels.items():
-        w = lfilter(b, a, rng.standard_normal(v.size))
-        channels[k] = v + w / w.std() * noise_std(v, 33.0)[0]
-    whole = Record(channels, clean.sample_interval, clean.event_index, conditions={"c1": 0.2})
-    rec, _ = whole.test_window()
+    rec = coloured(simulate(plant, effects=truth), 33.0, 642.0, 1, seed=0)
     space = default_space(rec)
     nominal = calibrate(rec, space, NOMINAL_CALIBRATION)
     cs = CandidateSettings()
@@ -479,8 +483,6 @@ def test_a_large_trigger_offset_beside_a_weak_effect_is_found_by_the_fine_scan(m
     0.093, 5 noise RMS): with the scans of 9 values over +-2 ms the trigger offset's single fit
     stopped at the scan value -1.0 ms (chi2/n 5400) and no pair reached the noise; scanned twice per
     sample interval, off the samples, the pair is fitted to the noise."""
-    from scipy.signal import butter, lfilter
-
     from engine.diagnosis.calibration import calibrate
     from engine.diagnosis.candidate import CandidateSettings
     from engine.diagnosis.candidates import fit_candidates
@@ -490,14 +492,7 @@ def test_a_large_trigger_offset_beside_a_weak_effect_is_found_by_the_fine_scan(m
 
     plant = PlantParameters(K=0.011678, J1=1.1263, c=1.9364, c1=0.2)
     truth = {"motor_viscous_friction": 0.0934, "trigger_offset": -0.0011882}
-    clean = simulate(plant, effects=truth)
-    rng = np.random.default_rng(1)
-    b, a = butter(2, 1683.0, fs=1.0 / clean.sample_interval)
-    channels = {}
-    for k, v in clean.channels.items():
-        w = lfilter(b, a, rng.standard_normal(v.size))
-        channels[k] = v + w / w.std() * noise_std(v, 47.0)[0]
-    rec, _ = Record(channels, clean.sample_interval, clean.event_index, conditions={"c1": 0.2}).test_window()
+    rec = coloured(simulate(plant, effects=truth), 47.0, 1683.0, 2, seed=1)
     space = default_space(rec)
 
     def best() -> CandidateSet:
