@@ -451,31 +451,44 @@ def test_the_second_best_single_is_extended_too_when_the_best_is_a_stand_in() ->
 
 def test_a_time_shift_is_scanned_twice_per_sample_interval_never_on_a_sample() -> None:
     """A shift's chi-square jumps wherever a sample crosses the model's switch-off instant (the
-    shift a multiple of the sample interval) and has basins narrower than a 9-value scan's 0.5 ms."""
-    from engine.diagnosis.space import MAX_SHIFT_SCAN, default_space, scan_grid
+    case's total shift a multiple of the sample interval) and has basins narrower than a 9-value
+    scan's 0.5 ms; a delay the case already has beside the scanned trigger offset moves the jumps."""
+    from dataclasses import replace
+
+    from engine.diagnosis.space import MAX_SHIFT_SCAN, ModelSpace, default_space, scan_grid
+    from engine.simulation import Case, Effect
 
     clean = simulate(PlantParameters(K=0.005, J1=0.85, c=1.1, c1=0.2))
     rec, _ = clean.test_window()
+    ts = rec.sample_interval
+
+    def scanned(space: ModelSpace, effect: Effect) -> np.ndarray:
+        s = space.with_effect(effect)
+        u = s.unit({**{p.name: p.value(0.5) for p in s.params}, effect.name: effect.neutral})
+        return np.array([s.params[-1].value(x) for x in scan_grid(s, s.dim - 1, u, rec, 9)])
+
     for name in ("trigger_offset", "measurement_delay"):
         effect = CATALOGUE[name]
-        param = default_space(rec).with_effect(effect).params[-1]
-        u = scan_grid(param, effect, rec, 9)
-        values = np.array([param.value(x) for x in u])
-        ts = rec.sample_interval
+        values = scanned(default_space(rec), effect)
         lo, hi = effect.bounds
         assert values.min() >= lo and values.max() <= hi
         assert np.all(np.diff(values) == pytest.approx(ts / 2))  # twice per sample interval ...
         assert values.size == round((hi - lo) / ts * 2)  # ... over the whole range
         phase = values / ts - np.floor(values / ts)
         assert np.all(np.abs(phase - 0.5) == pytest.approx(0.25))  # a quarter interval off every sample
+    space = default_space(rec)
+    delayed = replace(space, base=Case(space.base.plant, space.base.sensors.replace(delay=0.33 * ts)))
+    total = scanned(delayed, CATALOGUE["trigger_offset"]) + 0.33 * ts
+    phase = total / ts - np.floor(total / ts)
+    assert np.all(np.abs(phase - 0.5) == pytest.approx(0.25))  # the jumps follow the case's total shift
     viscous = CATALOGUE["motor_viscous_friction"]
-    param = default_space(rec).with_effect(viscous).params[-1]
-    assert np.array_equal(scan_grid(param, viscous, rec, 9), np.linspace(0.0, 1.0, 9))
+    s = space.with_effect(viscous)
+    assert np.array_equal(scan_grid(s, s.dim - 1, np.full(s.dim, 0.5), rec, 9), np.linspace(0.0, 1.0, 9))
     fine = Record(
         {k: np.repeat(v, 10) for k, v in rec.channels.items()}, rec.sample_interval / 10, rec.event_index * 10
     )
-    trigger = CATALOGUE["trigger_offset"]
-    assert scan_grid(default_space(fine).with_effect(trigger).params[-1], trigger, fine, 9).size <= MAX_SHIFT_SCAN
+    s = default_space(fine).with_effect(CATALOGUE["trigger_offset"])
+    assert scan_grid(s, s.dim - 1, np.full(s.dim, 0.5), fine, 9).size <= MAX_SHIFT_SCAN
 
 
 def test_a_large_trigger_offset_beside_a_weak_effect_is_found_by_the_fine_scan(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -507,7 +520,9 @@ def test_a_large_trigger_offset_beside_a_weak_effect_is_found_by_the_fine_scan(m
     assert found.values["trigger_offset"] == pytest.approx(-0.0011882, abs=1e-5)
     for module in ("candidate", "sets", "screening"):  # the former scans: 9 values evenly over the range
         monkeypatch.setattr(
-            importlib.import_module(f"engine.diagnosis.{module}"), "scan_grid", lambda p, e, r, n: np.linspace(0, 1, n)
+            importlib.import_module(f"engine.diagnosis.{module}"),
+            "scan_grid",
+            lambda s, i, u, r, n: np.linspace(0, 1, n),
         )
     former = best()
     assert former.calibration is not None

@@ -228,10 +228,8 @@ def _seeds(
     obj = Objective(record, space, nominal.sigma)
     base = space.unit(nominal.values)
     base[-1] = space.params[-1].unit_coord(space.effect.neutral)
-    grid = scan_grid(space.params[-1], space.effect, record, settings.n_scan)
-    U, c2 = obj.axis_scan(
-        base, [space.dim - 1], grid.size, record.n_samples, SolverSettings(max_step=search_step), grid
-    )
+    grid = scan_grid(space, space.dim - 1, base, record, settings.n_scan)
+    U, c2 = obj.axis_scan(base, [space.dim - 1], grid, record.n_samples, SolverSettings(max_step=search_step))
     seeds = [space.values(U[-1])]
     i = int(np.argmin(c2[:-1]))
     if np.isfinite(c2[i]) and abs(U[i, -1] - U[-1, -1]) > 1e-9:

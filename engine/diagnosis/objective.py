@@ -169,10 +169,9 @@ class Objective:
         self,
         u: np.ndarray,
         axes: Sequence[int],
-        n: int,
+        n: int | np.ndarray,
         horizon: int,
         solver: SolverSettings,
-        grid: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Scan of each of ``axes`` alone over its whole range around ``u``, one batch of simulations.
 
@@ -182,24 +181,23 @@ class Objective:
             The point the other coordinates keep.
         axes : sequence of int
             Coordinates scanned, one after the other.
-        n : int
-            Values of each scan, evenly spaced over [0, 1] in unit-box coordinates (ignored when
-            ``grid`` is given).
+        n : int or ndarray
+            Values of each scan, evenly spaced over [0, 1] in unit-box coordinates, or the
+            unit-box coordinates of the scan themselves (:func:`engine.diagnosis.space.scan_grid`).
         horizon : int
             Samples of the chi2.
         solver : SolverSettings
             Integrator settings.
-        grid : ndarray, optional
-            The unit-box coordinates of every scan (its size is then ``n``).
 
         Returns
         -------
-        U : ndarray, shape (len(axes) * n + 1, d)
+        U : ndarray, shape (len(axes) * m + 1, d)
+            (``m`` values per scan)
             The scan's points, axis after axis, then ``u`` itself (last row).
         chi2 : ndarray, shape (len(axes) * n + 1,)
             Their chi2 [noise variances] on ``horizon`` (inf where the simulation failed).
         """
-        grid = np.linspace(0.0, 1.0, n) if grid is None else np.asarray(grid, dtype=float)
+        grid = np.linspace(0.0, 1.0, int(n)) if np.ndim(n) == 0 else np.asarray(n, dtype=float)
         n = grid.size
         U = np.repeat(np.asarray(u, dtype=float)[None], len(axes) * n + 1, axis=0)
         for k, j in enumerate(axes):

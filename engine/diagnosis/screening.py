@@ -129,7 +129,8 @@ def rank_additions(
         se = s0.with_effect(e)
         obj = Objective(record, se, weights)
         # the neutral value first (the score test's point), then the scan; each with a forward step
-        grid = np.append(se.params[-1].unit_coord(e.neutral), scan_grid(se.params[-1], e, record, n_scan))
+        ue = np.append(u0, se.params[-1].unit_coord(e.neutral))
+        grid = np.append(ue[-1], scan_grid(se, se.dim - 1, ue, record, n_scan))
         steps = np.where(grid + fd_step <= 1.0, fd_step, -fd_step)
         U = np.repeat(np.append(u0, 0.0)[None], 2 * grid.size, axis=0)
         U[: grid.size, -1] = grid

@@ -436,8 +436,10 @@ def _scan_seed(
     """
     obj = Objective(record, gspace, noise_weights(record, NoiseModel.of(noise)))
     i = gspace.names.index(name)
-    grid = scan_grid(gspace.params[i], gspace.effects[gspace.effect_names.index(name)], record, n_scan)
-    U, c2 = obj.axis_scan(gspace.unit(base), [i], grid.size, record.n_samples, SolverSettings(max_step=step), grid)
+    u = gspace.unit(base)
+    U, c2 = obj.axis_scan(
+        u, [i], scan_grid(gspace, i, u, record, n_scan), record.n_samples, SolverSettings(max_step=step)
+    )
     j = int(np.argmin(c2[:-1]))  # the scan's own points (the base, last, is a seed already)
     return [gspace.values(U[j])] if np.isfinite(c2[j]) else []
 

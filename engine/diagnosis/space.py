@@ -120,37 +120,57 @@ def indistinguishable(name: str, value: float, library: EffectLibrary) -> tuple[
     )
 
 
-def scan_grid(param: FreeParameter, effect: Effect, record: Record, n_scan: int) -> np.ndarray:
-    """Unit-box coordinates of a one-dimensional scan of ``effect``'s value over its range on ``record``.
+def _shift_axis(space: ModelSpace, i: int) -> bool:
+    """Whether coordinate ``i`` of ``space`` is the value of a time-shift effect."""
+    first = space.dim - len(space.effects)
+    return i >= first and space.effects[i - first].name in TIME_SHIFT_EFFECTS
 
-    ``n_scan`` values evenly spaced over the range for most effects. For a pure time shift
-    (:data:`TIME_SHIFT_EFFECTS`) the scan must land in the basin of the true shift, which is
-    often narrower than a coarse scan's spacing, and must avoid the shifts at which a sample
-    crosses the model's switch-off instant (multiples of the sample interval, the event
-    lying on a sample), where the chi-square jumps: :data:`SHIFT_SCAN_OFFSETS` within every
-    sample interval of the range (at most :data:`MAX_SHIFT_SCAN` values, thinned evenly).
+
+def _other_shift(space: ModelSpace, i: int, u: np.ndarray) -> float:
+    """The rest of the case's total shift (delay + trigger offset) [s] beside the shift of coordinate ``i``
+    at point ``u``: a shift effect sets its own field, the other field comes from the record's conditions
+    or the alignment (:data:`ALIGNMENT`)."""
+    sensors = space.case(u).sensors
+    return float(sensors.delay + sensors.trigger_offset - space.params[i].value(u[i]))
+
+
+def scan_grid(space: ModelSpace, i: int, u: np.ndarray, record: Record, n_scan: int) -> np.ndarray:
+    """Unit-box coordinates of a one-dimensional scan of coordinate ``i`` of ``space`` at point ``u``.
+
+    ``n_scan`` values evenly spaced over the range for most coordinates. For the value of a pure
+    time shift (:data:`TIME_SHIFT_EFFECTS`) the scan must land in the basin of the true shift,
+    which is often narrower than a coarse scan's spacing, and must avoid the shifts at which a
+    sample crosses the model's switch-off instant (the case's total shift a multiple of the
+    sample interval, the event lying on a sample), where the chi-square jumps:
+    :data:`SHIFT_SCAN_OFFSETS` within every sample interval of the range (at most
+    :data:`MAX_SHIFT_SCAN` values, thinned evenly). The total shift counts any delay or trigger
+    offset the record's conditions or the alignment give beside the scanned effect.
 
     Parameters
     ----------
-    param : FreeParameter
-        The effect's free parameter in the space scanned (its search interval).
-    effect : Effect
-        The scanned effect.
+    space : ModelSpace
+        The space scanned.
+    i : int
+        The scanned coordinate.
+    u : ndarray, shape (space.dim,)
+        The point the other coordinates keep.
     record : Record
         The record fitted (its sample interval [s]).
     n_scan : int
-        Values of the scan of any other effect.
+        Values of the scan of any other coordinate.
 
     Returns
     -------
     ndarray
         Unit-box coordinates of the scanned values, ascending.
     """
-    if effect.name not in TIME_SHIFT_EFFECTS:
+    if not _shift_axis(space, i):
         return np.linspace(0.0, 1.0, n_scan)
+    param = space.params[i]
     ts = record.sample_interval
-    m = np.arange(math.floor(param.lo / ts), math.ceil(param.hi / ts))
-    values = ((m[:, None] + np.asarray(SHIFT_SCAN_OFFSETS)[None]) * ts).ravel()
+    rest = _other_shift(space, i, u)
+    m = np.arange(math.floor((param.lo + rest) / ts), math.ceil((param.hi + rest) / ts))
+    values = ((m[:, None] + np.asarray(SHIFT_SCAN_OFFSETS)[None]) * ts).ravel() - rest
     values = values[(values >= param.lo) & (values <= param.hi)]
     if values.size > MAX_SHIFT_SCAN:
         values = values[:: math.ceil(values.size / MAX_SHIFT_SCAN)]
@@ -163,11 +183,11 @@ def across_switch_off(space: ModelSpace, u: np.ndarray, record: Record) -> list[
     """Points on the other side of the chi-square's jump from a fit whose time shift stopped at its edge.
 
     A least-squares fit of a time shift (:data:`TIME_SHIFT_EFFECTS`) cannot cross the shifts at which
-    a sample crosses the switch-off instant (multiples of the sample interval; see
-    :func:`scan_grid`): when the rest of the record pulls the shift towards the true value beyond
-    such a jump, the fit stops at its edge. For every shift of ``space`` within :data:`SHIFT_EDGE`
-    sample intervals of a multiple of the interval, the point ``u`` with that shift moved a quarter
-    interval to the other side of the jump.
+    a sample crosses the switch-off instant (see :func:`scan_grid`): when the rest of the record
+    pulls the shift towards the true value beyond such a jump, the fit stops at its edge. For every
+    shift effect of ``space`` whose total shift lies within :data:`SHIFT_EDGE` sample intervals of a
+    multiple of the interval, the point ``u`` with that shift moved a quarter interval to the other
+    side of the jump.
 
     Parameters
     ----------
@@ -185,17 +205,17 @@ def across_switch_off(space: ModelSpace, u: np.ndarray, record: Record) -> list[
     """
     out: list[np.ndarray] = []
     ts = record.sample_interval
-    for effect in space.effects:
-        if effect.name not in TIME_SHIFT_EFFECTS:
+    for i in range(space.dim):
+        if not _shift_axis(space, i):
             continue
-        i = space.names.index(effect.name)
         param = space.params[i]
         v = float(param.value(u[i]))
-        m = round(v / ts)
-        delta = v - m * ts
+        total = v + _other_shift(space, i, u)
+        m = round(total / ts)
+        delta = total - m * ts
         if abs(delta) > SHIFT_EDGE * ts:
             continue
-        other = (m - math.copysign(0.25, delta)) * ts if delta != 0.0 else (m + 0.25) * ts
+        other = v - delta - math.copysign(0.25, delta) * ts  # the jump, then a quarter interval across
         if param.lo <= other <= param.hi:
             w = np.array(u, dtype=float)
             w[i] = param.unit_coord(other)
