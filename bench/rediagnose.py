@@ -11,6 +11,9 @@ Example (six triples of the seed-101 progress run)::
     python bench/rediagnose.py out/validation-v2-progress-seed101 \\
         case0031,case0045,case0052,case0064,case0068,case0092
 
+``--sets`` updates the default :class:`~engine.diagnosis.sets.SetSettings` of the diagnosis
+(e.g. ``--sets '{"n_escalate_first": 0}'`` for the order before the early escalation).
+
 One JSON line per case on stdout; the diagnosis's log on stderr (``--log-level``).
 """
 
@@ -28,14 +31,23 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("run", type=Path, help="directory of a validation run (its cases/ and key/)")
     ap.add_argument("cases", help="case ids, comma-separated (e.g. case0018,case0040)")
+    ap.add_argument("--sets", default="{}", help="SetSettings fields as JSON, e.g. '{\"n_escalate_first\": 0}'")
     ap.add_argument("--log-level", default="WARNING", help="log level of the diagnosis (default WARNING)")
     args = ap.parse_args(argv)
     logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(name)s %(message)s", stream=sys.stderr)
 
+    from dataclasses import replace
+
     from engine.diagnosis import diagnose
+    from engine.diagnosis.diagnose import DiagnosisSettings
     from engine.validation.layout import RunLayout
     from engine.validation.score import answer_of, correct
 
+    ds = DiagnosisSettings()
+    try:
+        settings = replace(ds, sets=replace(ds.sets, **json.loads(args.sets)))
+    except (TypeError, ValueError) as e:
+        ap.error(f"--sets: {e}")
     layout = RunLayout(args.run)
     if not layout.key.exists():
         ap.error(f"{args.run} holds no validation run (no {layout.key})")
@@ -48,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     for cid in ids:
         k = by_id[cid]
         t0 = time.perf_counter()
-        result = diagnose(layout.read_case(cid)).to_dict(include_records=False)
+        result = diagnose(layout.read_case(cid), settings=settings).to_dict(include_records=False)
         seconds = time.perf_counter() - t0
         a = answer_of(result)
         row = {

@@ -85,6 +85,9 @@ class Candidate:
         Why an effect was not fitted (e.g. degenerate with a calibrated parameter).
     locus : str or None
         Where in the plant the effect acts (:data:`engine.simulation.LOCI`).
+    escalated : bool
+        Whether the effect's joint space has had the global search (the escalation), so that
+        a later escalation does not search it again.
     """
 
     effect: str
@@ -100,6 +103,7 @@ class Candidate:
     strength: float | None = None
     note: str = ""
     locus: str | None = None
+    escalated: bool = False
 
     @classmethod
     def from_fit(cls, effect: Effect, cal: CalibrationResult, nominal: CalibrationResult) -> Candidate:

@@ -186,7 +186,7 @@ def _escalate(
             extra_seeds=[_fitted(cands[i]).values],
         )
 
-    idx = [i for i, c in enumerate(cands[:n_esc]) if c.calibration is not None]
+    idx = [i for i, c in enumerate(cands[:n_esc]) if c.calibration is not None and not c.escalated]
     tasks: dict[int, Task[Candidate] | Deferred[Candidate]] = {}
     for k, i in enumerate(idx):
         if k == 1:  # the best seeded candidate ran alone (on every core); the rest run side by side
@@ -196,6 +196,7 @@ def _escalate(
         _fitted(new).n_simulations += _fitted(c).n_simulations
         _fitted(new).seconds += _fitted(c).seconds
         cands[i] = new if new.bic < c.bic else c
+        cands[i].escalated = True
         if _fitted(cands[i]).reduced_chi2 <= settings.escalate_above:
             logger.info("escalation: %s (rank %d before it) fits to the noise", c.effect, i + 1)
             # one effect explains the record: the others keep their seeded fits
@@ -246,6 +247,7 @@ def _finish(
         cal.n_simulations += _fitted(c).n_simulations
         cal.seconds += _fitted(c).seconds
         cands[i] = Candidate.from_fit(library[c.effect], cal, nominal)
+        cands[i].escalated = c.escalated
     cands = _order(cands)
     strengths = {
         i: runner.submit(effect_strength, c, space, record, nominal.sigma)  # the floored noise of the fit

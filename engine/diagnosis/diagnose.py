@@ -736,6 +736,12 @@ def _diagnose(
     if use_sets and not _explains_single(cands, settings):
         progress(0.55, "no single effect explains the record: searching sets of effects")
     sets: list[CandidateSet] = []
+    if staged and set_settings.n_escalate_first > 0 and needs_escalation(cands, cs):
+        # the few best singles' global search first: a single effect whose seeded fit stayed in the
+        # nominal calibration's basin is most often among them, and found in seconds
+        n_first = set_settings.n_escalate_first
+        early = replace(cs, n_escalate=n_first if cs.n_escalate is None else min(n_first, cs.n_escalate))
+        cands = escalate_candidates(record, nominal, space, library, cands, early)
     if staged and not _explains_single(cands, settings):
         # pairs from the seeded single fits first, the best with a global search in its joint space;
         # the singles' escalation only when none explains the record

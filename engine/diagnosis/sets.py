@@ -140,6 +140,12 @@ class SetSettings:
         when no such pair explains the record (fits to the noise with every member strong):
         the escalation of every single candidate is the most expensive step of a compound
         record, and a compound record is what it cannot explain (docs/diagnosis.md 8b).
+    n_escalate_first : int
+        With ``before_escalation``, the single candidates of this many best BICs get the global
+        search before the first pairs (best first, stopping at one that fits to the noise): a
+        single effect whose seeded fit stayed in the nominal calibration's wrong basin is most
+        often among the first few (docs/diagnosis.md 8b, *Early escalation*), and its global
+        search costs a few seconds where the pairs it would otherwise wait for cost tens. 0: none.
     """
 
     max_size: int = 3
@@ -155,6 +161,7 @@ class SetSettings:
     n_report: int = 5
     min_strength: float = 3.0
     before_escalation: bool = True
+    n_escalate_first: int = 2
 
 
 @dataclass
