@@ -49,16 +49,12 @@ def main(argv: list[str] | None = None) -> int:
     except (TypeError, ValueError) as e:
         ap.error(f"--sets: {e}")
     layout = RunLayout(args.run)
-    if not layout.key.exists():
-        ap.error(f"{args.run} holds no validation run (no {layout.key})")
-    _, key = layout.read_key()
-    by_id = {k.case_id: k for k in key}
-    ids = [c for c in args.cases.split(",") if c]
-    unknown = [c for c in ids if c not in by_id]
-    if unknown:
-        ap.error(f"not cases of this run: {', '.join(unknown)}")
-    for cid in ids:
-        k = by_id[cid]
+    try:
+        entries = layout.key_entries([c for c in args.cases.split(",") if c])
+    except (FileNotFoundError, KeyError) as e:
+        ap.error(str(e.args[0]))
+    for k in entries:
+        cid = k.case_id
         t0 = time.perf_counter()
         result = diagnose(layout.read_case(cid), settings=settings).to_dict(include_records=False)
         seconds = time.perf_counter() - t0

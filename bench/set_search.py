@@ -51,19 +51,17 @@ def main(argv: list[str] | None = None) -> int:
 
     layout = RunLayout(args.run)
     prepare_cases(layout, args.n_cases, args.seed)
-    _, key = layout.read_key()
-    by_id = {k.case_id: k for k in key}
-    ids = [c for c in args.cases.split(",") if c]
-    unknown = [c for c in ids if c not in by_id]
-    if unknown:
-        ap.error(f"not cases of this run: {', '.join(unknown)}")
+    try:
+        entries = layout.key_entries([c for c in args.cases.split(",") if c])
+    except KeyError as e:
+        ap.error(str(e.args[0]))
     ds = DiagnosisSettings()
     ss = replace(
         ds.sets, min_strength=ds.min_strength, max_reduced_chi2=ds.max_reduced_chi2, **json.loads(args.settings)
     )
     hits = 0
-    for cid in ids:
-        truth = {e.name for e in by_id[cid].effects}
+    for k in entries:
+        cid, truth = k.case_id, {e.name for e in k.effects}
         t0 = time.perf_counter()
         record, _ = layout.read_case(cid).test_window()
         space = default_space(record)
@@ -88,8 +86,8 @@ def main(argv: list[str] | None = None) -> int:
             "seconds": round(time.perf_counter() - t0, 1),
         }
         print(json.dumps(row), flush=True)
-    low, high = wilson_interval(hits, len(ids))
-    print(f"true set fitted to the noise: {hits}/{len(ids)}, Wilson 95 % [{100 * low:.1f}, {100 * high:.1f}] %")
+    low, high = wilson_interval(hits, len(entries))
+    print(f"true set fitted to the noise: {hits}/{len(entries)}, Wilson 95 % [{100 * low:.1f}, {100 * high:.1f}] %")
     return 0
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -300,6 +301,11 @@ def test_cases_and_key_are_written_apart(tmp_path: Path) -> None:
     assert all(h not in layout.manifest.read_text() for h in STAND_IN)
     header, key = layout.read_key()
     assert header["held_back"] == list(STAND_IN) and len(key) == 6
+    assert layout.key_entries(["case0004", "case0001"]) == [key[4], key[1]]  # chosen cases, in the order given
+    with pytest.raises(KeyError, match="case0009, case9"):
+        layout.key_entries(["case0001", "case0009", "case9"])
+    with pytest.raises(FileNotFoundError, match="no validation run"):
+        RunLayout(tmp_path / "none").key_entries(["case0000"])
     # the same settings keep the cases; others are refused; nothing is overwritten
     stamp = layout.case_path("case0000").stat().st_mtime_ns
     assert not prepare_cases(layout, 6, 3, ALL_KINDS_MIX, CATALOGUE, STAND_IN, absorption=False)
@@ -348,6 +354,11 @@ def test_an_interrupted_run_resumes_with_the_missing_cases_only(
     assert set(doc["code_version"]) == {"commit", "describe", "dirty"}
     result = layout.read_result("case0000")
     assert result["case_id"] == "case0000" and "wall_seconds" in result and "code_version" in result
+    # in this process (workers 0): one diagnosis at a time, on every core; the report says so
+    cores = os.cpu_count()
+    assert result["ran_with"] == {"at_once": 1, "threads_each": cores, "host_cores": cores}
+    assert doc["ran_with"] == [result["ran_with"]]
+    assert f"diagnosis times: 1 diagnosis at once, {cores} thread" in layout.report_md.read_text()
     # a diagnosis that raises is recorded as an error (a wrong answer), the run goes on
     CALLS.clear()
     layout.result_path("case0001").unlink()
@@ -582,6 +593,9 @@ def test_report_is_small_and_says_what_it_ran_on() -> None:
         },
     )
     text, md = dumps(doc), markdown(doc)
+    assert "diagnosis times: how many ran at once is not recorded" in md  # results of before the field
+    doc2 = {**doc, "ran_with": [{"at_once": 2, "threads_each": 1, "host_cores": 2}]}
+    assert "diagnosis times: 2 diagnoses at once, 1 thread each on 2 cores" in markdown(doc2)
     assert json.loads(text) == json.loads(json.dumps(doc))
     assert len(text.encode()) + len(md.encode()) < 150_000, (len(text), len(md))
     assert case_rows(json.loads(text))[7] == score_cases(key, res).rows[7]
@@ -651,6 +665,7 @@ def test_tiny_end_to_end_run_with_the_real_diagnosis(tmp_path: Path) -> None:
     assert set(statuses) == {"single", "held_back", "clean"}
     assert all(s in ("explained", "unexplained", "no_gap", "weak_gap") for s in statuses.values()), statuses
     assert all(r["seconds"] is not None and r["chi2n_before"] is not None for r in rows)
+    assert doc["ran_with"] == [{"at_once": 2, "threads_each": 1, "host_cores": os.cpu_count()}]
     for m in doc["metrics"]:
         if m["name"] in ("single_named", "held_back_unexplained", "clean_false_alarm"):
             assert m["rate"]["n"] == 1

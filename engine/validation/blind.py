@@ -11,6 +11,7 @@ wrong answer for the scorer); an interruption (Ctrl-C) is not recorded.
 from __future__ import annotations
 
 import logging
+import os
 import time
 from collections.abc import Callable
 from typing import Any
@@ -22,7 +23,7 @@ from engine.validation.layout import RunLayout
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["DiagnoseFn", "diagnose_cases", "diagnose_record", "library_of_run"]
+__all__ = ["DiagnoseFn", "concurrency", "diagnose_cases", "diagnose_record", "library_of_run"]
 
 #: A diagnosis of one record with a library and settings, returning the JSON-ready result
 #: (``DiagnosisResult.to_dict()``'s shape). Must be picklable (module-level): it runs on Dask workers.
@@ -53,6 +54,26 @@ def library_of_run(layout: RunLayout, catalogue: EffectLibrary) -> EffectLibrary
     if manifest is None or not manifest.get("complete"):
         raise FileNotFoundError(f"{layout.root} holds no complete set of cases (run.json missing or incomplete)")
     return EffectLibrary([catalogue[n] for n in manifest["library"]])
+
+
+def concurrency(client: Any) -> dict[str, int | None]:
+    """How the diagnoses of a run share the machine, stored with each result (its time depends on it).
+
+    Returns
+    -------
+    dict
+        ``at_once``: diagnoses running at the same time (the cluster's workers; 1 in this process);
+        ``threads_each``: threads of each (a worker's threads; in this process, every core);
+        ``host_cores``: cores of the machine that ran them (None for a remote scheduler's cluster,
+        whose machines this process cannot see).
+    """
+    cores = os.cpu_count()
+    if client is None:
+        return {"at_once": 1, "threads_each": cores, "host_cores": cores}
+    workers = client.scheduler_info().get("workers", {})
+    threads = sorted({int(w.get("nthreads", 1)) for w in workers.values()}) or [1]
+    local = getattr(client, "cluster", None) is not None  # a client of a remote scheduler has none
+    return {"at_once": len(workers), "threads_each": threads[-1], "host_cores": cores if local else None}
 
 
 def _diagnose_one(
@@ -132,7 +153,9 @@ def diagnose_cases(
         return finished
     inputs = {c: (c, layout.read_case(c), library, settings, fn, version) for c in todo}
     with dask_client(scheduler, workers) as client:
+        ran_with = concurrency(client)
         for case_id, out in map_cases(client, _diagnose_one, inputs, "case", len(done), len(ids)):
+            out["ran_with"] = ran_with
             layout.write_result(case_id, out)
             finished.append(case_id)
     return finished

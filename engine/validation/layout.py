@@ -146,3 +146,21 @@ class RunLayout:
         data = json.loads(self.key.read_text())
         entries = [KeyEntry.from_dict(d) for d in data.pop("cases")]
         return data, entries
+
+    def key_entries(self, case_ids: Sequence[str]) -> list[KeyEntry]:
+        """The answer key's entries of chosen cases, in the order given (development tools only).
+
+        Raises
+        ------
+        FileNotFoundError
+            When the directory holds no answer key.
+        KeyError
+            When some ids are not cases of the run (all of them named).
+        """
+        if not self.key.is_file():
+            raise FileNotFoundError(f"{self.root} holds no validation run (no {self.key})")
+        by_id = {k.case_id: k for k in self.read_key()[1]}
+        unknown = [c for c in case_ids if c not in by_id]
+        if unknown:
+            raise KeyError(f"not cases of this run: {', '.join(unknown)}")
+        return [by_id[c] for c in case_ids]

@@ -87,6 +87,19 @@ def case_rows(doc: dict[str, Any]) -> list[dict[str, Any]]:
     return [dict(zip(table["columns"], row, strict=True)) for row in table["rows"]]
 
 
+def _ran_with(ran_with: list[dict[str, Any]] | None) -> str:
+    """How the diagnoses shared the machine (their times depend on it), from the results' ``ran_with``."""
+    if not ran_with:
+        return "how many ran at once is not recorded"
+
+    def one(w: dict[str, Any]) -> str:
+        n, t, c = w.get("at_once"), w.get("threads_each"), w.get("host_cores")
+        cores = "" if c is None else f" on {c} cores"
+        return f"{n} diagnos{'is' if n == 1 else 'es'} at once, {t} thread{'s' if t != 1 else ''} each{cores}"
+
+    return "; ".join(one(w) for w in ran_with)
+
+
 def summary_markdown(doc: dict[str, Any]) -> str:
     """The title, provenance and the targets table (what the CLI prints)."""
     cv = doc.get("code_version") or {}
@@ -100,6 +113,7 @@ def summary_markdown(doc: dict[str, Any]) -> str:
         "- cases: " + ", ".join(f"{counts.get(k, 0)} {k}" for k in CASE_KINDS),
         f"- library given to every case: the {len(doc.get('library', []))} effects of the catalogue; "
         f"held back (never in it): {', '.join(doc.get('held_back', []))}",
+        f"- diagnosis times: {_ran_with(doc.get('ran_with'))}",
         f"- scored at {doc.get('scored_at')}",
         "",
         "## Targets",
