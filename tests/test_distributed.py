@@ -29,9 +29,12 @@ SEED = 5
 
 
 def _without_timings(x: Any) -> Any:
-    """``x`` without the keys that legitimately differ between runs: wall times and the code version."""
+    """``x`` without the keys that legitimately differ between runs: wall times, how the diagnoses
+    shared the machine and the code version."""
     if isinstance(x, dict):
-        return {k: _without_timings(v) for k, v in x.items() if "seconds" not in k and k != "code_version"}
+        return {
+            k: _without_timings(v) for k, v in x.items() if "seconds" not in k and k not in ("code_version", "ran_with")
+        }
     if isinstance(x, list):
         return [_without_timings(v) for v in x]
     return x
@@ -120,6 +123,7 @@ def test_a_validation_gives_the_same_answers_on_local_clusters_of_any_size(
     doc = run_validation(N_CASES, SEED, root, workers=workers, mix=MIX)
     assert doc["n_cases"] == N_CASES
     assert _answers(root) == in_process
+    assert doc["ran_with"] == [{"at_once": workers, "threads_each": 1, "host_cores": os.cpu_count()}]
 
 
 @pytest.mark.slow  # 70 s: a scheduler and two workers started, two validation cases, one worker killed
@@ -152,6 +156,8 @@ def test_a_separate_scheduler_gives_the_same_answers_and_survives_a_lost_worker(
     assert killed, "the watcher never saw a result"
     assert doc["n_cases"] == N_CASES and len(RunLayout(root).done()) == N_CASES
     assert _answers(root) == in_process
+    # a remote scheduler's machines are not this process's to count
+    assert [w["host_cores"] for w in doc["ran_with"]] == [None] and doc["ran_with"][0]["threads_each"] == 1
 
 
 def test_an_unreachable_scheduler_is_refused_with_what_to_do(monkeypatch: pytest.MonkeyPatch) -> None:
