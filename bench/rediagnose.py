@@ -11,6 +11,14 @@ Example (six triples of the seed-101 progress run)::
     python bench/rediagnose.py out/validation-v2-progress-seed101 \\
         case0031,case0045,case0052,case0064,case0068,case0092
 
+``--kind single`` takes every case of one kind in place of a list of ids; with ``--seed S --cases N``
+a directory that holds no cases yet gets the run's cases drawn first (no diagnosis:
+:func:`engine.validation.run.prepare_cases`). The single-effect comparison of docs/diagnosis.md 8b
+(*Early escalation*)::
+
+    python bench/rediagnose.py out/s101 --kind single --seed 101 --cases 120 --sets '{"n_escalate_first": 0}'
+    python bench/rediagnose.py out/s105 --kind single --seed 105 --cases 60
+
 ``--sets`` updates the default :class:`~engine.diagnosis.sets.SetSettings` of the diagnosis
 (e.g. ``--sets '{"n_escalate_first": 0}'`` for the order before the early escalation).
 
@@ -30,7 +38,10 @@ from pathlib import Path
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("run", type=Path, help="directory of a validation run (its cases/ and key/)")
-    ap.add_argument("cases", help="case ids, comma-separated (e.g. case0018,case0040)")
+    ap.add_argument("ids", nargs="?", default="", help="case ids, comma-separated (e.g. case0018,case0040)")
+    ap.add_argument("--kind", help="every case of this kind (single, pair, triple, held_back, clean) instead of ids")
+    ap.add_argument("--seed", type=int, help="seed of the run's case generator (with --cases: draw them if absent)")
+    ap.add_argument("--cases", dest="n_cases", type=int, help="number of cases of the run (with --seed)")
     ap.add_argument("--sets", default="{}", help="SetSettings fields as JSON, e.g. '{\"n_escalate_first\": 0}'")
     ap.add_argument("--log-level", default="WARNING", help="log level of the diagnosis (default WARNING)")
     args = ap.parse_args(argv)
@@ -41,6 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     from engine.diagnosis import diagnose
     from engine.diagnosis.diagnose import DiagnosisSettings
     from engine.validation.layout import RunLayout
+    from engine.validation.run import prepare_cases
     from engine.validation.score import answer_of, correct
 
     ds = DiagnosisSettings()
@@ -48,10 +60,19 @@ def main(argv: list[str] | None = None) -> int:
         settings = replace(ds, sets=replace(ds.sets, **json.loads(args.sets)))
     except (TypeError, ValueError) as e:
         ap.error(f"--sets: {e}")
+    if bool(args.ids) == bool(args.kind):
+        ap.error("give case ids or --kind, not both and not neither")
+    if (args.seed is None) != (args.n_cases is None):
+        ap.error("--seed and --cases go together")
     layout = RunLayout(args.run)
     try:
-        entries = layout.key_entries([c for c in args.cases.split(",") if c])
-    except (FileNotFoundError, KeyError) as e:
+        if args.seed is not None:
+            prepare_cases(layout, args.n_cases, args.seed)
+        ids = [c for c in args.ids.split(",") if c]
+        if args.kind:
+            ids = [k.case_id for k in layout.key_entries(layout.case_ids()) if k.kind == args.kind]
+        entries = layout.key_entries(ids)
+    except (FileNotFoundError, FileExistsError, KeyError) as e:
         ap.error(str(e.args[0]))
     for k in entries:
         cid = k.case_id

@@ -56,9 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyError as e:
         ap.error(str(e.args[0]))
     ds = DiagnosisSettings()
-    ss = replace(
-        ds.sets, min_strength=ds.min_strength, max_reduced_chi2=ds.max_reduced_chi2, **json.loads(args.settings)
-    )
+    ss = replace(ds.set_search(), **json.loads(args.settings))
     hits = 0
     for k in entries:
         cid, truth = k.case_id, {e.name for e in k.effects}

@@ -359,6 +359,10 @@ def test_an_interrupted_run_resumes_with_the_missing_cases_only(
     assert result["ran_with"] == {"at_once": 1, "threads_each": cores, "host_cores": cores}
     assert doc["ran_with"] == [result["ran_with"]]
     assert f"diagnosis times: 1 diagnosis at once, {cores} thread" in layout.report_md.read_text()
+    # a run resumed on a remote cluster (host cores unknown) lists both ways, in case order
+    remote = {"at_once": 2, "threads_each": 1, "host_cores": None}
+    layout.write_result("case0003", {**layout.read_result("case0003"), "ran_with": remote})
+    assert score_run(layout)["ran_with"] == [result["ran_with"], remote]
     # a diagnosis that raises is recorded as an error (a wrong answer), the run goes on
     CALLS.clear()
     layout.result_path("case0001").unlink()

@@ -37,6 +37,7 @@ import logging
 import math
 import time
 from collections.abc import Callable
+from dataclasses import replace
 
 from engine.diagnosis.calibration import CalibrationResult, calibrate
 from engine.diagnosis.candidate import Candidate, CandidateSettings, effect_strength, fit_candidate, posterior_weights
@@ -195,13 +196,13 @@ def _escalate(
         new = (tasks[i] if i in tasks else escalate(i)).result()
         _fitted(new).n_simulations += _fitted(c).n_simulations
         _fitted(new).seconds += _fitted(c).seconds
-        cands[i] = new if new.bic < c.bic else c
-        cands[i].escalated = True
+        cands[i] = replace(new if new.bic < c.bic else c, escalated=True)  # the caller's candidates stay as given
         if _fitted(cands[i]).reduced_chi2 <= settings.escalate_above:
             logger.info("escalation: %s (rank %d before it) fits to the noise", c.effect, i + 1)
             # one effect explains the record: the others keep their seeded fits
             for j, rest in enumerate(cands[i + 1 : n_esc], start=i + 1):
-                rest.note = rest.note or f"seeded fit only: the escalation stopped once {c.effect} fitted to the noise"
+                note = rest.note or f"seeded fit only: the escalation stopped once {c.effect} fitted to the noise"
+                cands[j] = replace(rest, note=note)
                 if j in tasks:
                     tasks[j].cancel()  # stops it even if it is running
             break
@@ -246,8 +247,7 @@ def _finish(
         c, cal = cands[i], fit.result()
         cal.n_simulations += _fitted(c).n_simulations
         cal.seconds += _fitted(c).seconds
-        cands[i] = Candidate.from_fit(library[c.effect], cal, nominal)
-        cands[i].escalated = c.escalated
+        cands[i] = replace(Candidate.from_fit(library[c.effect], cal, nominal), escalated=c.escalated)
     cands = _order(cands)
     strengths = {
         i: runner.submit(effect_strength, c, space, record, nominal.sigma)  # the floored noise of the fit

@@ -175,6 +175,11 @@ class DiagnosisSettings:
     sets: SetSettings = field(default_factory=SetSettings)
     locate: bool = True
 
+    def set_search(self) -> SetSettings:
+        """The set search's settings with this diagnosis's decision thresholds (``min_strength``,
+        ``max_reduced_chi2``), which the search uses to stop and to drop weak members."""
+        return replace(self.sets, min_strength=self.min_strength, max_reduced_chi2=self.max_reduced_chi2)
+
 
 #: Verdict statuses.
 STATUSES: tuple[str, ...] = ("explained", "unexplained", "weak_gap", "no_gap")
@@ -718,9 +723,7 @@ def _diagnose(
     n_sim = nominal.n_simulations
 
     cs = settings.candidates
-    set_settings = replace(
-        settings.sets, min_strength=settings.min_strength, max_reduced_chi2=settings.max_reduced_chi2
-    )
+    set_settings = settings.set_search()
     use_sets = set_settings.max_size >= 2 and not _fits_noise(nominal, settings)
     staged = use_sets and set_settings.before_escalation
     progress(0.15, f"fitting {len(library)} candidate effects")

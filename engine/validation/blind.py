@@ -70,10 +70,10 @@ def concurrency(client: Any) -> dict[str, int | None]:
     cores = os.cpu_count()
     if client is None:
         return {"at_once": 1, "threads_each": cores, "host_cores": cores}
-    workers = client.scheduler_info().get("workers", {})
-    threads = sorted({int(w.get("nthreads", 1)) for w in workers.values()}) or [1]
+    workers = client.scheduler_info().get("workers", {})  # those connected when the run starts
+    threads = max((int(w.get("nthreads", 1)) for w in workers.values()), default=1)
     local = getattr(client, "cluster", None) is not None  # a client of a remote scheduler has none
-    return {"at_once": len(workers), "threads_each": threads[-1], "host_cores": cores if local else None}
+    return {"at_once": len(workers), "threads_each": threads, "host_cores": cores if local else None}
 
 
 def _diagnose_one(

@@ -142,7 +142,10 @@ def score_run(layout: RunLayout, version: dict[str, Any] | None = None) -> dict[
     header, key = layout.read_key()
     scores = score_cases(key, results)
     seen = sorted({str((r.get("code_version") or {}).get("describe")) for r in results.values()})
-    ran_with = [dict(t) for t in sorted({tuple(sorted((r.get("ran_with") or {}).items())) for r in results.values()})]
+    ran_with: list[dict[str, Any]] = []  # distinct, in case order (a resumed run may have run otherwise)
+    for r in results.values():
+        if r.get("ran_with") and r["ran_with"] not in ran_with:
+            ran_with.append(r["ran_with"])
     if len(seen) > 1:
         logger.warning("the diagnoses of this run ran on %d code versions: %s", len(seen), ", ".join(seen))
     doc = build_report(
@@ -156,7 +159,7 @@ def score_run(layout: RunLayout, version: dict[str, Any] | None = None) -> dict[
             "held_back": header["held_back"],
             "code_version": code_version() if version is None else version,
             "result_code_versions": seen,
-            "ran_with": [w for w in ran_with if w],
+            "ran_with": ran_with,
         },
     )
     write_report(layout, doc)
