@@ -413,6 +413,50 @@ def test_the_best_pairs_get_the_global_search_when_no_seeded_set_fits(
     assert sum(len(g) == 3 for g in searched) == 1
 
 
+@pytest.mark.parametrize("n_exchange", [0, 2])
+def test_a_stand_in_member_of_the_best_triple_is_exchanged_for_the_true_one(
+    monkeypatch: pytest.MonkeyPatch, n_exchange: int
+) -> None:
+    """Seed-127 case0046 (resilient stiffness + contact damping + measurement delay): a sensor
+    low-pass stands in for the delay in every good pair, so the triples extended from the best
+    pairs all hold it and none fits to the noise; replacing the low-pass of the best triple by the
+    other effects beside the remaining pair, with the global search, finds the true triple. Here
+    the fits are faked: only the true triple fits to the noise."""
+    from engine.diagnosis.candidate import CandidateSettings
+
+    sets_module = importlib.import_module("engine.diagnosis.sets")
+    cs = CandidateSettings()
+    truth = {"resilient_stiffness", "contact_damping", "measurement_delay"}
+    fitted: list[tuple[tuple[str, ...], bool]] = []
+
+    def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0):
+        names = tuple(m.name for m in members)
+        fitted.append((names, settings is cs.escalated))
+        chi2n = 1.0 if set(names) == truth else 1.5 if "sensor_lowpass" in names else 3.0
+        cal = fake_cal(chi2n, k=3 + len(names))
+        cal.values.update({n: 1.0 for n in names})
+        cal.step = settings.final_step if polish else settings.search_step
+        return cal
+
+    monkeypatch.setattr(sets_module, "_fit_set", fake_fit)
+    monkeypatch.setattr(sets_module, "_strengths", lambda record, cal, space, members, noise: {})
+    monkeypatch.setattr(sets_module, "gap_budget", lambda *a, **k: ({}, 0.0))
+    names = ("resilient_stiffness", "sensor_lowpass", "contact_damping", "measurement_delay", "load_inertia")
+    singles = [single(n, 20.0 + i, 10.0) for i, n in enumerate(names)]
+    settings = SetSettings(n_exchange=n_exchange)
+    out = sets_module.search_sets(None, fake_cal(100.0, k=3), None, CATALOGUE, singles, cs, settings)
+    true_fits = [escalated for g, escalated in fitted if set(g) == truth]
+    if n_exchange == 0:  # the forward selection alone never forms the true triple
+        assert not true_fits and "sensor_lowpass" in out[0].effects
+    else:
+        assert true_fits and true_fits[0]  # first fitted with the global search
+        assert set(out[0].effects) == truth
+        # the exchange stops at the first batch of triples (fitted together) with one that fits to the noise
+        exchanged = [g for g, escalated in fitted if escalated and len(g) == 3]
+        after = exchanged[[set(g) for g in exchanged].index(truth) + 1 :]
+        assert len(after) < n_exchange
+
+
 def test_the_second_best_single_is_extended_too_when_the_best_is_a_stand_in() -> None:
     """Seed-117 case0038 (supply voltage 0.886 and a trigger offset of -0.725 ms): the best single fit
     is a stator resistance drift standing in for the supply change, and the trigger offset, which

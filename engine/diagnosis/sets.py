@@ -33,8 +33,14 @@ selection:
    ``n_escalate`` best pairs and the best triple get the full global search in
    their joint space (strong effects can drag every single fit out of the true
    basin).
-4. **Polish**: the best sets are refined at the final integrator step.
-5. **Backward elimination**: a polished set that fits to the noise is refitted
+4. **Exchange**: when still no set fits to the noise, each member of the best triple in turn
+   (the one whose removal costs least first) is replaced by the ``n_exchange`` effects the
+   profiled screen ranks best beside the other two (refitted from the triple's fit), each new
+   triple with the global search, until one fits to the noise (sequential replacement: a member
+   that stands in for a near-equivalent effect, a sensor low-pass for a measurement delay, holds
+   the forward selection's triples away from the true one).
+5. **Polish**: the best sets are refined at the final integrator step.
+6. **Backward elimination**: a polished set that fits to the noise is refitted
    without its weak members (those that move the record by at most
    ``min_strength`` noise RMS on its own), or, when every member is strong,
    without each member in turn, seeded from its own fit: a spurious third
@@ -140,6 +146,12 @@ class SetSettings:
         when no such pair explains the record (fits to the noise with every member strong):
         the escalation of every single candidate is the most expensive step of a compound
         record, and a compound record is what it cannot explain (docs/diagnosis.md 8b).
+    n_exchange : int
+        Exchange: when no set fits to the noise after the escalation, each member of the best
+        triple is replaced in turn by this many of the effects the profiled screen ranks best
+        beside the other two, each such triple with the global search (0: none). A member that
+        stands in for a near-equivalent effect (a sensor low-pass for a measurement delay) keeps
+        the forward selection from ever fitting the true triple (docs/diagnosis.md 8b, *Exchange*).
     n_escalate_first : int
         With ``before_escalation``, the single candidates of this many best BICs get the global
         search before the first pairs (best first, stopping at one that fits to the noise): a
@@ -161,6 +173,7 @@ class SetSettings:
     n_report: int = 5
     min_strength: float = 3.0
     before_escalation: bool = True
+    n_exchange: int = 2
     n_escalate_first: int = 2
 
 
@@ -713,6 +726,28 @@ def _search(
         fit_all(triples, cs.seeded, polish=False)
         logger.info("set search: %d triples fitted, %.1f s", len(triples), time.perf_counter() - t0)
 
+    def _exchange(triple: tuple[str, ...]) -> None:
+        """Sequential replacement: each member of ``triple`` in turn (the one whose removal costs least
+        first) replaced by the ``n_exchange`` best-screened effects beside the other two, with the
+        global search; stops at a triple that fits to the noise."""
+        subs = [tuple(n for n in triple if n != m) for m in triple]
+        # the pairs refitted from the triple's fit: its basin is theirs too
+        fit_all(subs, cs.seeded, polish=True, given={sub: fits[triple].values for sub in subs})
+        subs = sorted((s for s in subs if s in fits), key=lambda s: fits[s].chi2)
+        for sub in subs:
+            (gone,) = set(triple) - set(sub)
+            new = [group(*sub, n) for n in screened(sub) if n != gone]
+            todo = [g for g in new if not (g in sets and sets[g].searched)][: ss.n_exchange]
+            if not todo:
+                continue
+            logger.info("exchange: %s for %s", ", ".join("+".join(g) for g in todo), "+".join(triple))
+            fit_all(todo, cs.escalated, polish=True)
+            for g in todo:
+                if g in sets:
+                    sets[g].searched = True
+            if any(fits_noise(g) for g in todo):
+                return
+
     if ss.escalate and sets and not any(fits_noise(g) for g in sets):
         best = [g for g in best_of(2)[: ss.n_escalate] + best_of(3)[:1] if not sets[g].searched]
         if best:
@@ -721,6 +756,15 @@ def _search(
             fit_all(best, cs.escalated, polish=True)
             for g in best:
                 sets[g].searched = True
+
+    if ss.n_exchange > 0 and best_of(3) and not any(fits_noise(g) for g in sets):
+        _exchange(best_of(3)[0])
+    elif ss.n_exchange > 0 and best_of(3) and fits[best_of(3)[0]].step != cs.seeded.final_step:
+        # a triple just under the search step's threshold may not fit to the noise once refined
+        g = best_of(3)[0]
+        fit_all([g], cs.seeded, polish=True)
+        if not any(fits_noise(g) for g in sets):
+            _exchange(best_of(3)[0])
 
     def finish(groups: list[tuple[str, ...]]) -> None:
         """Refine at the final step, then the strengths and the gap budget."""
