@@ -382,23 +382,20 @@ def test_the_set_search_tries_a_quantum_the_lattice_shows_even_when_the_screen_r
     assert fitted and ("motor_coulomb_friction", "speed_quantization") not in fitted
 
 
-@pytest.mark.parametrize("n_escalate", [1, 3])
-def test_the_best_pairs_get_the_global_search_when_no_seeded_set_fits(
-    monkeypatch: pytest.MonkeyPatch, n_escalate: int
-) -> None:
-    """Seed-107 case0072 (viscous friction + sensor gain): the right pair ranked below the best seeded
-    pair and was explained only once the three best pairs had the global search."""
+def fake_set_fits(monkeypatch: pytest.MonkeyPatch, chi2n_of):
+    """Fake every joint fit of the set search by ``chi2n_of(names)`` (no simulation, no strengths or
+    gap budget); returns the module, the candidate settings and the list of ``(names, escalated)``
+    fitted, in order."""
     from engine.diagnosis.candidate import CandidateSettings
 
     sets_module = importlib.import_module("engine.diagnosis.sets")
     cs = CandidateSettings()
-    searched: list[tuple[str, ...]] = []
+    fitted: list[tuple[tuple[str, ...], bool]] = []
 
     def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0):
         names = tuple(m.name for m in members)
-        if settings is cs.escalated:
-            searched.append(names)
-        cal = fake_cal(3.0 + 0.01 * sum(map(len, names)), k=3 + len(names))
+        fitted.append((names, settings is cs.escalated))
+        cal = fake_cal(chi2n_of(names), k=3 + len(names))
         cal.values.update({n: 1.0 for n in names})
         cal.step = settings.final_step if polish else settings.search_step
         return cal
@@ -406,9 +403,20 @@ def test_the_best_pairs_get_the_global_search_when_no_seeded_set_fits(
     monkeypatch.setattr(sets_module, "_fit_set", fake_fit)
     monkeypatch.setattr(sets_module, "_strengths", lambda record, cal, space, members, noise: {})
     monkeypatch.setattr(sets_module, "gap_budget", lambda *a, **k: ({}, 0.0))
+    return sets_module, cs, fitted
+
+
+@pytest.mark.parametrize("n_escalate", [1, 3])
+def test_the_best_pairs_get_the_global_search_when_no_seeded_set_fits(
+    monkeypatch: pytest.MonkeyPatch, n_escalate: int
+) -> None:
+    """Seed-107 case0072 (viscous friction + sensor gain): the right pair ranked below the best seeded
+    pair and was explained only once the three best pairs had the global search."""
+    sets_module, cs, fitted = fake_set_fits(monkeypatch, lambda names: 3.0 + 0.01 * sum(map(len, names)))
     singles = [single(n, 20.0 + i, 10.0) for i, n in enumerate(("load_inertia", "supply_voltage", "sensor_gain"))]
-    settings = SetSettings(n_base=0, n_escalate=n_escalate)
+    settings = SetSettings(n_base=0, n_escalate=n_escalate, n_exchange=0)
     sets_module.search_sets(None, fake_cal(100.0, k=3), None, CATALOGUE, singles, cs, settings)
+    searched = [g for g, escalated in fitted if escalated]
     assert sum(len(g) == 2 for g in searched) == n_escalate
     assert sum(len(g) == 3 for g in searched) == 1
 
@@ -422,25 +430,10 @@ def test_a_stand_in_member_of_the_best_triple_is_exchanged_for_the_true_one(
     pairs all hold it and none fits to the noise; replacing the low-pass of the best triple by the
     other effects beside the remaining pair, with the global search, finds the true triple. Here
     the fits are faked: only the true triple fits to the noise."""
-    from engine.diagnosis.candidate import CandidateSettings
-
-    sets_module = importlib.import_module("engine.diagnosis.sets")
-    cs = CandidateSettings()
     truth = {"resilient_stiffness", "contact_damping", "measurement_delay"}
-    fitted: list[tuple[tuple[str, ...], bool]] = []
-
-    def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0):
-        names = tuple(m.name for m in members)
-        fitted.append((names, settings is cs.escalated))
-        chi2n = 1.0 if set(names) == truth else 1.5 if "sensor_lowpass" in names else 3.0
-        cal = fake_cal(chi2n, k=3 + len(names))
-        cal.values.update({n: 1.0 for n in names})
-        cal.step = settings.final_step if polish else settings.search_step
-        return cal
-
-    monkeypatch.setattr(sets_module, "_fit_set", fake_fit)
-    monkeypatch.setattr(sets_module, "_strengths", lambda record, cal, space, members, noise: {})
-    monkeypatch.setattr(sets_module, "gap_budget", lambda *a, **k: ({}, 0.0))
+    sets_module, cs, fitted = fake_set_fits(
+        monkeypatch, lambda names: 1.0 if set(names) == truth else 1.5 if "sensor_lowpass" in names else 3.0
+    )
     names = ("resilient_stiffness", "sensor_lowpass", "contact_damping", "measurement_delay", "load_inertia")
     singles = [single(n, 20.0 + i, 10.0) for i, n in enumerate(names)]
     settings = SetSettings(n_exchange=n_exchange)
