@@ -450,6 +450,23 @@ def test_a_stand_in_member_of_the_best_triple_is_exchanged_for_the_true_one(
         assert len(after) < n_exchange
 
 
+def test_the_exchange_fits_no_two_twins_in_place_of_one_member(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A trigger offset and a measurement delay fit alike (seed-123 case0030's log: both were the
+    exchange's two additions beside one pair); the second addition is the next effect instead, here
+    the true third member, which the exchange would otherwise never fit (faked fits)."""
+    truth = {"resilient_stiffness", "contact_damping", "load_inertia"}
+    sets_module, cs, fitted = fake_set_fits(
+        monkeypatch, lambda names: 1.0 if set(names) == truth else 1.5 if "sensor_lowpass" in names else 3.0
+    )
+    names = ("resilient_stiffness", "sensor_lowpass", "contact_damping", "trigger_offset", "measurement_delay")
+    singles = [single(n, 20.0 + i, 10.0) for i, n in enumerate((*names, "load_inertia"))]
+    out = sets_module.search_sets(None, fake_cal(100.0, k=3), None, CATALOGUE, singles, cs, SetSettings())
+    exchanged = [set(g) for g, escalated in fitted if escalated and len(g) == 3]
+    assert truth in exchanged and set(out[0].effects) == truth
+    beside = {t: {frozenset(g - {t}) for g in exchanged if t in g} for t in ("trigger_offset", "measurement_delay")}
+    assert not beside["trigger_offset"] & beside["measurement_delay"]  # never both beside the same pair
+
+
 def test_the_second_best_single_is_extended_too_when_the_best_is_a_stand_in() -> None:
     """Seed-117 case0038 (supply voltage 0.886 and a trigger offset of -0.725 ms): the best single fit
     is a stator resistance drift standing in for the supply change, and the trigger offset, which

@@ -149,7 +149,8 @@ class SetSettings:
     n_exchange : int
         Exchange: when no set fits to the noise after the escalation, each member of the best
         triple is replaced in turn by this many of the effects the profiled screen ranks best
-        beside the other two, each such triple with the global search (0: none). A member that
+        beside the other two (not two of the same physics, such as a trigger offset and a
+        measurement delay, which fit alike), each such triple with the global search (0: none). A member that
         stands in for a near-equivalent effect (a sensor low-pass for a measurement delay) keeps
         the forward selection from ever fitting the true triple (docs/diagnosis.md 8b, *Exchange*).
     n_escalate_first : int
@@ -736,8 +737,16 @@ def _search(
         subs = sorted((s for s in subs if s in fits), key=lambda s: fits[s].chi2)
         for sub in subs:
             (gone,) = set(triple) - set(sub)
-            new = [group(*sub, n) for n in screened(sub) if n != gone]
-            todo = [g for g in new if not (g in sets and sets[g].searched)][: ss.n_exchange]
+            added: list[str] = []
+            for n in screened(sub):
+                if n == gone or (group(*sub, n) in sets and sets[group(*sub, n)].searched):
+                    continue
+                # twins (a trigger offset and a measurement delay) fit alike: the next addition instead
+                if not any(same_physics(effects[n], effects[m]) for m in added):
+                    added.append(n)
+                if len(added) == ss.n_exchange:
+                    break
+            todo = [group(*sub, n) for n in added]
             if not todo:
                 continue
             logger.info("exchange: %s for %s", ", ".join("+".join(g) for g in todo), "+".join(triple))
