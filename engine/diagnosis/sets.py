@@ -766,12 +766,11 @@ def _search(
             for g in best:
                 sets[g].searched = True
 
-    if ss.n_exchange > 0 and best_of(3) and not any(fits_noise(g) for g in sets):
-        _exchange(best_of(3)[0])
-    elif ss.n_exchange > 0 and best_of(3) and fits[best_of(3)[0]].step != cs.seeded.final_step:
-        # a triple just under the search step's threshold may not fit to the noise once refined
-        g = best_of(3)[0]
-        fit_all([g], cs.seeded, polish=True)
+    if ss.n_exchange > 0 and best_of(3):
+        top = best_of(3)[0]
+        if fits[top].step != cs.seeded.final_step and any(fits_noise(g) for g in sets):
+            # a triple just under the search step's threshold may not fit to the noise once refined
+            fit_all([top], cs.seeded, polish=True)
         if not any(fits_noise(g) for g in sets):
             _exchange(best_of(3)[0])
 
