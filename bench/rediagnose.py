@@ -87,6 +87,7 @@ def main(argv: list[str] | None = None) -> int:
             "status": a.status,
             "effects": list(a.names),
             "alternatives": [list(x) for x in a.alternatives],
+            "near_twins": [list(x) for x in a.near_twins],
             "locus": a.locus,
             "correct": correct(k, a),
             "seconds": round(seconds, 1),

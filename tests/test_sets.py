@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from engine.diagnosis import diagnose
+from engine.diagnosis.ambiguity import near_twins
 from engine.diagnosis.calibration import CalibrationResult
 from engine.diagnosis.candidate import Candidate
 from engine.diagnosis.diagnose import DiagnosisSettings, choose_model, decide
@@ -277,6 +278,58 @@ def test_the_verdict_says_which_named_effect_has_an_indistinguishable_twin() -> 
     assert rows["trigger_offset"]["alternatives"] == ["measurement_delay"]
     assert rows["load_inertia"]["alternatives"] == []
     assert "trigger_offset cannot be told from measurement_delay" in v.reason
+
+
+def test_a_set_with_one_member_swapped_that_explains_as_well_makes_a_near_twin() -> None:
+    """Only a same-size model that differs in one member, is refined, fits to the noise with every
+    member strong and is worse by less than min_delta_bic makes its new member a near twin."""
+    s = DiagnosisSettings()
+    chosen = pair(("trigger_offset", "stator_resistance_drift", "rotor_resistance_drift"), 1.0, (30.0, 20.0, 9.0))
+    swap = pair(("trigger_offset", "stator_resistance_drift", "supply_voltage"), 1.0004, (30.0, 20.0, 8.0))
+    swap.calibration.values["supply_voltage"] = 1.07
+    far = pair(("trigger_offset", "stator_resistance_drift", "sensor_gain"), 1.0011, (30.0, 20.0, 8.0))  # dBIC 11
+    weak = pair(("trigger_offset", "stator_resistance_drift", "load_inertia"), 1.0, (30.0, 20.0, 2.0))
+    coarse = pair(("trigger_offset", "stator_resistance_drift", "contact_damping"), 1.0, (30.0, 20.0, 8.0))
+    coarse.calibration.step = 5e-5  # a search-step fit is not compared with a refined one
+    two_off = pair(("trigger_offset", "supply_voltage", "sensor_offset"), 1.0, (30.0, 20.0, 8.0))
+    smaller = pair(("trigger_offset", "supply_voltage"), 1.0, (30.0, 20.0))
+    models = [chosen, swap, far, weak, coarse, two_off, smaller, single("supply_voltage", 1.0, 40.0)]
+    twins = near_twins(chosen, models, lambda m: diagnose_module._explains_as_well(m, s), s.min_delta_bic)
+    assert list(twins) == ["rotor_resistance_drift"]
+    (t,) = twins["rotor_resistance_drift"]
+    assert t.effect == "supply_voltage" and t.value == 1.07 and t.unit == CATALOGUE["supply_voltage"].unit
+    assert math.isclose(t.delta_bic, 4.0)
+    # a single effect's near twin: another refined single candidate that explains as well
+    best, other = single("motor_viscous_friction", 1.0, 12.0), single("motor_coulomb_friction", 1.0003, 11.0)
+    assert [x.effect for x in near_twins(best, [best, other], lambda m: True, 10.0)["motor_viscous_friction"]] == [
+        "motor_coulomb_friction"
+    ]
+
+
+def test_the_verdict_names_near_twins_apart_from_exact_twins() -> None:
+    nominal = fake_cal(50.0, k=4)
+    chosen = pair(("trigger_offset", "load_inertia"), 1.0, (40.0, 90.0))
+    chosen.calibration.values.update({"trigger_offset": 4e-4, "load_inertia": 1.3})
+    chosen.shares = {"trigger_offset": 0.3, "load_inertia": 0.69}
+    swap = pair(("trigger_offset", "resilient_stiffness"), 1.0002, (40.0, 80.0))
+    swap.calibration.values["resilient_stiffness"] = 1.5
+    delay = pair(("measurement_delay", "load_inertia"), 1.0, (40.0, 90.0))  # the exact twin's set fits alike
+    s = DiagnosisSettings()
+    v = decide(nominal, [], s, [chosen, swap, delay])
+    near = diagnose_module._near_twins(v, [], [chosen, swap, delay], s)
+    assert [t.effect for t in near["trigger_offset"]] == ["measurement_delay"]
+    v = diagnose_module._with_alternatives(v, CATALOGUE, near)
+    rows = {r["effect"]: r for r in v.to_dict()["effects"]}
+    assert (
+        rows["trigger_offset"]["alternatives"] == ["measurement_delay"] and rows["trigger_offset"]["near_twins"] == []
+    )
+    assert rows["load_inertia"]["alternatives"] == []
+    assert [t["effect"] for t in rows["load_inertia"]["near_twins"]] == ["resilient_stiffness"]
+    assert rows["load_inertia"]["near_twins"][0]["value"] == 1.5
+    assert "cannot tell load_inertia from resilient_stiffness = 1.5" in v.reason
+    # no near twins for a verdict that names nothing
+    clean = decide(fake_cal(1.0, k=4), [], s, [])
+    assert diagnose_module._near_twins(clean, [], [chosen, swap], s) == {}
 
 
 @pytest.mark.parametrize(("refined_chi2", "triples_expected"), [(1.079, True), (1.0, False)])

@@ -573,6 +573,48 @@ def test_a_declared_twin_counts_as_named_and_nothing_else_does() -> None:
         answer_of(res["s"])
 
 
+def test_near_twins_count_only_in_the_report_only_rates() -> None:
+    """A near twin (an effect this record cannot tell from the named one) is shown as credited in the
+    breakdown, never in the targets' metrics; a malformed list is refused."""
+
+    def said(effects: list[tuple[str, float]], near: dict[str, list[str]]) -> dict[str, Any]:
+        r = _fake_result("explained", effects)
+        for row in r["verdict"]["effects"]:
+            row["near_twins"] = [
+                {"effect": n, "value": 1.0, "unit": "-", "delta_bic": 2.0} for n in near.get(row["effect"], [])
+            ]
+        return r
+
+    key = [
+        _entry(
+            "t",
+            "triple",
+            [
+                ("stator_resistance_drift", "motor_electrical"),
+                ("supply_voltage", "supply"),
+                ("trigger_offset", "sensors"),
+            ],
+        ),
+        _entry("s", "single", [("motor_viscous_friction", "motor_shaft")]),
+    ]
+    res = {
+        "t": said(
+            [("trigger_offset", -1.5e-3), ("stator_resistance_drift", 1.1), ("rotor_resistance_drift", 1.15)],
+            {"rotor_resistance_drift": ["supply_voltage"]},
+        ),
+        "s": said([("motor_coulomb_friction", 0.01)], {}),
+    }
+    sc = score_cases(key, res)
+    m = {x.name: x for x in (*sc.metrics, *sc.breakdown)}
+    assert m["triple_exact"].rate.k == 0 and m["compound_contains"].rate.k == 0
+    assert m["compound_exact_near_twins"].rate.k == 1 and m["compound_contains_near_twins"].rate.k == 1
+    assert m["near_twins_declared"].rate.k == 1 and m["near_twins_declared"].rate.n == 2
+    assert m["single_named_near_twins"].rate.k == 0
+    res["t"]["verdict"]["effects"][2]["near_twins"] = ["supply_voltage"]  # names only: not the documented shape
+    with pytest.raises(ValueError, match="near_twins"):
+        answer_of(res["t"])
+
+
 def test_report_is_small_and_says_what_it_ran_on() -> None:
     key, res = [], {}
     names = list(CATALOGUE)

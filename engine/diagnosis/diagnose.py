@@ -71,6 +71,14 @@ statistic's scatter on clean records); for ``explained`` the same for the
 best candidate's fit, times its posterior weight among all candidates and the
 nominal model (BIC weights), so two effects that explain the record equally
 well share the confidence.
+
+Twins
+-----
+Each named effect lists its exact twins (``alternatives``: effects that give the very same
+record, :func:`engine.diagnosis.space.indistinguishable`) and its near twins in this record
+(``near_twins``: an effect that, in place of the named one, gives a model that explains the
+record as well and whose BIC is higher by less than ``min_delta_bic``,
+:mod:`engine.diagnosis.ambiguity`).
 """
 
 from __future__ import annotations
@@ -84,6 +92,7 @@ from typing import Any
 
 from scipy.special import expit
 
+from engine.diagnosis.ambiguity import NearTwin, near_twins
 from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings, calibrate
 from engine.diagnosis.candidate import Candidate, CandidateSettings, posterior_weights
 from engine.diagnosis.candidates import escalate_candidates, fit_candidates, needs_escalation
@@ -207,10 +216,12 @@ class Verdict:
         One sentence on why.
     effects : list of dict
         Every named effect, ``{"effect", "value", "uncertainty", "unit", "locus", "share",
-        "strength", "alternatives"}``, largest share of the gap first (empty unless
+        "strength", "alternatives", "near_twins"}``, largest share of the gap first (empty unless
         ``explained``); ``alternatives`` lists the library's effects that give the very same
         record at that value (:func:`~engine.diagnosis.space.indistinguishable`: a measurement
-        delay and a trigger offset), which no record can tell from the named one.
+        delay and a trigger offset), which no record can tell from the named one;
+        ``near_twins`` the effects that this record cannot tell from it
+        (``{"effect", "value", "unit", "delta_bic"}``, :mod:`engine.diagnosis.ambiguity`).
     locus : str or None
         Where in the plant the missing physics acts (None for ``no_gap``).
     missing_term : dict or None
@@ -617,18 +628,53 @@ def _moved(before: Mapping[str, Mapping[str, float]], c: Candidate) -> bool:
     return any(not math.isclose(v, old.get(k, math.nan), rel_tol=MOVED_REL_TOL, abs_tol=1e-6) for k, v in new.items())
 
 
-def _with_alternatives(verdict: Verdict, library: EffectLibrary) -> Verdict:
-    """The verdict with every named effect's indistinguishable twins (``alternatives``) and a word on them."""
+def _explains_as_well(m: Model, settings: DiagnosisSettings) -> bool:
+    """Whether a model explains the record as a named one must: refined at the final integrator
+    step, fits to the noise, every effect strong."""
+    cal = m.calibration
+    if cal is None or cal.step != settings.candidates.seeded.final_step or not _fits_noise(cal, settings):
+        return False
+    if isinstance(m, CandidateSet):
+        return _all_strong(m, settings)
+    return m.strength is not None and math.isfinite(m.strength) and m.strength > settings.min_strength
+
+
+def _near_twins(
+    verdict: Verdict, cands: Sequence[Candidate], sets: Sequence[CandidateSet], settings: DiagnosisSettings
+) -> dict[str, tuple[NearTwin, ...]]:
+    """Near twins of the named effects (:mod:`engine.diagnosis.ambiguity`); none unless explained."""
+    model = choose_model(cands, sets, settings) if verdict.status == "explained" else None
+    if model is None:
+        return {}
+    return near_twins(model, [*cands, *sets], lambda m: _explains_as_well(m, settings), settings.min_delta_bic)
+
+
+def _with_alternatives(
+    verdict: Verdict, library: EffectLibrary, near: Mapping[str, Sequence[NearTwin]] | None = None
+) -> Verdict:
+    """The verdict with every named effect's indistinguishable twins (``alternatives``), its near twins
+    in this record (``near_twins``, :mod:`engine.diagnosis.ambiguity`) and a word on each."""
     if not verdict.effects:
         return verdict
+    near = {} if near is None else near
     rows = []
     notes = []
     for r in verdict.effects:
         value = r.get("value")
         alts = indistinguishable(r["effect"], float(value), library) if value is not None else ()
-        rows.append({**r, "alternatives": list(alts)})
+        twins = tuple(t for t in near.get(r["effect"], ()) if t.effect not in alts)  # exact twins said once
+        rows.append({**r, "alternatives": list(alts), "near_twins": [t.to_dict() for t in twins]})
         if alts:
             notes.append(f"{r['effect']} cannot be told from {' or '.join(alts)} (the same shift of every channel)")
+        if twins:
+            others = " or ".join(
+                f"{t.effect}" + (f" = {t.value:.4g} {t.unit}" if t.value is not None else "") for t in twins
+            )
+            margins = ", ".join(f"{t.delta_bic:.1f}" for t in twins)
+            notes.append(
+                f"this record cannot tell {r['effect']} from {others}: the fit with it in its place explains the "
+                f"record as well (BIC higher by only {margins})"
+            )
     reason = f"{verdict.reason}; {'; '.join(notes)}" if notes else verdict.reason
     return replace(verdict, effects=tuple(rows), reason=reason)
 
@@ -767,7 +813,8 @@ def _diagnose(
     if sets:
         _reweight(nominal, cands, sets)
     progress(0.85, "deciding the verdict")
-    verdict = _with_alternatives(decide(nominal, cands, settings, sets), library)
+    verdict = decide(nominal, cands, settings, sets)
+    verdict = _with_alternatives(verdict, library, _near_twins(verdict, cands, sets, settings))
 
     after = None
     gap_after = None

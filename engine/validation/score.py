@@ -9,7 +9,10 @@ largest share; ``verdict.locus`` (None when absent); ``gap.before`` /
 A named effect counts for every effect the diagnosis declared indistinguishable from it
 (``verdict.effects[i].alternatives``: a measurement delay and a trigger offset give the very
 same record, :func:`engine.diagnosis.space.indistinguishable`); results without that field
-are scored by the names alone.
+are scored by the names alone. Near twins (``verdict.effects[i].near_twins``: effects that only
+this record cannot tell from the named one, :mod:`engine.diagnosis.ambiguity`) do not count in
+the targets' metrics; the report shows how the rates read when they do (``*_near_twins``,
+report only) and how many answers declared any (``near_twins_declared``).
 
 Metrics (rates with their Wilson 95 % intervals; :data:`~engine.validation.protocol.TARGETS`):
 
@@ -76,6 +79,7 @@ class Answer:
     rms_before: float | None
     rms_after: float | None
     alternatives: tuple[tuple[str, ...], ...] = ()
+    near_twins: tuple[tuple[str, ...], ...] = ()
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -85,26 +89,30 @@ class Answer:
     def top(self) -> str | None:
         return self.effects[0][0] if self.effects else None
 
-    def _could_be(self, i: int) -> set[str]:
-        """The i-th named effect and its declared twins."""
+    def _could_be(self, i: int, near: bool = False) -> set[str]:
+        """The i-th named effect and its declared twins (with ``near``, its near twins too)."""
         alts = self.alternatives[i] if i < len(self.alternatives) else ()
-        return {self.effects[i][0], *alts}
+        close = self.near_twins[i] if near and i < len(self.near_twins) else ()
+        return {self.effects[i][0], *alts, *close}
 
-    def top_is(self, name: str) -> bool:
+    def top_is(self, name: str, near: bool = False) -> bool:
         """Whether the largest-share effect is ``name`` (or declared indistinguishable from it)."""
-        return bool(self.effects) and name in self._could_be(0)
+        return bool(self.effects) and name in self._could_be(0, near)
 
-    def names_effect(self, name: str) -> bool:
+    def names_effect(self, name: str, near: bool = False) -> bool:
         """Whether some named effect is ``name`` (or declared indistinguishable from it)."""
-        return any(name in self._could_be(i) for i in range(len(self.effects)))
+        return any(name in self._could_be(i, near) for i in range(len(self.effects)))
 
-    def names_exactly(self, names: Sequence[str]) -> bool:
-        """Whether the named effects are exactly ``names``, one each (twins count as named)."""
+    def names_exactly(self, names: Sequence[str], near: bool = False) -> bool:
+        """Whether the named effects are exactly ``names``, one each (twins count as named; with
+        ``near``, near twins too)."""
         truth = list(dict.fromkeys(names))
         if len(self.effects) != len(truth):
             return False
         # match named effects to true ones (at most three each: try every order)
-        return any(all(t in self._could_be(i) for i, t in enumerate(order)) for order in itertools.permutations(truth))
+        return any(
+            all(t in self._could_be(i, near) for i, t in enumerate(order)) for order in itertools.permutations(truth)
+        )
 
 
 def _number(x: Any) -> float | None:
@@ -123,12 +131,27 @@ def _alternatives(row: dict[str, Any]) -> tuple[str, ...]:
     return tuple(alts)
 
 
+def _near_twins(row: dict[str, Any]) -> tuple[str, ...]:
+    """A named effect's near twins (their names); a result that gives them as anything but a list of
+    ``{"effect": name, ...}`` is refused."""
+    near = row.get("near_twins")
+    if near is None:
+        return ()
+    if not isinstance(near, list) or not all(isinstance(x, dict) and isinstance(x.get("effect"), str) for x in near):
+        raise ValueError(
+            f"verdict.effects[].near_twins of {row.get('effect')!r} must be a list of {{'effect': name, ...}}, "
+            f"got {near!r}"
+        )
+    return tuple(x["effect"] for x in near)
+
+
 def answer_of(result: dict[str, Any]) -> Answer:
     """Read a result file's answer, tolerant of results written before ``effects`` and ``locus`` existed."""
     v = result.get("verdict") or {}
     status = str(v.get("status", "error"))
     listed = v.get("effects")
     alternatives: tuple[tuple[str, ...], ...] = ()
+    near: tuple[tuple[str, ...], ...] = ()
     if isinstance(listed, list):
         rows = [e for e in listed if e.get("effect")]
         top = v.get("effect")
@@ -136,6 +159,7 @@ def answer_of(result: dict[str, Any]) -> Answer:
             rows.sort(key=lambda e: e["effect"] != top)
         effects = tuple((str(e["effect"]), _number(e.get("value"))) for e in rows)
         alternatives = tuple(_alternatives(e) for e in rows)
+        near = tuple(_near_twins(e) for e in rows)
     elif v.get("effect"):
         effects = ((str(v["effect"]), _number(v.get("value"))),)
     else:
@@ -151,6 +175,7 @@ def answer_of(result: dict[str, Any]) -> Answer:
         rms_before=_number(before.get("rms_over_noise")),
         rms_after=_number(after.get("rms_over_noise")),
         alternatives=alternatives,
+        near_twins=near,
     )
 
 
@@ -359,11 +384,13 @@ def score_cases(key: Sequence[KeyEntry], results: dict[str, dict[str, Any]]) -> 
         by_kind[k.kind].append((k, answers[k.case_id]))
     compound = [p for kind in COMPOUND_KINDS for p in by_kind[kind]]
 
-    def exact(pairs: list[tuple[KeyEntry, Answer]]) -> Rate:
-        return rate([a.status == "explained" and a.names_exactly(k.effect_names) for k, a in pairs])
+    def exact(pairs: list[tuple[KeyEntry, Answer]], near: bool = False) -> Rate:
+        return rate([a.status == "explained" and a.names_exactly(k.effect_names, near) for k, a in pairs])
 
-    def contains(pairs: list[tuple[KeyEntry, Answer]]) -> Rate:
-        return rate([a.status == "explained" and all(a.names_effect(n) for n in k.effect_names) for k, a in pairs])
+    def contains(pairs: list[tuple[KeyEntry, Answer]], near: bool = False) -> Rate:
+        return rate(
+            [a.status == "explained" and all(a.names_effect(n, near) for n in k.effect_names) for k, a in pairs]
+        )
 
     singles, held, clean = by_kind["single"], by_kind["held_back"], by_kind["clean"]
     explained_after = [a.rms_after for a in answers.values() if a.status == "explained" and a.rms_after is not None]
@@ -401,7 +428,31 @@ def score_cases(key: Sequence[KeyEntry], results: dict[str, dict[str, Any]]) -> 
         _time_metric("seconds_single_p90", "single effect: diagnosis time [s], 90th percentile", secs_single),
         _time_metric("seconds_compound_p90", "pair or triple: diagnosis time [s], 90th percentile", secs_compound),
     ]
+    # near twins (this record cannot tell them from the named effect) are not counted above: how the
+    # rates read when they are, and how often an answer declared any
     breakdown = [
+        Metric(
+            "single_named_near_twins",
+            "single effect: top effect right, near twins counted",
+            rate([a.status == "explained" and a.top_is(k.effects[0].name, near=True) for k, a in singles]),
+        ),
+        Metric(
+            "compound_exact_near_twins",
+            "pair or triple: exactly the true set, near twins counted",
+            exact(compound, True),
+        ),
+        Metric(
+            "compound_contains_near_twins",
+            "pair or triple: every true effect named, near twins counted",
+            contains(compound, True),
+        ),
+        Metric(
+            "near_twins_declared",
+            "answered explained: some named effect has near twins",
+            rate([any(a.near_twins) for a in answers.values() if a.status == "explained"]),
+        ),
+    ]
+    breakdown += [
         Metric(
             "all_correct",
             "every case: right by its kind's main criterion",

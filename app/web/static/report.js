@@ -405,9 +405,14 @@
     const alt = (e.alternatives || []).length
       ? ` (indistinguishable from ${e.alternatives.map(words).join(", ")})`
       : "";
+    const near = (e.near_twins || []).length
+      ? ` (this record cannot tell it from ${e.near_twins
+          .map((t) => `${words(t.effect)} = ${valueText(t.value, null, t.unit)}`)
+          .join(" or ")})`
+      : "";
     const share = e.share !== undefined && e.share !== null ? `, ${pct(e.share)} of the gap` : "";
     const where = e.locus ? `, at the ${words(e.locus)}` : "";
-    return `${words(e.effect)} = ${valueText(e.value, e.uncertainty, e.unit)}${share}${where}${alt}`;
+    return `${words(e.effect)} = ${valueText(e.value, e.uncertainty, e.unit)}${share}${where}${alt}${near}`;
   }
 
   const HEADLINES = {
