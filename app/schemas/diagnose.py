@@ -134,7 +134,8 @@ class DiagnosisAnswer(BaseModel):
 
     verdict: dict[str, Any] = Field(
         description="status (backlash drive; the plants give it at the top level), effect, value, effects "
-        "[{effect, value, uncertainty, share}], locus."
+        "[{effect, value, uncertainty, share, alternatives, near_twins}] (alternatives: effects that give the "
+        "very same record; near_twins: effects this record cannot tell from the named one), locus."
     )
     calibration: dict[str, Any] = Field(description="The calibrated parameters with their uncertainties.")
     record: dict[str, Any] | str | None = Field(default=None, description="How the record was read.")
