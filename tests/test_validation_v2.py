@@ -615,6 +615,39 @@ def test_near_twins_count_only_in_the_report_only_rates() -> None:
         answer_of(res["t"])
 
 
+def test_the_report_says_where_the_time_went_per_kind_and_stage() -> None:
+    key = [
+        _entry("a", "single", [("load_inertia", "drive_train")]),
+        _entry("b", "single", [("supply_voltage", "supply")]),
+        _entry("c", "clean"),
+    ]
+    res = {
+        "a": {
+            **_fake_result("explained", [("load_inertia", 1.3)]),
+            "stages": [
+                {"stage": "nominal calibration", "seconds": 2.0},
+                {"stage": "single candidates", "seconds": 4.0},
+            ],
+        },
+        "b": {
+            **_fake_result("explained", [("supply_voltage", 1.1)]),
+            "stages": [
+                {"stage": "nominal calibration", "seconds": 3.0},
+                {"stage": "single candidates", "seconds": 6.0},
+                {"stage": "early escalation of the best singles", "seconds": 2.5},
+            ],
+        },
+        "c": _fake_result("no_gap"),  # written before the stages were recorded
+    }
+    doc = score_cases(key, res).to_dict()
+    single = doc["stages_by_kind"]["single"]
+    assert single["nominal calibration"] == {"n": 2, "median": 2.5, "p90": pytest.approx(2.9), "total": 5.0}
+    assert single["early escalation of the best singles"]["n"] == 1
+    assert "clean" not in doc["stages_by_kind"]
+    md = markdown({**doc, "protocol": 2, "n_cases": 3, "seed": 1, "counts": {}, "library": [], "held_back": []})
+    assert "| single | single candidates | 2 | 5.0 | 5.8 | 57 % |" in md
+
+
 def test_report_is_small_and_says_what_it_ran_on() -> None:
     key, res = [], {}
     names = list(CATALOGUE)

@@ -304,6 +304,11 @@ class DiagnosisResult:
         term's time series on the record's grid), JSON-ready.
     shrinkage : float or None
         Excess energy before over after the named effects' fit.
+    stages : list of dict
+        Where the time went: ``{"stage", "seconds"}`` per stage of the work, in order (the nominal
+        calibration, the single candidates, the early escalation, the first pairs, the singles'
+        escalation, the sets of up to three, the decision, the gap after the fix or the locus, the
+        identification), each that ran; wall times [s].
     """
 
     calibration: CalibrationResult
@@ -324,6 +329,7 @@ class DiagnosisResult:
     sets: list[CandidateSet] = field(default_factory=list)
     locus: dict[str, Any] | None = None
     shrinkage: float | None = None
+    stages: list[dict[str, Any]] = field(default_factory=list)
 
     def record_summary(self) -> dict[str, Any] | None:
         """How the record was read: its grid, units, the samples analysed and where the event is.
@@ -405,6 +411,7 @@ class DiagnosisResult:
             "identification": self.identification,
             "n_simulations": self.n_simulations,
             "seconds": self.seconds,
+            "stages": [dict(s) for s in self.stages],
         }
         if include_records:
             out["records"] = {
@@ -759,6 +766,16 @@ def _diagnose(
     progress: Callable[[float, str], None] = _no_progress,
 ) -> DiagnosisResult:
     t0 = time.perf_counter()
+    stages: list[dict[str, Any]] = []
+    mark = t0
+
+    def stage(name: str) -> None:
+        """Close a stage of the work: its name and wall time [s] go to ``DiagnosisResult.stages``."""
+        nonlocal mark
+        now = time.perf_counter()
+        stages.append({"stage": name, "seconds": now - mark})
+        mark = now
+
     whole = record
     record, window = whole.test_window()
     space = default_space(record, bounds)
@@ -767,6 +784,7 @@ def _diagnose(
     cells = localise(record, nominal.simulated_record(record), nominal.sigma, DEFAULT_WINDOWS_MS)
     gap_before = gap_of(nominal)
     n_sim = nominal.n_simulations
+    stage("nominal calibration")
 
     cs = settings.candidates
     set_settings = settings.set_search()
@@ -782,6 +800,7 @@ def _diagnose(
         escalate=not staged,
         progress=lambda f, what: progress(0.15 + 0.35 * f, what),
     )
+    stage("single candidates" if staged else "single candidates, escalation included")
     if use_sets and not _explains_single(cands, settings):
         progress(0.55, "no single effect explains the record: searching sets of effects")
     sets: list[CandidateSet] = []
@@ -791,23 +810,28 @@ def _diagnose(
         n_first = set_settings.n_escalate_first
         early = replace(cs, n_escalate=n_first if cs.n_escalate is None else min(n_first, cs.n_escalate))
         cands = escalate_candidates(record, nominal, space, library, cands, early)
+        stage("early escalation of the best singles")
     if staged and not _explains_single(cands, settings):
         # pairs from the seeded single fits first, the best with a global search in its joint space;
         # the singles' escalation only when none explains the record
         first = replace(set_settings, max_size=2)
         sets = search_sets(record, nominal, space, library, cands, cs, first)
+        stage("first pairs")
         if not any(_explains(s, settings) for s in sets):
             seeded = {c.effect: c.calibration.values for c in cands if c.calibration is not None}
             if needs_escalation(cands, cs):
                 cands = escalate_candidates(record, nominal, space, library, cands, cs)
+                stage("escalation of the singles")
             if not _explains_single(cands, settings):
                 # the first pairs stand as fitted unless the escalation moved a single they came from
                 moved = {c.effect for c in cands if c.calibration is not None and _moved(seeded, c)}
                 keep = [s for s in sets if not moved & set(s.effects)]
                 again = search_sets(record, nominal, space, library, cands, cs, set_settings, keep)
                 sets = _merge_sets(sets, again)
+                stage("sets of up to three")
     elif use_sets and not _explains_single(cands, settings):
         sets = search_sets(record, nominal, space, library, cands, cs, set_settings)
+        stage("sets of up to three")
     n_sim += sum(c.calibration.n_simulations for c in cands if c.calibration)
     n_sim += sum(s.calibration.n_simulations for s in sets if s.calibration)
     if sets:
@@ -815,6 +839,7 @@ def _diagnose(
     progress(0.85, "deciding the verdict")
     verdict = decide(nominal, cands, settings, sets)
     verdict = _with_alternatives(verdict, library, _near_twins(verdict, cands, sets, settings))
+    stage("decision")
 
     after = None
     gap_after = None
@@ -830,8 +855,10 @@ def _diagnose(
         gap_after = gap_of(best_cal)
         shrinkage = model.shrinkage
         cells_after = localise(record, best_cal.simulated_record(record), nominal.sigma, DEFAULT_WINDOWS_MS)
+        stage("gap after the fix")
     elif verdict.status in ("unexplained", "weak_gap") and settings.locate:
         verdict, locus = _locate(record, nominal, verdict)
+        stage("locus and missing term")
     result = DiagnosisResult(
         calibration=nominal,
         cells=cells,
@@ -849,10 +876,12 @@ def _diagnose(
         sets=sets,
         locus=locus,
         shrinkage=shrinkage,
+        stages=stages,
     )
     if identify is not None:
         progress(0.9, "identifying the width before and after")
         result.identification = identify(whole, result)
+        stage("identification")
     result.seconds = time.perf_counter() - t0
     logger.info(
         "diagnosis: %s %s (confidence %.2f), %d simulations, %.1f s",

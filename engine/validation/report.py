@@ -138,6 +138,24 @@ def markdown(doc: dict[str, Any]) -> str:
     for name, cells in doc["per_effect"].items():
         vals = [f"{cells[c][0]}/{cells[c][1]}" if c in cells else "" for c in cols]
         lines.append(f"| {name} | " + " | ".join(vals) + " |")
+    stages = doc.get("stages_by_kind") or {}
+    if stages:
+        lines += [
+            "",
+            "## Time by stage of the work",
+            "",
+            "Per kind: how many diagnoses ran the stage, its median and 90th percentile [s] over them, and its "
+            "share of the kind's total time.",
+            "",
+            "| kind | stage | n | median s | p90 s | share of time |",
+            "| --- | --- | --- | --- | --- | --- |",
+        ]
+        for kind, by_stage in stages.items():
+            total = sum(x["total"] for x in by_stage.values()) or 1.0
+            for name, x in by_stage.items():
+                lines.append(
+                    f"| {kind} | {name} | {x['n']} | {x['median']:.1f} | {x['p90']:.1f} | {100 * x['total'] / total:.0f} % |"
+                )
     lines += [
         "",
         "## Cases",

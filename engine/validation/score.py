@@ -34,7 +34,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections import Counter, defaultdict
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -80,6 +80,7 @@ class Answer:
     rms_after: float | None
     alternatives: tuple[tuple[str, ...], ...] = ()
     near_twins: tuple[tuple[str, ...], ...] = ()
+    stages: tuple[tuple[str, float], ...] = ()
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -167,6 +168,11 @@ def answer_of(result: dict[str, Any]) -> Answer:
     gap = result.get("gap") or {}
     before, after = gap.get("before") or {}, gap.get("after") or {}
     seconds = _number(result.get("seconds"))
+    stages = tuple(
+        (str(x["stage"]), float(x["seconds"]))
+        for x in result.get("stages") or []
+        if isinstance(x, dict) and "stage" in x and _number(x.get("seconds")) is not None
+    )
     return Answer(
         status=status,
         effects=effects,
@@ -176,6 +182,7 @@ def answer_of(result: dict[str, Any]) -> Answer:
         rms_after=_number(after.get("rms_over_noise")),
         alternatives=alternatives,
         near_twins=near,
+        stages=stages,
     )
 
 
@@ -267,6 +274,10 @@ class Scores:
     per_effect : dict
         Per effect: single cases named, compound cases found in the set, held-back cases
         answered unexplained and located (each ``[k, n]``).
+    stages_by_kind : dict
+        ``stages_by_kind[kind][stage]``: how many of the kind's diagnoses ran that stage of the work
+        and its wall time over them (``n``, ``median``, ``p90``, ``total`` [s]), from the results'
+        ``stages`` (empty for results written before they were recorded).
     rows : list of dict
         One row per case (keys :data:`ROW_COLUMNS`); :meth:`to_dict` writes them as a table
         (``cases.columns`` and ``cases.rows``) to keep the report small.
@@ -277,6 +288,7 @@ class Scores:
     status_by_kind: dict[str, dict[str, int]]
     per_effect: dict[str, dict[str, list[int]]]
     rows: list[dict[str, Any]]
+    stages_by_kind: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -284,6 +296,7 @@ class Scores:
             "breakdown": [m.to_dict() for m in self.breakdown],
             "status_by_kind": self.status_by_kind,
             "per_effect": self.per_effect,
+            "stages_by_kind": self.stages_by_kind,
             "cases": {
                 "columns": list(ROW_COLUMNS),
                 "rows": [[r[c] for c in ROW_COLUMNS] for r in self.rows],
@@ -524,4 +537,21 @@ def score_cases(key: Sequence[KeyEntry], results: dict[str, dict[str, Any]]) -> 
         status_by_kind=status_by_kind,
         per_effect={n: dict(v) for n, v in sorted(per_effect.items())},
         rows=rows,
+        stages_by_kind=_stages_by_kind(by_kind),
     )
+
+
+def _stages_by_kind(by_kind: Mapping[str, list[tuple[KeyEntry, Answer]]]) -> dict[str, dict[str, dict[str, float]]]:
+    """Per kind and stage of the work: how many diagnoses ran it and its wall time (median, p90, total [s])."""
+    out: dict[str, dict[str, dict[str, float]]] = {}
+    for kind in CASE_KINDS:
+        times: dict[str, list[float]] = defaultdict(list)
+        for _, a in by_kind.get(kind, []):
+            for name, secs in a.stages:
+                times[name].append(secs)
+        if times:
+            out[kind] = {
+                name: {"n": len(t), "median": float(np.median(t)), "p90": float(np.percentile(t, 90)), "total": sum(t)}
+                for name, t in times.items()
+            }
+    return out
