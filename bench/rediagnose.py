@@ -22,7 +22,8 @@ a directory that holds no cases yet gets the run's cases drawn first (no diagnos
 ``--sets`` updates the default :class:`~engine.diagnosis.sets.SetSettings` of the diagnosis
 (e.g. ``--sets '{"n_escalate_first": 0}'`` for the order before the early escalation).
 
-One JSON line per case on stdout; the diagnosis's log on stderr (``--log-level``).
+One JSON line per case on stdout (with where its time went: ``stages``, wall seconds per stage of
+the work); the diagnosis's log on stderr (``--log-level``).
 """
 
 from __future__ import annotations
@@ -91,6 +92,7 @@ def main(argv: list[str] | None = None) -> int:
             "locus": a.locus,
             "correct": correct(k, a),
             "seconds": round(seconds, 1),
+            "stages": [[x["stage"], round(x["seconds"], 1)] for x in result.get("stages", [])],
         }
         print(json.dumps(row), flush=True)
     return 0
