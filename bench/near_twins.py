@@ -34,14 +34,10 @@ def main(argv: list[str] | None = None) -> int:
     from engine.diagnosis.candidate import SEEDED_FITS, Candidate
     from engine.diagnosis.diagnose import DiagnosisSettings, _explains_as_well
     from engine.diagnosis.sets import CandidateSet
-    from engine.diagnosis.space import indistinguishable
     from engine.simulation import CATALOGUE
     from engine.validation.layout import RunLayout
 
     settings = DiagnosisSettings()
-
-    def exact_twins(name: str, value: float | None) -> tuple[str, ...]:
-        return indistinguishable(name, float(value), CATALOGUE) if value is not None else ()
 
     def calibration(c: dict[str, Any], refined: bool) -> CalibrationResult:
         cal = c["calibration"]
@@ -57,8 +53,9 @@ def main(argv: list[str] | None = None) -> int:
             effect=None,
             n_simulations=0,
             seconds=0.0,
-            # the stored summary has no step: a model with strengths was refined (they are computed after it)
-            step=SEEDED_FITS.final_step if refined else SEEDED_FITS.search_step,
+            # results written before the summary held its step: a model with strengths was refined
+            # (they are computed after the refinement)
+            step=cal.get("step") or (SEEDED_FITS.final_step if refined else SEEDED_FITS.search_step),
         )
 
     def model(c: dict[str, Any]) -> Candidate | CandidateSet | None:
@@ -85,11 +82,11 @@ def main(argv: list[str] | None = None) -> int:
     for run in args.runs:
         layout = RunLayout(run)
         _, key = layout.read_key()
+        done = layout.done()
         for k in key:
-            path = run / "results" / f"{k.case_id}.json"
-            if not path.exists():
+            if k.case_id not in done:
                 continue
-            res = json.loads(path.read_text())
+            res = layout.read_result(k.case_id)
             v = res.get("verdict") or {}
             if v.get("status") != "explained":
                 continue
@@ -101,15 +98,9 @@ def main(argv: list[str] | None = None) -> int:
             )
             if chosen is None:
                 continue
-            twins = near_twins(chosen, models, lambda m: _explains_as_well(m, settings), settings.min_delta_bic)
-            # as the verdict does: an exact twin (the same record, a delay for a trigger offset) is an
-            # alternative already, not a near twin
-            values = chosen.values if isinstance(chosen, CandidateSet) else {chosen.effect: chosen.value}
-            twins = {
-                n: kept
-                for n, ts in twins.items()
-                if (kept := tuple(t for t in ts if t.effect not in exact_twins(n, values.get(n))))
-            }
+            twins = near_twins(
+                chosen, models, lambda m: _explains_as_well(m, settings), settings.min_delta_bic, CATALOGUE
+            )
             if not twins:
                 continue
             n_declared += 1

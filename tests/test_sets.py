@@ -294,16 +294,16 @@ def test_a_set_with_one_member_swapped_that_explains_as_well_makes_a_near_twin()
     two_off = pair(("trigger_offset", "supply_voltage", "sensor_offset"), 1.0, (30.0, 20.0, 8.0))
     smaller = pair(("trigger_offset", "supply_voltage"), 1.0, (30.0, 20.0))
     models = [chosen, swap, far, weak, coarse, two_off, smaller, single("supply_voltage", 1.0, 40.0)]
-    twins = near_twins(chosen, models, lambda m: diagnose_module._explains_as_well(m, s), s.min_delta_bic)
+    twins = near_twins(chosen, models, lambda m: diagnose_module._explains_as_well(m, s), s.min_delta_bic, CATALOGUE)
     assert list(twins) == ["rotor_resistance_drift"]
     (t,) = twins["rotor_resistance_drift"]
     assert t.effect == "supply_voltage" and t.value == 1.07 and t.unit == CATALOGUE["supply_voltage"].unit
     assert math.isclose(t.delta_bic, 4.0)
     # a single effect's near twin: another refined single candidate that explains as well
     best, other = single("motor_viscous_friction", 1.0, 12.0), single("motor_coulomb_friction", 1.0003, 11.0)
-    assert [x.effect for x in near_twins(best, [best, other], lambda m: True, 10.0)["motor_viscous_friction"]] == [
-        "motor_coulomb_friction"
-    ]
+    assert [
+        x.effect for x in near_twins(best, [best, other], lambda m: True, 10.0, CATALOGUE)["motor_viscous_friction"]
+    ] == ["motor_coulomb_friction"]
 
 
 def test_the_verdict_names_near_twins_apart_from_exact_twins() -> None:
@@ -316,8 +316,10 @@ def test_the_verdict_names_near_twins_apart_from_exact_twins() -> None:
     delay = pair(("measurement_delay", "load_inertia"), 1.0, (40.0, 90.0))  # the exact twin's set fits alike
     s = DiagnosisSettings()
     v = decide(nominal, [], s, [chosen, swap, delay])
-    near = diagnose_module._near_twins(v, [], [chosen, swap, delay], s)
-    assert [t.effect for t in near["trigger_offset"]] == ["measurement_delay"]
+    near = diagnose_module._near_twins(
+        v, choose_model([], [chosen, swap, delay], s), [chosen, swap, delay], s, CATALOGUE
+    )
+    assert "trigger_offset" not in near  # the exact twin is an alternative, never a near twin
     v = diagnose_module._with_alternatives(v, CATALOGUE, near)
     rows = {r["effect"]: r for r in v.to_dict()["effects"]}
     assert (
@@ -329,7 +331,7 @@ def test_the_verdict_names_near_twins_apart_from_exact_twins() -> None:
     assert "cannot tell load_inertia from resilient_stiffness = 1.5" in v.reason
     # no near twins for a verdict that names nothing
     clean = decide(fake_cal(1.0, k=4), [], s, [])
-    assert diagnose_module._near_twins(clean, [], [chosen, swap], s) == {}
+    assert diagnose_module._near_twins(clean, choose_model([], [], s), [chosen, swap], s, CATALOGUE) == {}
 
 
 @pytest.mark.parametrize(("refined_chi2", "triples_expected"), [(1.079, True), (1.0, False)])

@@ -646,6 +646,9 @@ def test_the_report_says_where_the_time_went_per_kind_and_stage() -> None:
     assert "clean" not in doc["stages_by_kind"]
     md = markdown({**doc, "protocol": 2, "n_cases": 3, "seed": 1, "counts": {}, "library": [], "held_back": []})
     assert "| single | single candidates | 2 | 5.0 | 5.8 | 57 % |" in md
+    res["c"]["stages"] = [{"stage": "nominal calibration", "seconds": "3 s"}]  # not a number: refused, not dropped
+    with pytest.raises(ValueError, match="stages must be"):
+        answer_of(res["c"])
 
 
 def test_report_is_small_and_says_what_it_ran_on() -> None:

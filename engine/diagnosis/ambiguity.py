@@ -39,10 +39,13 @@ from typing import Any
 
 from engine.diagnosis.candidate import Candidate
 from engine.diagnosis.sets import CandidateSet
+from engine.diagnosis.space import indistinguishable
+from engine.simulation import EffectLibrary
 
-__all__ = ["NearTwin", "near_twins"]
+__all__ = ["Model", "NearTwin", "near_twins"]
 
 Model = Candidate | CandidateSet
+"""A fitted alternative to the nominal model: one effect, or a set of effects."""
 
 
 @dataclass(frozen=True)
@@ -82,11 +85,17 @@ def _value_and_unit(m: Model, name: str) -> tuple[float | None, str]:
     return m.values.get(name), m.units[name]
 
 
+def _exact_twins(m: Model, name: str, library: EffectLibrary) -> tuple[str, ...]:
+    value, _ = _value_and_unit(m, name)
+    return indistinguishable(name, float(value), library) if value is not None else ()
+
+
 def near_twins(
     chosen: Model,
     models: Sequence[Model],
     explains: Callable[[Model], bool],
     max_delta_bic: float,
+    library: EffectLibrary,
 ) -> dict[str, tuple[NearTwin, ...]]:
     """Near twins of each effect of the chosen model (see the module notes).
 
@@ -102,6 +111,10 @@ def near_twins(
     max_delta_bic : float
         A model whose BIC exceeds the chosen one's by this much or more is worse by the decision's
         rule: not a near twin.
+    library : EffectLibrary
+        The candidate effects: a named effect's exact twins in it
+        (:func:`~engine.diagnosis.space.indistinguishable` at the named value) are its
+        ``alternatives``, never its near twins.
 
     Returns
     -------
@@ -121,7 +134,7 @@ def near_twins(
         if not delta < max_delta_bic or not explains(m):
             continue
         (named,), (other,) = gone, new
-        if any(t.effect == other for t in out.get(named, [])):
+        if any(t.effect == other for t in out.get(named, [])) or other in _exact_twins(chosen, named, library):
             continue
         value, unit = _value_and_unit(m, other)
         out.setdefault(named, []).append(NearTwin(other, value, unit, delta))

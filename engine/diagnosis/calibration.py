@@ -274,6 +274,7 @@ class CalibrationResult:
             "lowfreq_ratio": dict(self.lowfreq_ratio),
             "n_simulations": self.n_simulations,
             "seconds": self.seconds,
+            "step": self.step,
         }
 
     def simulated_record(self, template: Record) -> Record:

@@ -92,7 +92,7 @@ from typing import Any
 
 from scipy.special import expit
 
-from engine.diagnosis.ambiguity import NearTwin, near_twins
+from engine.diagnosis.ambiguity import Model, NearTwin, near_twins
 from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings, calibrate
 from engine.diagnosis.candidate import Candidate, CandidateSettings, posterior_weights
 from engine.diagnosis.candidates import escalate_candidates, fit_candidates, needs_escalation
@@ -441,10 +441,6 @@ def _fits_noise(cal: CalibrationResult, s: DiagnosisSettings) -> bool:
     return total <= s.max_reduced_chi2 and worst <= s.max_channel_chi2
 
 
-Model = Candidate | CandidateSet
-"""A fitted alternative to the nominal model: one effect, or a set of effects."""
-
-
 def _strength(m: Model) -> float:
     """How far a model's (weakest) effect moves the record [noise RMS]; inf when unknown."""
     st = m.strength
@@ -639,21 +635,25 @@ def _explains_as_well(m: Model, settings: DiagnosisSettings) -> bool:
     """Whether a model explains the record as a named one must: refined at the final integrator
     step, fits to the noise, every effect strong."""
     cal = m.calibration
-    if cal is None or cal.step != settings.candidates.seeded.final_step or not _fits_noise(cal, settings):
+    if cal is None or cal.step != settings.candidates.seeded.final_step:
         return False
     if isinstance(m, CandidateSet):
-        return _all_strong(m, settings)
-    return m.strength is not None and math.isfinite(m.strength) and m.strength > settings.min_strength
+        return _explains(m, settings)
+    strong = m.strength is not None and math.isfinite(m.strength) and m.strength > settings.min_strength
+    return strong and _fits_noise(cal, settings)
 
 
 def _near_twins(
-    verdict: Verdict, cands: Sequence[Candidate], sets: Sequence[CandidateSet], settings: DiagnosisSettings
+    verdict: Verdict,
+    model: Model | None,
+    models: Sequence[Model],
+    settings: DiagnosisSettings,
+    library: EffectLibrary,
 ) -> dict[str, tuple[NearTwin, ...]]:
-    """Near twins of the named effects (:mod:`engine.diagnosis.ambiguity`); none unless explained."""
-    model = choose_model(cands, sets, settings) if verdict.status == "explained" else None
-    if model is None:
+    """Near twins of the named effects of ``model`` (:mod:`engine.diagnosis.ambiguity`); none unless explained."""
+    if model is None or verdict.status != "explained":
         return {}
-    return near_twins(model, [*cands, *sets], lambda m: _explains_as_well(m, settings), settings.min_delta_bic)
+    return near_twins(model, models, lambda m: _explains_as_well(m, settings), settings.min_delta_bic, library)
 
 
 def _with_alternatives(
@@ -669,7 +669,7 @@ def _with_alternatives(
     for r in verdict.effects:
         value = r.get("value")
         alts = indistinguishable(r["effect"], float(value), library) if value is not None else ()
-        twins = tuple(t for t in near.get(r["effect"], ()) if t.effect not in alts)  # exact twins said once
+        twins = tuple(near.get(r["effect"], ()))
         rows.append({**r, "alternatives": list(alts), "near_twins": [t.to_dict() for t in twins]})
         if alts:
             notes.append(f"{r['effect']} cannot be told from {' or '.join(alts)} (the same shift of every channel)")
@@ -838,7 +838,8 @@ def _diagnose(
         _reweight(nominal, cands, sets)
     progress(0.85, "deciding the verdict")
     verdict = decide(nominal, cands, settings, sets)
-    verdict = _with_alternatives(verdict, library, _near_twins(verdict, cands, sets, settings))
+    model = choose_model(cands, sets, settings)  # the model the verdict names, when explained
+    verdict = _with_alternatives(verdict, library, _near_twins(verdict, model, [*cands, *sets], settings, library))
     stage("decision")
 
     after = None
@@ -847,7 +848,6 @@ def _diagnose(
     cells_after: list[Cell] = []
     locus: dict[str, Any] | None = None
     if verdict.status == "explained":
-        model = choose_model(cands, sets, settings)
         best_cal = model.calibration if model is not None else None
         if model is None or best_cal is None:  # an explained verdict names a fitted model
             raise RuntimeError(f"the named effect {verdict.effect} has no fit")

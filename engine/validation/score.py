@@ -146,6 +146,20 @@ def _near_twins(row: dict[str, Any]) -> tuple[str, ...]:
     return tuple(x["effect"] for x in near)
 
 
+def _stages(result: dict[str, Any]) -> tuple[tuple[str, float], ...]:
+    """Where a diagnosis's time went (``stages``; none in results written before they were recorded); a
+    result that gives them as anything but a list of ``{"stage": name, "seconds": finite number}`` is refused."""
+    stages = result.get("stages")
+    if stages is None:
+        return ()
+    if not isinstance(stages, list) or not all(
+        isinstance(x, dict) and isinstance(x.get("stage"), str) and _number(x.get("seconds")) is not None
+        for x in stages
+    ):
+        raise ValueError(f"stages must be a list of {{'stage': name, 'seconds': number}}, got {stages!r}")
+    return tuple((x["stage"], float(x["seconds"])) for x in stages)
+
+
 def answer_of(result: dict[str, Any]) -> Answer:
     """Read a result file's answer, tolerant of results written before ``effects`` and ``locus`` existed."""
     v = result.get("verdict") or {}
@@ -168,11 +182,6 @@ def answer_of(result: dict[str, Any]) -> Answer:
     gap = result.get("gap") or {}
     before, after = gap.get("before") or {}, gap.get("after") or {}
     seconds = _number(result.get("seconds"))
-    stages = tuple(
-        (str(x["stage"]), float(x["seconds"]))
-        for x in result.get("stages") or []
-        if isinstance(x, dict) and "stage" in x and _number(x.get("seconds")) is not None
-    )
     return Answer(
         status=status,
         effects=effects,
@@ -182,7 +191,7 @@ def answer_of(result: dict[str, Any]) -> Answer:
         rms_after=_number(after.get("rms_over_noise")),
         alternatives=alternatives,
         near_twins=near,
-        stages=stages,
+        stages=_stages(result),
     )
 
 
@@ -551,7 +560,7 @@ def _stages_by_kind(by_kind: Mapping[str, list[tuple[KeyEntry, Answer]]]) -> dic
                 times[name].append(secs)
         if times:
             out[kind] = {
-                name: {"n": len(t), "median": float(np.median(t)), "p90": float(np.percentile(t, 90)), "total": sum(t)}
+                name: {"n": len(t), "median": float(np.median(t)), "p90": _p90(t) or 0.0, "total": sum(t)}
                 for name, t in times.items()
             }
     return out
