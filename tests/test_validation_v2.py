@@ -28,7 +28,7 @@ from engine.validation.protocol import CHANNEL_SUBSETS, DEFAULT_MIX, SNR_RANGE_D
 from engine.validation.report import build_report, case_rows, dumps, markdown
 from engine.validation.run import prepare_cases, run_validation, score_run
 from engine.validation.score import answer_of, score_cases
-from engine.validation.stats import median_interval, rate, wilson_interval
+from engine.validation.stats import median_interval, quantile_interval, rate, wilson_interval
 
 # A stand-in held-back family: effects on plant fields the catalogue never touches.
 # fmt: off
@@ -395,6 +395,41 @@ def test_wilson_and_median_intervals() -> None:
     assert few.median == 2.0 and few.low is None and few.coverage is None and "too few" in few.text()
 
 
+def test_quantile_interval() -> None:
+    rng = np.random.default_rng(5)
+    # the median is the 0.5-quantile: the same ranks and coverage for every sample size
+    for n in (6, 7, 20, 75, 301):
+        v = list(rng.normal(size=n))
+        m, q = median_interval(v), quantile_interval(v, 0.5)
+        assert (q.low, q.high) == (m.low, m.high) and q.coverage == pytest.approx(m.coverage)
+        assert q.value == pytest.approx(m.median, rel=1e-12, abs=1e-15)
+    # the ranks of the 90th percentile's interval at n = 100, from the binomial pmf summed by hand:
+    # l the largest rank with P(B <= l - 1) <= 2.5 %, u the smallest with P(B >= u) <= 2.5 %
+    n, p = 100, 0.9
+    pmf = [math.comb(n, k) * p**k * (1 - p) ** (n - k) for k in range(n + 1)]
+    cdf = list(itertools.accumulate(pmf))
+    l = max(r for r in range(1, n + 1) if cdf[r - 1] <= 0.025)
+    u = min(r for r in range(1, n + 1) if 1.0 - cdf[r - 1] <= 0.025)
+    x = [float(i) for i in range(1, n + 1)]  # x_(r) = r
+    e = quantile_interval(x, 0.9)
+    assert (e.low, e.high) == (float(l), float(u)) and e.coverage == pytest.approx(cdf[u - 1] - cdf[l - 1])
+    assert e.coverage >= 0.95 and e.value == pytest.approx(90.1) and e.text().startswith("p90 90.1 [")
+    # its coverage, by simulation (exponential sample, true 90th percentile ln 10)
+    hits = sum(
+        (q := quantile_interval(list(rng.exponential(size=75)), 0.9)).low <= math.log(10.0) <= q.high  # type: ignore[operator]
+        for _ in range(1000)
+    )
+    assert 0.94 <= hits / 1000 <= 0.99
+    # too few: the largest of 35 values lies below the 90th percentile with probability 0.9**35 > 2.5 %
+    assert (
+        quantile_interval(list(range(35)), 0.9).low is None and quantile_interval(list(range(36)), 0.9).low is not None
+    )
+    assert "too few" in quantile_interval(list(range(35)), 0.9).text()
+    assert quantile_interval([], 0.9).value is None
+    with pytest.raises(ValueError, match="level"):
+        quantile_interval([1.0, 2.0], 1.0)
+
+
 def _entry(
     cid: str, kind: str, effects: Sequence[tuple[str, str]] = (), on_box: bool = True, colour: str = "white"
 ) -> KeyEntry:
@@ -460,7 +495,7 @@ def test_scorer_marks_every_target_met_on_a_perfect_run() -> None:
     assert m["single_named"].rate is not None and m["single_named"].rate.k == 20
     assert m["clean_false_alarm"].rate is not None and m["clean_false_alarm"].rate.text().startswith("0/40 = 0.0 %")
     assert m["median_gap_after"].median is not None and m["median_gap_after"].median.median == pytest.approx(1.01)
-    assert m["seconds_single_p90"].value == 4.0 and m["seconds_compound_p90"].extra["p90"] == 6.0
+    assert m["seconds_single_p90"].value == 4.0 and m["seconds_compound_p90"].quantile.value == 6.0
     assert scores.status_by_kind["held_back"]["unexplained"] == 10
     assert scores.per_effect["load_inertia"]["single_named"] == [20, 20]
     assert scores.per_effect["clutch_offset"]["held_back_locus"] == [10, 10]

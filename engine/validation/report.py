@@ -53,11 +53,15 @@ def _metric_cells(m: dict[str, Any]) -> tuple[str, str]:
     med = m["median"]
     if med["n"] == 0:
         return "n/a (0 cases)", ""
-    p90 = (m.get("extra") or {}).get("p90")
-    value = f"{med['median']:.3g} (n = {med['n']})" + ("" if p90 is None else f"; p90 {p90:.3g}")
-    if med["low"] is None:
+    est = m.get("quantile")
+    if est is None:  # a median
+        value = f"{med['median']:.3g} (n = {med['n']})"
+        est = {**med, "value": med["median"]}
+    else:  # a quantile (the interval is its own), the median beside it
+        value = f"p{100 * est['q']:g} {est['value']:.3g} (n = {est['n']}; median {med['median']:.3g})"
+    if est["low"] is None:
         return value, "too few cases"
-    return value, f"[{med['low']:.3g}, {med['high']:.3g}] ({100 * med['coverage']:.0f} %)"
+    return value, f"[{est['low']:.3g}, {est['high']:.3g}] ({100 * est['coverage']:.0f} %)"
 
 
 def _metric_table(metrics: list[dict[str, Any]], with_target: bool) -> list[str]:

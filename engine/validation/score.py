@@ -25,8 +25,8 @@ Metrics (rates with their Wilson 95 % intervals; :data:`~engine.validation.proto
   on/off the catalogue's operating range and by white/coloured noise, report only);
 * ``median_gap_after``: median ``gap.after.rms_over_noise`` over the cases answered
   ``explained`` (order-statistic 95 % interval);
-* ``seconds_single_p90`` / ``seconds_compound_p90``: diagnosis times (report only;
-  90th percentiles alongside).
+* ``seconds_single_p90`` / ``seconds_compound_p90``: 90th percentiles of the diagnosis times
+  (order-statistic 95 % interval; report only; medians alongside).
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ import numpy as np
 
 from engine.validation.key import KeyEntry
 from engine.validation.protocol import CASE_KINDS, COMPOUND_KINDS, TARGETS
-from engine.validation.stats import MedianEstimate, Rate, median_interval, rate
+from engine.validation.stats import MedianEstimate, QuantileEstimate, Rate, median_interval, quantile_interval, rate
 
 __all__ = ["ROW_COLUMNS", "Answer", "Metric", "Scores", "answer_of", "score_cases"]
 
@@ -218,22 +218,27 @@ class Metric:
     rate : Rate or None
         For a rate.
     median : MedianEstimate or None
-        For a median.
-    extra : dict
-        Other numbers (e.g. the 90th percentile of a time).
+        For a median (and beside a quantile, e.g. the median time).
+    quantile : QuantileEstimate or None
+        For a quantile (a time target is on the 90th percentile); when set, it is the value.
     """
 
     name: str
     description: str
     rate: Rate | None = None
     median: MedianEstimate | None = None
-    extra: dict[str, float | None] = field(default_factory=dict)
+    quantile: QuantileEstimate | None = None
+
+    @property
+    def _estimate(self) -> Rate | MedianEstimate | QuantileEstimate | None:
+        return self.quantile if self.quantile is not None else self.rate if self.rate is not None else self.median
 
     @property
     def value(self) -> float | None:
-        if self.name.endswith("_p90"):  # a time target is on the 90th percentile (the median is reported too)
-            return self.extra.get("p90")
-        return self.rate.value if self.rate is not None else self.median.median if self.median is not None else None
+        est = self._estimate
+        if isinstance(est, MedianEstimate):
+            return est.median
+        return None if est is None else est.value
 
     @property
     def met(self) -> bool | None:
@@ -245,9 +250,7 @@ class Metric:
     def interval_met(self) -> bool | None:
         """Whether the whole 95 % interval lies on the target's side (None: no target, case or interval)."""
         target = TARGETS.get(self.name)
-        est = self.rate if self.rate is not None else self.median
-        if self.name.endswith("_p90"):
-            return None
+        est = self._estimate
         if target is None or est is None or est.low is None or est.high is None:
             return None
         return target.met(est.low if target.direction == ">=" else est.high)
@@ -259,7 +262,7 @@ class Metric:
             "description": self.description,
             **({"rate": self.rate.to_dict()} if self.rate is not None else {}),
             **({"median": self.median.to_dict()} if self.median is not None else {}),
-            **({"extra": {k: _sig(v) for k, v in self.extra.items()}} if self.extra else {}),
+            **({"quantile": self.quantile.to_dict()} if self.quantile is not None else {}),
             "target": None if target is None else target.text(percent=self.rate is not None),
             "gating": None if target is None else target.gating,
             "met": self.met,
@@ -349,7 +352,7 @@ def _p90(xs: Sequence[float]) -> float | None:
 
 
 def _time_metric(name: str, what: str, seconds: list[float]) -> Metric:
-    return Metric(name, what, median=median_interval(seconds), extra={"p90": _p90(seconds)})
+    return Metric(name, what, median=median_interval(seconds), quantile=quantile_interval(seconds, 0.9))
 
 
 def _row(k: KeyEntry, a: Answer, ok: bool) -> dict[str, Any]:

@@ -1,4 +1,4 @@
-"""Interval estimates of the validation's scores: Wilson intervals of rates, order-statistic intervals of medians."""
+"""Interval estimates of the validation's scores: Wilson intervals of rates, order-statistic intervals of quantiles."""
 
 from __future__ import annotations
 
@@ -9,7 +9,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import binom, norm
 
-__all__ = ["MedianEstimate", "Rate", "median_interval", "rate", "wilson_interval"]
+__all__ = [
+    "MedianEstimate",
+    "QuantileEstimate",
+    "Rate",
+    "median_interval",
+    "quantile_interval",
+    "rate",
+    "wilson_interval",
+]
 
 #: Confidence level of every interval the validation reports.
 CONFIDENCE: float = 0.95
@@ -135,6 +143,28 @@ class MedianEstimate:
         return f"{self.median:.3g}{unit} [{self.low:.3g}, {self.high:.3g}] (n = {self.n})"
 
 
+def _order_interval(x: np.ndarray, q: float, confidence: float) -> tuple[float, float, float] | None:
+    """Equal-tailed order-statistic interval ``(low, high, coverage)`` of the population ``q``-quantile.
+
+    ``x`` is sorted. With B ~ Binomial(n, q) the number of values below the quantile,
+    ``[x_(l), x_(u)]`` (1-based order statistics) covers it with probability ``P(l <= B <= u - 1)``;
+    ``l`` is the largest rank with ``P(B <= l - 1) <= alpha / 2`` and ``u`` the smallest with
+    ``P(B >= u) <= alpha / 2``. None when either rank falls outside the sample (too few values).
+    """
+    n = x.size
+    alpha = 1.0 - confidence
+    l = int(binom.ppf(alpha / 2.0, n, q))  # smallest l with P(B <= l) >= alpha / 2, so P(B <= l - 1) < alpha / 2
+    u = int(binom.ppf(1.0 - alpha / 2.0, n, q)) + 1  # P(B <= u - 1) >= 1 - alpha / 2
+    if l < 1 or u > n:
+        return None
+    coverage = float(binom.cdf(u - 1, n, q) - binom.cdf(l - 1, n, q))
+    return float(x[l - 1]), float(x[u - 1]), coverage
+
+
+def _finite_sorted(values: Sequence[float | None]) -> np.ndarray:
+    return np.sort(np.asarray([v for v in values if v is not None and math.isfinite(v)], dtype=float))
+
+
 def median_interval(values: Sequence[float], confidence: float = CONFIDENCE) -> MedianEstimate:
     """Sample median and the order-statistic interval of the population median.
 
@@ -153,15 +183,99 @@ def median_interval(values: Sequence[float], confidence: float = CONFIDENCE) -> 
     -------
     MedianEstimate
     """
-    x = np.sort(np.asarray([v for v in values if v is not None and math.isfinite(v)], dtype=float))
-    n = x.size
-    if n == 0:
+    x = _finite_sorted(values)
+    if x.size == 0:
         return MedianEstimate(0, None, None, None, None)
-    l = int(binom.ppf((1.0 - confidence) / 2.0, n, 0.5))  # P(B <= l - 1) < alpha / 2
-    if l < 1:  # even [min, max] covers less than asked
-        return MedianEstimate(n, float(np.median(x)), None, None, None)
-    coverage = float(1.0 - 2.0 * binom.cdf(l - 1, n, 0.5))
-    return MedianEstimate(n, float(np.median(x)), float(x[l - 1]), float(x[n - l]), coverage)
+    bounds = _order_interval(x, 0.5, confidence)
+    if bounds is None:  # even [min, max] covers less than asked
+        return MedianEstimate(x.size, float(np.median(x)), None, None, None)
+    return MedianEstimate(x.size, float(np.median(x)), *bounds)
+
+
+@dataclass(frozen=True)
+class QuantileEstimate:
+    """A sample quantile with a distribution-free interval from order statistics.
+
+    Attributes
+    ----------
+    q : float
+        The quantile's level (0.9: the 90th percentile).
+    n : int
+        Sample size.
+    value : float or None
+        Sample quantile (linear interpolation, ``numpy.quantile``'s default; None when ``n == 0``).
+    low, high : float or None
+        Order statistics bracketing the population quantile (equal tails). A sample too small for
+        that has no interval (for the 90th percentile at 95 %: n < 36, since even the largest
+        value lies below it with probability ``0.9**n`` > 2.5 %): ``low``, ``high`` and
+        ``coverage`` are then None.
+    coverage : float or None
+        Exact coverage of ``[low, high]``, at least the confidence asked for.
+    """
+
+    q: float
+    n: int
+    value: float | None
+    low: float | None
+    high: float | None
+    coverage: float | None
+
+    def to_dict(self) -> dict[str, float | int | None]:
+        """JSON-ready copy (4 significant digits)."""
+        r = _sig4
+        return {
+            "q": self.q,
+            "n": self.n,
+            "value": r(self.value),
+            "low": r(self.low),
+            "high": r(self.high),
+            "coverage": _round4(self.coverage),
+        }
+
+    def text(self, unit: str = "") -> str:
+        """E.g. ``p90 12.1 [9.8, 15.0] (n = 75)``."""
+        name = f"p{100 * self.q:g}"
+        if self.value is None:
+            return f"{name} n/a (0 cases)"
+        if self.low is None or self.high is None:
+            return f"{name} {self.value:.3g}{unit} (n = {self.n}: too few for an interval)"
+        return f"{name} {self.value:.3g}{unit} [{self.low:.3g}, {self.high:.3g}] (n = {self.n})"
+
+
+def quantile_interval(values: Sequence[float], q: float, confidence: float = CONFIDENCE) -> QuantileEstimate:
+    """Sample ``q``-quantile and the equal-tailed order-statistic interval of the population's.
+
+    The binomial argument of :func:`median_interval` with ``P(value below the quantile) = q``;
+    exact for any continuous distribution, conservative (coverage at least ``confidence``).
+
+    Parameters
+    ----------
+    values : sequence of float
+        The sample (non-finite values are dropped).
+    q : float
+        Level, ``0 < q < 1``.
+    confidence : float
+        Smallest coverage wanted.
+
+    Returns
+    -------
+    QuantileEstimate
+
+    Raises
+    ------
+    ValueError
+        ``q`` outside (0, 1).
+    """
+    if not 0.0 < q < 1.0:
+        raise ValueError(f"the quantile's level must lie in (0, 1), got {q}")
+    x = _finite_sorted(values)
+    if x.size == 0:
+        return QuantileEstimate(q, 0, None, None, None, None)
+    value = float(np.quantile(x, q))
+    bounds = _order_interval(x, q, confidence)
+    if bounds is None:
+        return QuantileEstimate(q, x.size, value, None, None, None)
+    return QuantileEstimate(q, x.size, value, *bounds)
 
 
 def _round4(x: float | None) -> float | None:
