@@ -234,3 +234,34 @@ def test_the_seeded_fit_follows_a_narrow_valley_to_a_weak_effect() -> None:
     assert former.calibration.reduced_chi2 > 1.3  # the former step stalls short of the valley
     assert now.calibration.reduced_chi2 < 1.05
     assert now.value == pytest.approx(0.052, rel=0.05)
+
+
+def test_only_the_best_seeds_are_refined_when_their_number_is_capped(clean, monkeypatch):
+    """With ``n_seed_fits`` the seeds are first evaluated on the full record and only the best are
+    refined: here the seed at the truth and the one next to it, not the two far off."""
+    from engine.diagnosis import calibration as cal_module
+
+    rec, _ = noisy(clean, 40.0, seed=3)
+    truth = {"K": TRUTH.K, "J1": TRUTH.J1, "c": TRUTH.c}
+    seeds = [
+        {"K": 0.012, "J1": 0.65, "c": 0.6},
+        {**truth, "K": TRUTH.K * 1.002},
+        {"K": 0.002, "J1": 1.15, "c": 1.9},
+        truth,
+    ]
+    refined: list[np.ndarray] = []
+    real = cal_module.Objective.local_fit
+
+    def counted(self, u, *args, **kwargs):
+        refined.append(np.array(u))
+        return real(self, u, *args, **kwargs)
+
+    monkeypatch.setattr(cal_module.Objective, "local_fit", counted)
+    settings = CalibrationSettings(n_global=0, max_nfev=10, n_seed_fits=2)
+    cal = calibrate(rec, default_space(rec), settings, seeds=seeds, polish=False)
+    space = default_space(rec)
+    assert [space.values(u)["K"] for u in refined] == pytest.approx([TRUTH.K * 1.002, TRUTH.K])  # in given order
+    assert cal.values["K"] == pytest.approx(TRUTH.K, rel=0.005) and cal.reduced_chi2 < 1.1
+    refined.clear()
+    calibrate(rec, default_space(rec), CalibrationSettings(n_global=0, max_nfev=2), seeds=seeds, polish=False)
+    assert len(refined) == len(seeds)  # no cap: every seed is refined

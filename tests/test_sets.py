@@ -672,3 +672,15 @@ def test_a_single_effect_out_of_the_seeded_basin_is_escalated_before_any_pair() 
     assert not res.sets  # no set was searched
     escalated = [c.effect for c in res.candidates if c.escalated]
     assert "stator_resistance_drift" in escalated and len(escalated) <= SetSettings().n_escalate_first
+
+
+def test_the_singles_escalations_take_the_smaller_of_their_cap_and_the_candidates_own() -> None:
+    from engine.diagnosis.candidate import CandidateSettings
+
+    cs = CandidateSettings()  # n_escalate None: every candidate
+    ss = SetSettings(n_escalate_first=2, n_escalate_singles=6)
+    assert ss.escalation(cs, early=True).n_escalate == 2
+    assert ss.escalation(cs).n_escalate == 6
+    assert ss.escalation(CandidateSettings(n_escalate=4)).n_escalate == 4  # the candidates' own cap holds
+    assert SetSettings(n_escalate_singles=None).escalation(cs) is cs  # no cap: every candidate
+    assert ss.escalation(cs).seeded == cs.seeded  # nothing else changes

@@ -142,6 +142,11 @@ class CalibrationSettings:
         parameter that the shorter horizon did not pin sits wherever its start put it, and
         when the longer horizon reveals its effect the local fit would only reach the
         nearest of its basins.
+    n_seed_fits : int or None
+        When more seeds than this are given, all of them are first evaluated on the full record
+        (one batch at the search step) and only this many with the lowest chi2 are refined
+        (None: every seed). The joint fits of a set of effects get up to seven seeds, built from
+        the fits of its subsets, and refining each costs as much as a seeded single fit.
     """
 
     n_global: int = 512
@@ -158,6 +163,7 @@ class CalibrationSettings:
     n_screen: int = 8
     screen_nfev: int = 6
     n_extend_scan: int = 0
+    n_seed_fits: int | None = None
 
     def horizons(self, record: Record) -> list[int]:
         """Horizons as sample counts from the start of the record (on its own interval)."""
@@ -320,6 +326,19 @@ def _pick_starts(U: np.ndarray, cost: np.ndarray, n: int, min_sep: float) -> lis
     return starts
 
 
+def _best_seeds(
+    obj: Objective, seeds: list[np.ndarray], settings: CalibrationSettings, solver: SolverSettings
+) -> list[np.ndarray]:
+    """The ``settings.n_seed_fits`` seeds (unit box) of lowest chi2 on the full record, in their given order."""
+    n = settings.n_seed_fits
+    if n is None or len(seeds) <= n:
+        return seeds
+    c2 = obj.chi2(np.array(seeds), [obj.record.n_samples], solver)[:, 0]
+    keep = sorted(np.argsort(c2, kind="stable")[: max(n, 1)])
+    logger.debug("seeds: %d of %d kept (chi2 %s)", len(keep), len(seeds), np.round(c2, 1))
+    return [seeds[i] for i in keep]
+
+
 def calibrate(
     record: Record,
     space: ModelSpace | None = None,
@@ -415,7 +434,7 @@ def _calibrate(
             starts += [(u, "global") for u in picked]
             logger.debug("global search: %d points, best early chi2 %.4g", len(U), np.min(C))
         # seeds (already close to a full-horizon optimum) skip the continuation
-        starts += [(space.unit(s), "seed") for s in seeds]
+        starts += [(u, "seed") for u in _best_seeds(obj, [space.unit(s) for s in seeds], settings, coarse)]
         if not starts:
             raise CalibrationError(
                 "no parameter set of the search box could be simulated; check the record's conditions"

@@ -807,20 +807,18 @@ def _diagnose(
     if staged and set_settings.n_escalate_first > 0 and needs_escalation(cands, cs):
         # the few best singles' global search first: a single effect whose seeded fit stayed in the
         # nominal calibration's basin is most often among them, and found in seconds
-        n_first = set_settings.n_escalate_first
-        early = replace(cs, n_escalate=n_first if cs.n_escalate is None else min(n_first, cs.n_escalate))
-        cands = escalate_candidates(record, nominal, space, library, cands, early)
+        cands = escalate_candidates(record, nominal, space, library, cands, set_settings.escalation(cs, early=True))
         stage("early escalation of the best singles")
     if staged and not _explains_single(cands, settings):
         # pairs from the seeded single fits first, the best with a global search in its joint space;
-        # the singles' escalation only when none explains the record
+        # the escalation of the best few singles (SetSettings.n_escalate_singles) only when none explains the record
         first = replace(set_settings, max_size=2)
         sets = search_sets(record, nominal, space, library, cands, cs, first)
         stage("first pairs")
         if not any(_explains(s, settings) for s in sets):
             seeded = {c.effect: c.calibration.values for c in cands if c.calibration is not None}
             if needs_escalation(cands, cs):
-                cands = escalate_candidates(record, nominal, space, library, cands, cs)
+                cands = escalate_candidates(record, nominal, space, library, cands, set_settings.escalation(cs))
                 stage("escalation of the singles")
             if not _explains_single(cands, settings):
                 # the first pairs stand as fitted unless the escalation moved a single they came from

@@ -22,7 +22,8 @@ selection:
    member's calibration with the other effect at its single-fit value and at
    its neutral value, and the best point of a scan of the other effect's value
    over its range at the better member's fit), by least squares at the search
-   step.
+   step: every seed is simulated once and only the ``n_seed_fits`` of lowest chi2 are
+   refined.
 2. **Triples**: the ``n_extend`` best pairs, the ``n_base`` best of them
    extended by the ``n_forward`` best-screened other effects of the library, the others by every other
    pool member, seeded the same way from the pair's fit and a scan of the new
@@ -159,6 +160,18 @@ class SetSettings:
         single effect whose seeded fit stayed in the nominal calibration's wrong basin is most
         often among the first few (docs/diagnosis.md 8b, *Early escalation*), and its global
         search costs a few seconds where the pairs it would otherwise wait for cost tens. 0: none.
+    n_escalate_singles : int or None
+        With ``before_escalation``, the single candidates of this many best seeded BICs (those escalated
+        early included) get the global search once the first pairs explain nothing (None: every
+        candidate, the default). On a record that no single effect explains, the escalation of every
+        one of the 16 singles is about a quarter of the time, but a single effect whose seeded fit
+        ranks near last can need it: six cost seed-131 case0077, an absorber discontinuity ranked 15th
+        of 16 (docs/diagnosis.md 8b, *Fewer global searches*).
+    n_seed_fits : int or None
+        Of the seeds of a set's joint fit (built from its subsets' fits, up to seven), only this many
+        of lowest chi2 on the full record are refined (:attr:`CalibrationSettings.n_seed_fits`;
+        None: every seed): refining every seed was about a third of a compound record's set
+        search (docs/diagnosis.md 8b, *Fewer global searches*).
     """
 
     max_size: int = 3
@@ -176,6 +189,30 @@ class SetSettings:
     before_escalation: bool = True
     n_exchange: int = 2
     n_escalate_first: int = 2
+    n_escalate_singles: int | None = None
+    n_seed_fits: int | None = 2
+
+    def escalation(self, candidates: CandidateSettings, early: bool = False) -> CandidateSettings:
+        """The candidate settings of the singles' escalation in the staged order (``before_escalation``).
+
+        Parameters
+        ----------
+        candidates : CandidateSettings
+            The diagnosis's candidate settings (their own ``n_escalate`` caps both escalations too).
+        early : bool
+            The early escalation (``n_escalate_first`` singles) rather than the one after the first
+            pairs (``n_escalate_singles``).
+
+        Returns
+        -------
+        CandidateSettings
+            ``candidates`` with ``n_escalate`` the smaller of its own and this escalation's cap.
+        """
+        cap = self.n_escalate_first if early else self.n_escalate_singles
+        if cap is None:
+            return candidates
+        own = candidates.n_escalate
+        return replace(candidates, n_escalate=cap if own is None else min(cap, own))
 
 
 @dataclass
@@ -619,6 +656,7 @@ def _search(
         given: Mapping[tuple[str, ...], Mapping[str, float]] | None = None,
     ) -> None:
         tasks = {}
+        seeding = settings if ss.n_seed_fits is None else replace(settings, n_seed_fits=ss.n_seed_fits)
         for g in groups:
             members = [effects[n] for n in g]
             scan = None
@@ -637,7 +675,7 @@ def _search(
                         new = next(n for n in g if n not in sub)
                         scan = ({**fits[sub].values, new: effects[new].neutral}, new, cs.n_scan)
             tasks[g] = runner.submit(
-                _fit_set, record, space, members, settings, nominal.noise, seeds, polish, scan, cs.n_quantum
+                _fit_set, record, space, members, seeding, nominal.noise, seeds, polish, scan, cs.n_quantum
             )
         for g, task in tasks.items():
             cal = task.result()
