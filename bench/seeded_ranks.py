@@ -39,17 +39,15 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(name)s %(message)s", stream=sys.stderr)
 
-    from engine.diagnosis.calibration import calibrate
-    from engine.diagnosis.candidates import fit_candidates, needs_escalation
+    from _seeded import open_run, seeded_singles
+
+    from engine.diagnosis.candidates import needs_escalation
     from engine.diagnosis.diagnose import DiagnosisSettings
-    from engine.diagnosis.space import default_space, indistinguishable
+    from engine.diagnosis.space import indistinguishable
     from engine.simulation import CATALOGUE
-    from engine.validation.layout import RunLayout
-    from engine.validation.run import prepare_cases
     from engine.validation.stats import wilson_interval
 
-    layout = RunLayout(args.run)
-    prepare_cases(layout, args.n_cases, args.seed)
+    layout = open_run(args.run, args.n_cases, args.seed)
     ids = [c for c in args.ids.split(",") if c]
     try:
         entries = layout.key_entries(ids or layout.case_ids())
@@ -61,10 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     for k in entries:
         (truth,) = k.effects
         t0 = time.perf_counter()
-        record, _ = layout.read_case(k.case_id).test_window()
-        space = default_space(record)
-        nominal = calibrate(record, space, ds.calibration)
-        cands = fit_candidates(record, nominal, space, CATALOGUE, ds.candidates, escalate=False)
+        cands = seeded_singles(layout, k.case_id, ds).singles
         fitted = [c for c in cands if c.calibration is not None]
         twins = {truth.name, *indistinguishable(truth.name, truth.value, CATALOGUE)}
         rank = next((i + 1 for i, c in enumerate(fitted) if c.effect in twins), None)

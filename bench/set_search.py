@@ -39,18 +39,15 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(name)s %(message)s", stream=sys.stderr)
 
-    from engine.diagnosis.calibration import calibrate
-    from engine.diagnosis.candidates import fit_candidates
+    from _seeded import open_run, seeded_singles
+
     from engine.diagnosis.diagnose import DiagnosisSettings
     from engine.diagnosis.sets import search_sets
-    from engine.diagnosis.space import default_space, indistinguishable
+    from engine.diagnosis.space import indistinguishable
     from engine.simulation import CATALOGUE
-    from engine.validation.layout import RunLayout
-    from engine.validation.run import prepare_cases
     from engine.validation.stats import wilson_interval
 
-    layout = RunLayout(args.run)
-    prepare_cases(layout, args.n_cases, args.seed)
+    layout = open_run(args.run, args.n_cases, args.seed)
     try:
         entries = layout.key_entries([c for c in args.cases.split(",") if c])
     except KeyError as e:
@@ -61,11 +58,8 @@ def main(argv: list[str] | None = None) -> int:
     for k in entries:
         cid, truth = k.case_id, {e.name for e in k.effects}
         t0 = time.perf_counter()
-        record, _ = layout.read_case(cid).test_window()
-        space = default_space(record)
-        nominal = calibrate(record, space, ds.calibration)
-        singles = fit_candidates(record, nominal, space, CATALOGUE, ds.candidates, escalate=False)
-        sets = search_sets(record, nominal, space, CATALOGUE, singles, ds.candidates, ss)
+        fit = seeded_singles(layout, cid, ds)
+        sets = search_sets(fit.record, fit.nominal, fit.space, CATALOGUE, fit.singles, ds.candidates, ss)
         best = sets[0] if sets else None
         named: set[str] = set()
         if best is not None:
