@@ -449,7 +449,7 @@ def fake_set_fits(monkeypatch: pytest.MonkeyPatch, chi2n_of):
 
     def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0):
         names = tuple(m.name for m in members)
-        fitted.append((names, settings is cs.escalated))
+        fitted.append((names, settings.n_global > 0))  # the escalated fits have the global search
         cal = fake_cal(chi2n_of(names), k=3 + len(names))
         cal.values.update({n: 1.0 for n in names})
         cal.step = settings.final_step if polish else settings.search_step
