@@ -166,12 +166,12 @@ class SetSettings:
         candidate, the default). On a record that no single effect explains, the escalation of every
         one of the 16 singles is about a quarter of the time, but a single effect whose seeded fit
         ranks near last can need it: six cost seed-131 case0077, an absorber discontinuity ranked 15th
-        of 16 (docs/diagnosis.md 8b, *Fewer global searches*).
+        of 16 (docs/diagnosis.md 8b, *Fewer seed refinements*).
     n_seed_fits : int or None
         Of the seeds of a set's joint fit (built from its subsets' fits, up to seven), only this many
         of lowest chi2 on the full record are refined (:attr:`CalibrationSettings.n_seed_fits`;
-        None: every seed): refining every seed was about a third of a compound record's set
-        search (docs/diagnosis.md 8b, *Fewer global searches*).
+        None: every seed): two instead of all cut the set search's time by about a third on ten
+        development records (docs/diagnosis.md 8b, *Fewer seed refinements*).
     """
 
     max_size: int = 3
