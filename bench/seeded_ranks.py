@@ -48,11 +48,18 @@ def main(argv: list[str] | None = None) -> int:
     from engine.validation.stats import wilson_interval
 
     layout = open_run(args.run, args.n_cases, args.seed)
+    try:
+        within = [int(x) for x in args.within.split(",") if x]
+    except ValueError:
+        ap.error(f"--within: whole ranks, comma-separated (got {args.within!r})")
     ids = [c for c in args.ids.split(",") if c]
     try:
         entries = layout.key_entries(ids or layout.case_ids())
     except KeyError as e:
         ap.error(str(e.args[0]))
+    others = [k.case_id for k in entries if k.kind != "single"]
+    if ids and others:  # a rank among single fits means nothing for them: refuse rather than skip
+        ap.error(f"not single-effect cases: {', '.join(others)}")
     entries = [k for k in entries if k.kind == "single"]
     ds = DiagnosisSettings()
     ranks: list[int | None] = []  # of the records that need the escalation
@@ -78,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(row), flush=True)
     n = len(ranks)
     print(f"{n} of {len(entries)} single-effect records need the escalation; true effect's seeded rank: {ranks}")
-    for cap in (int(x) for x in args.within.split(",") if x):
+    for cap in within:
         hits = sum(r is not None and r <= cap for r in ranks)
         low, high = wilson_interval(hits, n) if n else (0.0, 1.0)
         print(f"within the first {cap}: {hits}/{n}, Wilson 95 % [{100 * low:.1f}, {100 * high:.1f}] %")

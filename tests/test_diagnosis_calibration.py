@@ -265,3 +265,10 @@ def test_only_the_best_seeds_are_refined_when_their_number_is_capped(clean, monk
     refined.clear()
     calibrate(rec, default_space(rec), CalibrationSettings(n_global=0, max_nfev=2), seeds=seeds, polish=False)
     assert len(refined) == len(seeds)  # no cap: every seed is refined
+
+
+def test_a_seed_cap_below_one_is_refused(clean):
+    rec, _ = noisy(clean, 40.0, seed=3)
+    seeds = [{"K": TRUTH.K, "J1": TRUTH.J1, "c": TRUTH.c}, {"K": 0.012, "J1": 0.65, "c": 0.6}]
+    with pytest.raises(ValueError, match="n_seed_fits must be at least 1"):
+        calibrate(rec, default_space(rec), CalibrationSettings(n_global=0, n_seed_fits=0), seeds=seeds)

@@ -145,8 +145,8 @@ class CalibrationSettings:
     n_seed_fits : int or None
         When more seeds than this are given, all of them are first evaluated on the full record
         (one batch at the search step) and only this many with the lowest chi2 are refined
-        (None: every seed). The joint fits of a set of effects get up to seven seeds, built from
-        the fits of its subsets, and refining each costs as much as a seeded single fit.
+        (None: every seed; at least 1). The joint fits of a set of effects get up to seven seeds,
+        built from the fits of its subsets, and refining each costs as much as a seeded single fit.
     """
 
     n_global: int = 512
@@ -331,10 +331,12 @@ def _best_seeds(
 ) -> list[np.ndarray]:
     """The ``settings.n_seed_fits`` seeds (unit box) of lowest chi2 on the full record, in their given order."""
     n = settings.n_seed_fits
+    if n is not None and n < 1:
+        raise ValueError(f"n_seed_fits must be at least 1 (or None for every seed), got {n}")
     if n is None or len(seeds) <= n:
         return seeds
     c2 = obj.chi2(np.array(seeds), [obj.record.n_samples], solver)[:, 0]
-    keep = sorted(np.argsort(c2, kind="stable")[: max(n, 1)])
+    keep = sorted(np.argsort(c2, kind="stable")[:n])
     logger.debug("seeds: %d of %d kept (chi2 %s)", len(keep), len(seeds), np.round(c2, 1))
     return [seeds[i] for i in keep]
 

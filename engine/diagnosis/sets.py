@@ -164,7 +164,7 @@ class SetSettings:
         With ``before_escalation``, the single candidates of this many best seeded BICs (those escalated
         early included) get the global search once the first pairs explain nothing (None: every
         candidate, the default). On a record that no single effect explains, the escalation of every
-        one of the 16 singles is about a quarter of the time, but a single effect whose seeded fit
+        one of the 16 singles took 24-35 % of the time (five development records), but a single effect whose seeded fit
         ranks near last can need it: six cost seed-131 case0077, an absorber discontinuity ranked 15th
         of 16 (docs/diagnosis.md 8b, *Fewer seed refinements*).
     n_seed_fits : int or None
