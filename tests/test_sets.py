@@ -505,6 +505,74 @@ def test_a_stand_in_member_of_the_best_triple_is_exchanged_for_the_true_one(
         assert len(after) < n_exchange
 
 
+@pytest.mark.parametrize("rounds", [1, 3])
+def test_the_exchange_starts_again_from_a_better_triple_it_found(monkeypatch: pytest.MonkeyPatch, rounds: int) -> None:
+    """Seed-131 case0053 (rotor resistance drift + load inertia + sensor offset): the first round of
+    the exchange, from the best forward-selected triple, reached the true basin with a triple that
+    held one wrong member (a resilient stiffness for the sensor offset), and stopped there; a second
+    round from that triple replaces it. Faked fits: the truth (B, D, E) is two members away from the
+    best forward-selected triple (A, B, C) and one away from (B, C, D), which only the exchange forms."""
+    a, b, c, d, e = "load_inertia", "resilient_stiffness", "contact_damping", "rotor_resistance_drift", "sensor_offset"
+    chi2n = {frozenset((b, d, e)): 1.0, frozenset((b, c, d)): 1.5, frozenset((a, b, c)): 2.5}
+    chi2n |= {frozenset((a, b)): 2.0, frozenset((a, c)): 2.1}
+    sets_module, cs, fitted = fake_set_fits(monkeypatch, lambda names: chi2n.get(frozenset(names), 3.0))
+    singles = [single(n, 20.0 + i, 10.0) for i, n in enumerate((a, b, c, d, e))]
+    settings = SetSettings(n_exchange_rounds=rounds)
+    out = sets_module.search_sets(None, fake_cal(100.0, k=3), None, CATALOGUE, singles, cs, settings)
+    exchanged = [frozenset(g) for g, escalated in fitted if escalated and len(g) == 3]
+    assert frozenset((b, c, d)) in exchanged  # the first round forms it
+    if rounds == 1:
+        assert frozenset((b, d, e)) not in {frozenset(g) for g, _ in fitted} and set(out[0].effects) == {b, c, d}
+    else:
+        assert frozenset((b, d, e)) in exchanged and set(out[0].effects) == {b, d, e}
+        assert len(exchanged) == len(set(exchanged))  # no triple has the global search twice
+
+
+@pytest.mark.parametrize("n_swap", [0, 2])
+def test_a_member_of_the_set_that_explains_is_swapped_for_a_better_one(
+    monkeypatch: pytest.MonkeyPatch, n_swap: int
+) -> None:
+    """Seed-131 case0009 (motor viscous friction + resilient stiffness + load inertia) was answered
+    with a motor Coulomb friction in place of the viscous one: the search stops at the first set that
+    fits to the noise, and the triple with the true member was never refined to be compared with it.
+    Faked fits: at the search step the wrong triple fits a little better (integration error); refined,
+    the true one fits better, so only the swap, which refines it from the pair's fit, names it."""
+    a, b, c, d, e = (
+        "load_inertia",
+        "resilient_stiffness",
+        "motor_coulomb_friction",
+        "motor_viscous_friction",
+        "sensor_gain",
+    )
+    sets_module = importlib.import_module("engine.diagnosis.sets")
+    from engine.diagnosis.candidate import CandidateSettings
+
+    cs = CandidateSettings()
+    coarse = {frozenset((a, b)): 2.0, frozenset((a, b, c)): 1.0, frozenset((a, b, d)): 1.04}
+    refined = {**coarse, frozenset((a, b, d)): 0.97}
+    polished: list[frozenset[str]] = []
+
+    def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0):
+        names = tuple(m.name for m in members)
+        if polish:
+            polished.append(frozenset(names))
+        cal = fake_cal((refined if polish else coarse).get(frozenset(names), 3.0), k=3 + len(names))
+        cal.values.update({n: 1.0 for n in names})
+        cal.step = settings.final_step if polish else settings.search_step
+        return cal
+
+    monkeypatch.setattr(sets_module, "_fit_set", fake_fit)
+    monkeypatch.setattr(sets_module, "_strengths", lambda record, cal, space, members, noise: {})
+    monkeypatch.setattr(sets_module, "gap_budget", lambda *a, **k: ({}, 0.0))
+    singles = [single(n, 20.0 + i, 10.0) for i, n in enumerate((a, b, c, d, e))]
+    settings = SetSettings(n_polish=1, n_swap=n_swap)
+    out = sets_module.search_sets(None, fake_cal(100.0, k=3), None, CATALOGUE, singles, cs, settings)
+    assert (frozenset((a, b, d)) in polished) == (n_swap > 0)
+    assert set(out[0].effects) == ({a, b, d} if n_swap else {a, b, c})
+    if n_swap:
+        assert set(out[1].effects) == {a, b, c}  # the first set that explained stays, second
+
+
 def test_the_exchange_fits_no_two_twins_in_place_of_one_member(monkeypatch: pytest.MonkeyPatch) -> None:
     """A trigger offset and a measurement delay fit alike (seed-123 case0030's log: both were the
     exchange's two additions beside one pair); the second addition is the next effect instead, here

@@ -26,7 +26,10 @@ this record's noise, and another record of the same machine (more channels, anot
 point) may tell them apart.
 
 Where it fails: only models that the search fitted are compared, so a near twin that the search
-never tried (the profiled screen ranked it out beside the other members) is not reported; and a
+never tried is not reported. Since 2026-11-25 the set search's swap step
+(:attr:`engine.diagnosis.sets.SetSettings.n_swap`) fits, beside the others of an explaining set,
+the two effects the profiled screen ranks best in each member's place, so a twin is missed only when
+the screen ranks it lower than that (or when the named model is a single effect); and a
 model that fits no better than M but that the search did not refine at the final step is left
 out (like for like: search-step fits carry the coarser step's integration error).
 """

@@ -39,7 +39,9 @@ selection:
    profiled screen ranks best beside the other two (refitted from the triple's fit), each new
    triple with the global search, until one fits to the noise (sequential replacement: a member
    that stands in for a near-equivalent effect, a sensor low-pass for a measurement delay, holds
-   the forward selection's triples away from the true one).
+   the forward selection's triples away from the true one); repeated from the new best triple,
+   up to ``n_exchange_rounds`` rounds, while no set fits to the noise and the best triple is one
+   no round started from.
 5. **Polish**: the best sets are refined at the final integrator step.
 6. **Backward elimination**: a polished set that fits to the noise is refitted
    without its weak members (those that move the record by at most
@@ -49,6 +51,11 @@ selection:
    fit missed, and on a quiet record a spurious member can sit a hair from its
    neutral value yet move the record by several noise RMS at that operating
    point, so only the refitted smaller set shows it is not needed.
+7. **Swap**: once the best set fits to the noise, each member in turn is replaced by the
+   ``n_swap`` effects the profiled screen ranks best beside the others, fitted from the others'
+   fit (seeded, refined at the final step): the search stops at the first set that fits, so
+   without it an effect the search never tried in a member's place could neither replace that
+   member nor be reported as its near twin (:mod:`engine.diagnosis.ambiguity`).
 
 Evidence is the same BIC as for single effects (``chi2 + k ln n``): every
 added effect must lower chi2 by more than ln(n) (about 9 for five channels) to
@@ -154,6 +161,16 @@ class SetSettings:
         measurement delay, which fit alike), each such triple with the global search (0: none). A member that
         stands in for a near-equivalent effect (a sensor low-pass for a measurement delay) keeps
         the forward selection from ever fitting the true triple (docs/diagnosis.md 8b, *Exchange*).
+    n_exchange_rounds : int
+        Most rounds of the exchange: after a round, while no set fits to the noise and the best triple
+        is one no round has started from, the exchange starts again from it (sequential replacement
+        until the best triple stays the same). One round (the order before 2026-11-25) leaves a triple
+        whose global search reached the true basin with one member still wrong as it is.
+    n_swap : int
+        Swap: once the best set fits to the noise, each of its members is replaced by this many of the
+        effects the profiled screen ranks best beside the others, each such set fitted from the others'
+        fit and refined (no global search); the decision then compares them by BIC like every other
+        model, so a better set is named and one as good is reported as a near twin (0: none).
     n_escalate_first : int
         With ``before_escalation``, the single candidates of this many best BICs get the global
         search before the first pairs (best first, stopping at one that fits to the noise): a
@@ -191,6 +208,8 @@ class SetSettings:
     n_escalate_first: int = 2
     n_escalate_singles: int | None = None
     n_seed_fits: int | None = 2
+    n_exchange_rounds: int = 3
+    n_swap: int = 2
 
     def escalation(self, candidates: CandidateSettings, early: bool = False) -> CandidateSettings:
         """The candidate settings of the singles' escalation in the staged order (``before_escalation``).
@@ -809,8 +828,18 @@ def _search(
         if fits[top].step != cs.seeded.final_step and any(fits_noise(g) for g in sets):
             # a triple just under the search step's threshold may not fit to the noise once refined
             fit_all([top], cs.seeded, polish=True)
-        if not any(fits_noise(g) for g in sets):
-            _exchange(best_of(3)[0])
+        exchanged: list[tuple[str, ...]] = []
+        # sequential replacement repeated from the best triple while it is a new one: a round's
+        # global searches can reach the true basin with one member still wrong (a resilient stiffness
+        # for a sensor offset), and only a round from that triple replaces it
+        while len(exchanged) < ss.n_exchange_rounds and not any(fits_noise(g) for g in sets):
+            top = best_of(3)[0]
+            if top in exchanged:
+                break
+            if exchanged:
+                logger.info("exchange: round %d from %s", len(exchanged) + 1, "+".join(top))
+            exchanged.append(top)
+            _exchange(top)
 
     def finish(groups: list[tuple[str, ...]]) -> None:
         """Refine at the final step, then the strengths and the gap budget."""
@@ -820,6 +849,38 @@ def _search(
             members = [effects[n] for n in g]
             st.strengths = _strengths(record, cal, space, members, nominal.sigma)  # the floored noise of the fit
             st.shares, st.left = gap_budget(record, cal, space, members, nominal)
+
+    def _swap(best: tuple[str, ...] | None) -> None:
+        """Each member of the best set, once it explains the record, replaced by the ``n_swap`` effects
+        the profiled screen ranks best beside the others, fitted from the others' fit (seeded, refined at
+        the final step): the search stops at the first set that fits to the noise, and a member may be
+        a near twin of an effect it never tried in its place (a rotor drift of a supply change)."""
+        if best is None or len(best) < 2 or fits[best].step != cs.seeded.final_step or not fits_noise(best):
+            return
+        todo: list[tuple[str, ...]] = []
+        for m in best:
+            sub = tuple(n for n in best if n != m)
+            if sub not in fits:
+                continue
+            added: list[str] = []
+            for n in screened(sub):
+                g = group(*sub, n)
+                done = g in fits and fits[g].step == cs.seeded.final_step  # already compared like for like
+                if n == m or done or any(same_physics(effects[n], effects[a]) for a in added):
+                    continue
+                added.append(n)
+                if len(added) == ss.n_swap:
+                    break
+            todo += [group(*sub, n) for n in added if group(*sub, n) not in todo]
+        if not todo:
+            return
+        logger.info("swap: %s for %s, from its fit", ", ".join("+".join(g) for g in todo), "+".join(best))
+        fit_all(todo, cs.seeded, polish=True)
+        finish([g for g in todo if g in fits])
+        now = min(sets, key=lambda g: sets[g].bic)
+        logger.info(
+            "swap: best set %s (dBIC %.1f against %s)", "+".join(now), sets[now].bic - sets[best].bic, "+".join(best)
+        )
 
     finish(sorted(sets, key=lambda g: sets[g].bic)[: ss.n_polish])
     # backward elimination: a set that fits to the noise is refitted without each of its members in
@@ -844,6 +905,8 @@ def _search(
         )
         fit_all(todo, cs.seeded, polish=True, given={sub: fits[g].values for sub in todo})
         finish(todo)
+    if ss.n_swap > 0:
+        _swap(sorted(sets, key=lambda g: sets[g].bic)[0] if sets else None)
     ranked = sorted(sets, key=lambda g: sets[g].bic)[: ss.n_report]
     out = [sets[g] for g in ranked]
     for s in out:
