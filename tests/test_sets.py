@@ -437,10 +437,11 @@ def test_the_set_search_tries_a_quantum_the_lattice_shows_even_when_the_screen_r
     assert fitted and ("motor_coulomb_friction", "speed_quantization") not in fitted
 
 
-def fake_set_fits(monkeypatch: pytest.MonkeyPatch, chi2n_of):
-    """Fake every joint fit of the set search by ``chi2n_of(names)`` (no simulation, no strengths or
-    gap budget); returns the module, the candidate settings and the list of ``(names, escalated)``
-    fitted, in order."""
+def fake_set_fits(monkeypatch: pytest.MonkeyPatch, chi2n_of, refined_of=None, polished=None):
+    """Fake every joint fit of the set search by ``chi2n_of(names)`` (``refined_of(names)`` for the fits
+    refined at the final step, when given; no simulation, no strengths or gap budget); returns the
+    module, the candidate settings and the list of ``(names, escalated)`` fitted, in order. The names
+    of the refined fits are appended to ``polished`` when given."""
     from engine.diagnosis.candidate import CandidateSettings
 
     sets_module = importlib.import_module("engine.diagnosis.sets")
@@ -450,7 +451,9 @@ def fake_set_fits(monkeypatch: pytest.MonkeyPatch, chi2n_of):
     def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0):
         names = tuple(m.name for m in members)
         fitted.append((names, settings.n_global > 0))  # the escalated fits have the global search
-        cal = fake_cal(chi2n_of(names), k=3 + len(names))
+        if polish and polished is not None:
+            polished.append(frozenset(names))
+        cal = fake_cal((refined_of if polish and refined_of is not None else chi2n_of)(names), k=3 + len(names))
         cal.values.update({n: 1.0 for n in names})
         cal.step = settings.final_step if polish else settings.search_step
         return cal
@@ -544,26 +547,15 @@ def test_a_member_of_the_set_that_explains_is_swapped_for_a_better_one(
         "motor_viscous_friction",
         "sensor_gain",
     )
-    sets_module = importlib.import_module("engine.diagnosis.sets")
-    from engine.diagnosis.candidate import CandidateSettings
-
-    cs = CandidateSettings()
     coarse = {frozenset((a, b)): 2.0, frozenset((a, b, c)): 1.0, frozenset((a, b, d)): 1.04}
     refined = {**coarse, frozenset((a, b, d)): 0.97}
     polished: list[frozenset[str]] = []
-
-    def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0):
-        names = tuple(m.name for m in members)
-        if polish:
-            polished.append(frozenset(names))
-        cal = fake_cal((refined if polish else coarse).get(frozenset(names), 3.0), k=3 + len(names))
-        cal.values.update({n: 1.0 for n in names})
-        cal.step = settings.final_step if polish else settings.search_step
-        return cal
-
-    monkeypatch.setattr(sets_module, "_fit_set", fake_fit)
-    monkeypatch.setattr(sets_module, "_strengths", lambda record, cal, space, members, noise: {})
-    monkeypatch.setattr(sets_module, "gap_budget", lambda *a, **k: ({}, 0.0))
+    sets_module, cs, _ = fake_set_fits(
+        monkeypatch,
+        lambda names: coarse.get(frozenset(names), 3.0),
+        lambda names: refined.get(frozenset(names), 3.0),
+        polished,
+    )
     singles = [single(n, 20.0 + i, 10.0) for i, n in enumerate((a, b, c, d, e))]
     settings = SetSettings(n_polish=1, n_swap=n_swap)
     out = sets_module.search_sets(None, fake_cal(100.0, k=3), None, CATALOGUE, singles, cs, settings)
