@@ -744,3 +744,42 @@ def test_the_singles_escalations_take_the_smaller_of_their_cap_and_the_candidate
     assert ss.escalation(CandidateSettings(n_escalate=4)).n_escalate == 4  # the candidates' own cap holds
     assert SetSettings(n_escalate_singles=None).escalation(cs) is cs  # no cap: every candidate
     assert ss.escalation(cs).seeded == cs.seeded  # nothing else changes
+
+
+@pytest.mark.parametrize("strengths", [(0.09, 458.0), (120.0, 458.0)])
+def test_a_single_is_refitted_from_a_set_that_fits_with_it_as_its_only_strong_member(
+    monkeypatch: pytest.MonkeyPatch, strengths: tuple[float, float]
+) -> None:
+    """Seed-137 case0055 (a stator drift of 1.45, no other effect): alone it was fitted at 1.05
+    (chi2/n 2300), but a pair's global search reached 1.451 beside a rotor drift at its neutral
+    value, weak, and the record was answered `unexplained`: the backward elimination stops at pairs.
+    The strong member is refitted alone from the pair's fit (faked here) and named; a pair whose
+    members are both strong is left alone."""
+    diagnose_module = importlib.import_module("engine.diagnosis.diagnose")
+    seeds_seen: list[dict[str, float]] = []
+
+    def fake_calibrate(record, space, settings, noise=None, seeds=(), polish=False):
+        seeds_seen.extend(dict(s) for s in seeds)
+        cal = fake_cal(1.015, k=4)
+        cal.values["stator_resistance_drift"] = 1.451
+        return cal
+
+    monkeypatch.setattr(diagnose_module, "calibrate", fake_calibrate)
+    monkeypatch.setattr(diagnose_module, "effect_strength", lambda c, space, record, sigma: 458.0)
+
+    class Space:
+        def with_effect(self, effect):
+            return self
+
+    settings = DiagnosisSettings()
+    nominal = fake_cal(2726.0, k=3)
+    cands = [single("supply_voltage", 692.0, 356.0), single("stator_resistance_drift", 2300.0, 300.0)]
+    found = pair(("rotor_resistance_drift", "stator_resistance_drift"), 1.015, strengths)
+    out = diagnose_module._singles_of_sets(None, nominal, Space(), CATALOGUE, cands, [found], settings)
+    if min(strengths) > settings.min_strength:
+        assert not seeds_seen and out == sorted(cands, key=lambda c: c.bic)
+        return
+    assert "rotor_resistance_drift" not in seeds_seen[0] and seeds_seen[0]["stator_resistance_drift"] == 1.0
+    assert out[0].effect == "stator_resistance_drift" and out[0].value == pytest.approx(1.451)
+    verdict = decide(nominal, out, settings, [found])
+    assert verdict.status == "explained" and verdict.effect == "stator_resistance_drift"
