@@ -707,14 +707,16 @@ def _singles_of_sets(
 
     out = list(cands)
     index = {c.effect: i for i, c in enumerate(out)}
+    source: dict[str, CandidateSet] = {}  # per single, the best set it is the only strong member of
     for st in sets:
-        cal = st.calibration
-        if cal is None or not _fits_noise(cal, settings):
+        if st.calibration is None or not _fits_noise(st.calibration, settings):
             continue
         strong = [e for e, v in st.strengths.items() if math.isfinite(v) and v > settings.min_strength]
-        if len(strong) != 1 or strong[0] not in index:
-            continue
-        name = strong[0]
+        if len(strong) == 1 and strong[0] in index and (strong[0] not in source or st.bic < source[strong[0]].bic):
+            source[strong[0]] = st
+    for name, st in source.items():
+        cal = st.calibration
+        assert cal is not None  # kept above
         seed = {k: v for k, v in cal.values.items() if k not in st.effects or k == name}
         try:
             fit = calibrate(
@@ -884,6 +886,7 @@ def _diagnose(
         stage("sets of up to three")
     if sets:
         cands = _singles_of_sets(record, nominal, space, library, cands, sets, settings)
+        stage("singles from the sets")
     n_sim += sum(c.calibration.n_simulations for c in cands if c.calibration)
     n_sim += sum(s.calibration.n_simulations for s in sets if s.calibration)
     if sets:
