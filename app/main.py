@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import AsyncIterator
-from contextlib import asynccontextmanager
+from contextlib import ExitStack, asynccontextmanager
 
 from fastapi import FastAPI
 from fastapi.routing import APIRoute
@@ -58,43 +58,42 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         setup_logging(settings.log_level)
         app.state.store = store = PatternStore(settings.db_path)
-        service_lock = hold_database(store.path)  # ServiceAlreadyRunning stops a second service on this file
-        app.state.dask = None
-        if settings.dask_scheduler is not None:
-            from engine.distributed import connect
+        # Whatever the start took is given back in reverse order at shutdown, and also when a later
+        # step of the start fails (the service lock, above all: a retry in this process must get it).
+        with ExitStack() as taken:
+            taken.callback(hold_database(store.path).close)  # ServiceAlreadyRunning: another service has the file
+            app.state.dask = None
+            if settings.dask_scheduler is not None:
+                from engine.distributed import connect
 
-            app.state.dask = connect(settings.dask_scheduler)  # SchedulerUnreachable stops the start with its message
-            logger.info("training jobs run on the Dask cluster at %s", settings.dask_scheduler)
-        kinds = {
-            TRAIN_JOB: training.job_kind(store, app.state.dask, settings.training_runs_in),
-            DIAGNOSE_JOB: diagnoses.JOB_KIND,
-        }
-        app.state.jobs = JobManager(
-            store,
-            kinds,
-            workers=settings.workers,
-            pools={"training": settings.workers, diagnoses.POOL: settings.diagnosis_workers},
-            max_pending=settings.max_pending_jobs,
-        )
-        app.state.jobs.recover()
-        app.state.sync_diagnoses = SyncDiagnoses(settings.max_sync_diagnoses, settings.sync_diagnose_timeout)
-        logger.info(
-            "store %s (%d pattern sets); %d training %s(es), %d diagnosis process(es); API key %s",
-            app.state.store.path,
-            len(app.state.store),
-            settings.workers,
-            "process" if kinds[TRAIN_JOB].runs_in == "process" else "thread",
-            settings.diagnosis_workers,
-            "required" if settings.api_key else "not required",
-        )
-        try:
+                app.state.dask = connect(settings.dask_scheduler)  # SchedulerUnreachable stops the start
+                taken.callback(lambda: app.state.dask.close())
+                logger.info("training jobs run on the Dask cluster at %s", settings.dask_scheduler)
+            kinds = {
+                TRAIN_JOB: training.job_kind(store, app.state.dask, settings.training_runs_in),
+                DIAGNOSE_JOB: diagnoses.JOB_KIND,
+            }
+            app.state.sync_diagnoses = SyncDiagnoses(settings.max_sync_diagnoses, settings.sync_diagnose_timeout)
+            taken.callback(lambda: app.state.sync_diagnoses.close())
+            app.state.jobs = JobManager(
+                store,
+                kinds,
+                workers=settings.workers,
+                pools={"training": settings.workers, diagnoses.POOL: settings.diagnosis_workers},
+                max_pending=settings.max_pending_jobs,
+            )
+            taken.callback(lambda: app.state.jobs.shutdown(wait=True))  # first at shutdown: the jobs stop
+            app.state.jobs.recover()
+            logger.info(
+                "store %s (%d pattern sets); %d training %s(es), %d diagnosis process(es); API key %s",
+                app.state.store.path,
+                len(app.state.store),
+                settings.workers,
+                "process" if kinds[TRAIN_JOB].runs_in == "process" else "thread",
+                settings.diagnosis_workers,
+                "required" if settings.api_key else "not required",
+            )
             yield
-        finally:
-            app.state.jobs.shutdown(wait=True)
-            app.state.sync_diagnoses.close()
-            service_lock.close()
-            if app.state.dask is not None:
-                app.state.dask.close()
 
     app = FastAPI(
         title="backlash",

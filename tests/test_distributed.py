@@ -206,9 +206,12 @@ def test_the_service_refuses_to_start_on_a_scheduler_that_does_not_answer(
 
     import engine.distributed
     from app.core.config import Settings
+    from app.core.instance import hold_database
     from app.main import create_app
 
     monkeypatch.setattr(engine.distributed, "CONNECT_TIMEOUT", 2.0)
     app = create_app(Settings(db_path=tmp_path / "p.sqlite3", dask_scheduler=f"tcp://127.0.0.1:{_free_port()}"))
     with pytest.raises(SchedulerUnreachable, match="cannot reach the Dask scheduler"), TestClient(app):
         pass
+    # the failed start gave its service lock back: another start in this process may take it
+    hold_database(tmp_path / "p.sqlite3").close()
