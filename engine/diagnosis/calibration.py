@@ -227,6 +227,11 @@ class CalibrationResult:
         low-frequency) gap raises it. Reported as a diagnostic
         (:func:`engine.diagnosis.noise.lowfreq_ratio`; for coloured noise on the whitened
         coefficients, :meth:`engine.diagnosis.noise.ChannelNoise.lowfreq_ratio`).
+    starts : list of dict of str to float
+        The global search's starting points of the continuation (the early window's best
+        distinct points after the screen), in the parameters' units; empty without a global
+        search. Where the continuation left them for another basin, a missing effect may
+        have dragged the fit there (:func:`engine.diagnosis.candidate.refit_from_starts`).
     """
 
     values: dict[str, float]
@@ -247,6 +252,7 @@ class CalibrationResult:
     step: float = 2e-5
     lowfreq_ratio: dict[str, float] = field(default_factory=dict)
     grid: SampleGrid | None = None
+    starts: list[dict[str, float]] = field(default_factory=list)
 
     @property
     def n_params(self) -> int:
@@ -414,6 +420,7 @@ def _calibrate(
     fixed = {k: float(getattr(space.base.plant, k)) for k in CALIBRATED if k not in space.names}
     stages: list[Stage] = []
     u_best = np.zeros(0)
+    global_starts: list[dict[str, float]] = []
 
     if d > 0:
         # 1. global search on the early window (Sobol points, one batch)
@@ -434,6 +441,7 @@ def _calibrate(
                     settings.min_separation,
                 )
             starts += [(u, "global") for u in picked]
+            global_starts = [space.values(u) for u in picked]
             logger.debug("global search: %d points, best early chi2 %.4g", len(U), np.min(C))
         # seeds (already close to a full-horizon optimum) skip the continuation
         starts += [(u, "seed") for u in _best_seeds(obj, [space.unit(s) for s in seeds], settings, coarse)]
@@ -518,6 +526,7 @@ def _calibrate(
         step=final.max_step,
         lowfreq_ratio=lowfreq,
         grid=record.grid,
+        starts=global_starts,
     )
     logger.info(
         "calibration%s: %s chi2/n %.3f (%d simulations, %.1f s)",

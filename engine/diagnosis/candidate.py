@@ -30,7 +30,7 @@ import numba
 import numpy as np
 
 from engine.constants import CHANNELS
-from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings, calibrate
+from engine.diagnosis.calibration import CalibrationError, CalibrationResult, CalibrationSettings, calibrate
 from engine.diagnosis.gap import Gap, gap_of, shrinkage_ratio
 from engine.diagnosis.objective import Objective
 from engine.diagnosis.quantisation import fit_quantisation, is_speed_quantum
@@ -181,6 +181,9 @@ class CandidateSettings:
         Candidates fitted at once, on threads with one core each (None: numba's
         thread count, i.e. the cores numba may use; 1 fits them one by one with
         the batch-parallel simulator).
+    reseed_from_starts : bool
+        When no seeded fit reaches the noise, refit every candidate from the nominal
+        calibration's global starts (pass 1b, :func:`refit_from_starts`) before any escalation.
     """
 
     seeded: CalibrationSettings = SEEDED_FITS
@@ -193,6 +196,7 @@ class CandidateSettings:
     max_polish: int = 6
     n_quantum: int = 4000
     n_jobs: int | None = None
+    reseed_from_starts: bool = True
 
     def jobs(self) -> int:
         """Resolved ``n_jobs`` (at least 1)."""
@@ -239,6 +243,66 @@ def _seeds(
     if np.isfinite(c2[i]) and abs(U[i, -1] - U[-1, -1]) > 1e-9:
         seeds.append(space.values(U[i]))
     return seeds
+
+
+def refit_from_starts(
+    record: Record,
+    nominal: CalibrationResult,
+    space: ModelSpace,
+    effect: Effect,
+    settings: CandidateSettings = CandidateSettings(),
+    previous: CalibrationResult | None = None,
+) -> Candidate:
+    """Refit a candidate from the nominal calibration's global starts (and from its earlier fit).
+
+    A strong effect missing from the nominal model can drag the nominal calibration's
+    continuation out of the true basin: its early-window starts were near the truth, its
+    fit is not (seed-137 case0004: a Coulomb friction of 0.09 pu, the starts at K 14.6 mm, the
+    nominal fit at 3.5 mm). Seeded from that fit, the candidate's own fit stays in the wrong
+    basin. Here each start, with the effect at the best value of a one-dimensional scan
+    (``settings.n_scan`` values at the search step; the neutral value included), seeds a local
+    fit on the full record, next to the earlier fit when given; the best is kept (search step, no
+    polish). Pass 1b of :func:`engine.diagnosis.candidates.fit_candidates` gives the seeded fit:
+    without it one seed-137 triple of nine compound development records lost its answer (a
+    marginal record, docs/diagnosis.md 8b, *Re-seeded fits*).
+
+    Parameters
+    ----------
+    record, nominal, space, effect, settings
+        As :func:`fit_candidate`; ``nominal.starts`` must not be empty.
+    previous : CalibrationResult, optional
+        The candidate's earlier fit, one more seed.
+
+    Returns
+    -------
+    Candidate
+
+    Raises
+    ------
+    ValueError
+        The nominal calibration has no starts (it ran without a global search).
+    CalibrationError
+        No start can be simulated with the effect.
+    """
+    if not nominal.starts:
+        raise ValueError("the nominal calibration has no global starts to refit from (it had no global search)")
+    espace = space.with_effect(effect)
+    obj = Objective(record, espace, nominal.sigma)
+    step = SolverSettings(max_step=settings.seeded.search_step)
+    seeds: list[Mapping[str, float]] = []
+    for start in nominal.starts:
+        base = espace.unit(start)
+        base[-1] = espace.params[-1].unit_coord(effect.neutral)
+        grid = scan_grid(espace, espace.dim - 1, base, record, settings.n_scan)
+        U, c2 = obj.axis_scan(base, [espace.dim - 1], grid, record.n_samples, step)
+        if np.isfinite(c2).any():
+            seeds.append(espace.values(U[int(np.argmin(c2))]))
+    if not seeds:
+        raise CalibrationError(f"no start of the nominal calibration can be simulated with {effect.name}")
+    if previous is not None:
+        seeds.append(previous.values)
+    cal = calibrate(record, espace, settings.seeded, noise=nominal.noise, seeds=seeds, polish=False)
+    return Candidate.from_fit(effect, cal, nominal)
 
 
 def fit_candidate(

@@ -8,7 +8,12 @@ parameter (:func:`engine.diagnosis.candidate.fit_candidate`), in three passes:
    the nominal calibration with the effect at its neutral value, and from the
    nominal calibration with the best value of a one-dimensional scan of the
    effect (9 values across its range).
-2. **Escalation** (only when no candidate fits to the noise after pass 1):
+1b. **Re-seeded fits** (only when no candidate fits to the noise after pass 1): every
+   candidate is fitted again from the nominal calibration's global starts, each with the
+   best value of a scan of the effect there (:func:`engine.diagnosis.candidate.refit_from_starts`):
+   a strong missing effect can drag the nominal fit out of the basin its early-window starts
+   were in, and every seeded fit with it.
+2. **Escalation** (only when no candidate fits to the noise after pass 1b):
    the candidates, best seeded BIC first, get the full global search (256
    Sobol points on the early window, continuation over 10, 20, 40, 80, 200 ms)
    in the joint space, until one fits to the noise; a strong effect can drag
@@ -39,8 +44,16 @@ import time
 from collections.abc import Callable
 from dataclasses import replace
 
-from engine.diagnosis.calibration import CalibrationResult, calibrate
-from engine.diagnosis.candidate import Candidate, CandidateSettings, effect_strength, fit_candidate, posterior_weights
+from engine.diagnosis.calibration import CalibrationError, CalibrationResult, calibrate
+from engine.diagnosis.candidate import (
+    Candidate,
+    CandidateSettings,
+    effect_strength,
+    fit_candidate,
+    posterior_weights,
+    refit_from_starts,
+)
+from engine.diagnosis.quantisation import is_speed_quantum
 from engine.diagnosis.space import ModelSpace
 from engine.parallel import Deferred, Runner, Task, single_threaded_blas
 from engine.records import Record
@@ -110,6 +123,8 @@ def fit_candidates(
                 progress((i + 1) / len(seeded), f"fitted {i + 1} of {len(seeded)} candidate effects")
         cands = _order(fitted)
         logger.info("seeded fits of %d candidates: %.1f s", len(cands), time.perf_counter() - t0)
+        if settings.reseed_from_starts and nominal.starts and needs_escalation(cands, settings):
+            cands = _reseed(record, nominal, space, library, cands, settings, runner)
         if escalate:
             cands = _escalate(record, nominal, space, library, cands, settings, runner)
         return _finish(record, nominal, space, library, cands, settings, runner, t0)
@@ -156,6 +171,46 @@ def escalate_candidates(
 
 def _order(cs: list[Candidate]) -> list[Candidate]:
     return sorted(cs, key=lambda c: c.bic)
+
+
+def _reseed(
+    record: Record,
+    nominal: CalibrationResult,
+    space: ModelSpace,
+    library: EffectLibrary,
+    cands: list[Candidate],
+    settings: CandidateSettings,
+    runner: Runner,
+) -> list[Candidate]:
+    """Pass 1b: every fitted candidate (but the speed quantum, fitted by scans) refitted from the
+    nominal calibration's starts; a refit replaces the seeded fit when its BIC is lower."""
+    t0 = time.perf_counter()
+    todo = {
+        i: runner.submit(refit_from_starts, record, nominal, space, library[c.effect], settings, _fitted(c))
+        for i, c in enumerate(cands)
+        if c.calibration is not None and not is_speed_quantum(library[c.effect])
+    }
+    out = list(cands)
+    for i, task in todo.items():
+        c = cands[i]
+        try:
+            new = task.result()
+        except CalibrationError as exc:  # the seeded fit stands
+            logger.info("%s could not be refitted from the nominal starts: %s", c.effect, exc)
+            continue
+        kept, spent = (new, c) if new.bic < c.bic else (c, new)
+        _fitted(kept).n_simulations += _fitted(spent).n_simulations  # the work of both fits is counted
+        _fitted(kept).seconds += _fitted(spent).seconds
+        out[i] = kept
+    out = _order(out)
+    logger.info(
+        "re-seeded fits from %d nominal starts: %.1f s, best %s chi2/n %.4g",
+        len(nominal.starts),
+        time.perf_counter() - t0,
+        out[0].effect,
+        _fitted(out[0]).reduced_chi2 if out[0].calibration is not None else math.nan,
+    )
+    return out
 
 
 def _escalate(

@@ -1,0 +1,79 @@
+"""Rank of the true effect after the single candidates' seeded fits, without and with pass 1b.
+
+Development data only (a scored run's cases, read): for each single-effect case of a validation
+run directory, the nominal calibration, then the candidates' seeded fits (no escalation) once with
+``CandidateSettings.reseed_from_starts`` off and once on (pass 1b: refits from the nominal
+calibration's global starts, :func:`engine.diagnosis.candidate.refit_from_starts`). Prints one JSON
+line per case: the truth, its rank and chi2/n each way, the best candidate each way, the seconds.
+docs/diagnosis.md 8b, *Re-seeded fits*::
+
+    python bench/reseed_ranks.py out/validation-v2-progress-seed137 --seed 137 --cases 80
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("run", type=Path, help="directory of a validation run (its cases/ and key/)")
+    ap.add_argument("ids", nargs="?", default="", help="case ids, comma-separated (default: every single)")
+    ap.add_argument("--seed", type=int, help="seed of the run's case generator (with --cases: draw them if absent)")
+    ap.add_argument("--cases", dest="n_cases", type=int, help="number of cases of the run (with --seed)")
+    args = ap.parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, stream=sys.stderr)
+
+    from engine.diagnosis.calibration import calibrate
+    from engine.diagnosis.candidates import fit_candidates
+    from engine.diagnosis.diagnose import DiagnosisSettings
+    from engine.diagnosis.space import default_space
+    from engine.simulation import CATALOGUE
+    from engine.validation.blind import library_of_run
+    from engine.validation.layout import RunLayout
+    from engine.validation.run import prepare_cases
+
+    layout = RunLayout(args.run)
+    if (args.seed is None) != (args.n_cases is None):
+        ap.error("--seed and --cases go together")
+    if args.seed is not None:
+        prepare_cases(layout, args.n_cases, args.seed)
+    library = library_of_run(layout, CATALOGUE)
+    settings = DiagnosisSettings()
+    ids = [c for c in args.ids.split(",") if c]
+    entries = layout.key_entries(ids or layout.case_ids())
+    for k in entries:
+        if k.kind != "single":
+            continue
+        truth = k.effects[0].name
+        record, _ = layout.read_case(k.case_id).test_window()
+        space = default_space(record)
+        t0 = time.perf_counter()
+        nominal = calibrate(record, space, settings.calibration)
+        row: dict[str, object] = {"case": k.case_id, "truth": truth}
+        for name, on in (("seeded", False), ("reseeded", True)):
+            t = time.perf_counter()
+            cs = replace(settings.candidates, reseed_from_starts=on)
+            cands = fit_candidates(record, nominal, space, library, cs, escalate=False)
+            order = [c.effect for c in cands]
+            mine = cands[order.index(truth)].calibration
+            best = cands[0].calibration
+            row[name] = {
+                "rank": order.index(truth) + 1,
+                "chi2n": None if mine is None else round(mine.reduced_chi2, 3),
+                "best": [order[0], None if best is None else round(best.reduced_chi2, 3)],
+                "seconds": round(time.perf_counter() - t, 1),
+            }
+        row["total_seconds"] = round(time.perf_counter() - t0, 1)
+        print(json.dumps(row), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

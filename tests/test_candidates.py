@@ -1,0 +1,102 @@
+"""The candidate fits' re-seeded pass (1b): fits from the nominal calibration's global starts."""
+
+from __future__ import annotations
+
+import importlib
+
+import numpy as np
+import pytest
+
+from engine.diagnosis.calibration import CalibrationResult, calibrate
+from engine.diagnosis.candidate import Candidate, CandidateSettings, fit_candidate, refit_from_starts
+from engine.diagnosis.space import default_space
+from engine.records import Record
+from engine.simulation import CATALOGUE, EffectLibrary, PlantParameters, simulate
+from engine.simulation.noise import noise_std
+
+candidates_module = importlib.import_module("engine.diagnosis.candidates")
+
+
+def test_a_fit_from_the_nominal_starts_reaches_the_basin_the_nominal_fit_was_dragged_out_of() -> None:
+    """Seed-137 case0004 in miniature: a Coulomb friction of 0.09 pu at K 13.4 mm drags the nominal fit to
+    K 3.6 mm, where the seeded fit of the friction stays at zero; from a start near the early window's
+    (K 14.6 mm) the refit finds the friction and fits to the noise."""
+    plant = PlantParameters(K=0.0134, J1=0.724, c=0.833, c1=0.2)
+    clean = simulate(plant, effects={"motor_coulomb_friction": 0.09})
+    rng = np.random.default_rng(3)
+    channels = {k: v + rng.standard_normal(v.size) * noise_std(v, 45.0)[0] for k, v in clean.channels.items()}
+    record = Record(channels, clean.sample_interval, clean.event_index, conditions={"c1": 0.2}).test_window()[0]
+    space = default_space(record)
+    cs = CandidateSettings()
+    nominal = calibrate(record, space, cs.seeded, seeds=[{"K": 0.0035, "J1": 0.643, "c": 0.567}], polish=False)
+    assert nominal.values["K"] < 0.005  # the wrong basin of the missing friction
+    friction = CATALOGUE["motor_coulomb_friction"]
+    seeded = fit_candidate(record, nominal, space, friction, cs, polish=False)
+    assert seeded.calibration is not None and seeded.calibration.reduced_chi2 > 100  # stays there
+
+    nominal.starts = [{"K": 0.0146, "J1": 0.70, "c": 0.9}]
+    again = refit_from_starts(record, nominal, space, friction, cs)
+    assert again.calibration is not None and again.calibration.reduced_chi2 < 1.2
+    assert again.value == pytest.approx(0.09, rel=0.05)
+    assert again.calibration.values["K"] == pytest.approx(0.0134, rel=0.05)
+
+
+def _fake_cal(reduced_chi2: float, starts: list[dict[str, float]] | None = None) -> CalibrationResult:
+    n = 10_000
+    return CalibrationResult(
+        values={"K": 0.005, "J1": 0.8, "c": 1.0},
+        uncertainties={},
+        fixed={},
+        chi2=reduced_chi2 * n,
+        chi2_per_channel={"omega1": reduced_chi2 * n},
+        n_data=n,
+        noise={"omega1": 1.0},
+        sigma={"omega1": 1.0},
+        effect=None,
+        n_simulations=0,
+        seconds=0.0,
+        starts=starts or [],
+    )
+
+
+def _candidate(name: str, reduced_chi2: float) -> Candidate:
+    cal = _fake_cal(reduced_chi2)
+    cal.values[name] = 1.0
+    e = CATALOGUE[name]
+    return Candidate(name, 1.0, 0.01, e.unit, cal, cal.bic, strength=10.0, locus=e.locus)
+
+
+@pytest.mark.parametrize(
+    ("seeded_chi2n", "starts", "reseeded"),
+    [
+        (5.0, [{"K": 0.01, "J1": 0.7, "c": 1.5}], True),  # none fits: every candidate but the quantum again
+        (1.0, [{"K": 0.01, "J1": 0.7, "c": 1.5}], False),  # the best seeded fit is at the noise: no pass 1b
+        (5.0, [], False),  # a nominal fit without a global search has no starts
+    ],
+)
+def test_the_candidates_are_refitted_from_the_starts_only_when_no_seeded_fit_reaches_the_noise(
+    monkeypatch: pytest.MonkeyPatch, seeded_chi2n: float, starts: list[dict[str, float]], reseeded: bool
+) -> None:
+    names = ["load_inertia", "sensor_gain", "speed_quantization"]
+    library = EffectLibrary([CATALOGUE[n] for n in names])
+    seeded = {"load_inertia": seeded_chi2n + 2.0, "sensor_gain": seeded_chi2n, "speed_quantization": seeded_chi2n + 1}
+    refitted: list[str] = []
+
+    def fake_fit(record, nominal, space, effect, settings, polish=True, global_search=False, extra_seeds=()):
+        return _candidate(effect.name, seeded[effect.name])
+
+    def fake_refit(record, nominal, space, effect, settings, previous=None):
+        refitted.append(effect.name)
+        return _candidate(effect.name, 1.0 if effect.name == "load_inertia" else 50.0)
+
+    monkeypatch.setattr(candidates_module, "fit_candidate", fake_fit)
+    monkeypatch.setattr(candidates_module, "refit_from_starts", fake_refit)
+    settings = CandidateSettings(n_escalate=0, n_jobs=1)
+    cands = candidates_module.fit_candidates(None, _fake_cal(20.0, starts), None, library, settings, escalate=False)
+    if reseeded:
+        assert sorted(refitted) == ["load_inertia", "sensor_gain"]  # the quantum is fitted by scans
+        assert cands[0].effect == "load_inertia" and cands[0].calibration.reduced_chi2 == 1.0
+        assert next(c for c in cands if c.effect == "sensor_gain").calibration.reduced_chi2 == seeded_chi2n  # kept
+    else:
+        assert refitted == []
+        assert cands[0].effect == "sensor_gain"
