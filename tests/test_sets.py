@@ -717,21 +717,30 @@ def test_a_shift_fitted_at_the_edge_of_the_switch_off_jump_is_refitted_from_the_
     assert across_switch_off(default_space(rec), default_space(rec).unit({"K": 0.005, "J1": 0.85, "c": 1.1}), rec) == []
 
 
-def test_a_single_effect_out_of_the_seeded_basin_is_escalated_before_any_pair() -> None:
+@pytest.mark.parametrize("reseed", [True, False])
+def test_a_single_effect_out_of_the_seeded_basin_is_found_before_any_pair(reseed: bool) -> None:
     """The operating point of development case s105/case0007 (stator resistance drift 0.798 at
     K = 5.56 mm, J1 = 0.657 kg m^2, c = 0.592; 45 dB): no seeded single fit reaches the noise (they
-    start from the nominal calibration's basin), and the drift, among the best seeded singles, fits
-    to the noise once escalated. Escalating the best few before the first pairs names it without
-    searching any set (with ``n_escalate_first`` 0 the pairs would come first: the escalation
-    runs only when no seeded single fits to the noise)."""
+    start from the nominal calibration's basin). The refits from the nominal calibration's starts
+    (pass 1b) reach the drift's basin without any escalation; without them, the drift, among the
+    best seeded singles, fits to the noise once escalated, and escalating the best few before the
+    first pairs names it without searching any set."""
+    from dataclasses import replace
+
+    from engine.diagnosis.candidate import CandidateSettings
+
     plant = PlantParameters(K=0.005558, J1=0.6565, c=0.5923, c1=0.2)
     rec = noisy(simulate(plant, effects={"stator_resistance_drift": 0.798}), 45.0, seed=0)
-    res = diagnose(rec)
+    settings = DiagnosisSettings(candidates=replace(CandidateSettings(), reseed_from_starts=reseed))
+    res = diagnose(rec, settings=settings)
     assert res.verdict.status == "explained" and res.verdict.effect == "stator_resistance_drift"
     assert res.verdict.value == pytest.approx(0.798, rel=0.01)
     assert not res.sets  # no set was searched
     escalated = [c.effect for c in res.candidates if c.escalated]
-    assert "stator_resistance_drift" in escalated and len(escalated) <= SetSettings().n_escalate_first
+    if reseed:
+        assert escalated == []
+    else:
+        assert "stator_resistance_drift" in escalated and len(escalated) <= SetSettings().n_escalate_first
 
 
 def test_the_singles_escalations_take_the_smaller_of_their_cap_and_the_candidates_own() -> None:
