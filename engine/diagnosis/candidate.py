@@ -221,6 +221,23 @@ def _identifiable(effect: Effect, space: ModelSpace, record: Record) -> str:
     return ""
 
 
+def _effect_scan(
+    obj: Objective, values: Mapping[str, float], n_scan: int, step: SolverSettings
+) -> tuple[np.ndarray, np.ndarray]:
+    """The one-dimensional scan of the effect (the last parameter of ``obj.space``) at ``values``.
+
+    The base point is ``values`` with the effect at its neutral value (nearest bound when outside
+    the range); returns the scanned unit-box points and their chi2 on the full record, the base
+    point last (:meth:`~engine.diagnosis.objective.Objective.axis_scan`).
+    """
+    space = obj.space
+    assert space.effect is not None  # the callers' spaces have an effect
+    base = space.unit(values)
+    base[-1] = space.params[-1].unit_coord(space.effect.neutral)
+    grid = scan_grid(space, space.dim - 1, base, obj.record, n_scan)
+    return obj.axis_scan(base, [space.dim - 1], grid, obj.record.n_samples, step)
+
+
 def _seeds(
     record: Record, nominal: CalibrationResult, space: ModelSpace, settings: CandidateSettings, search_step: float
 ) -> list[dict[str, float]]:
@@ -234,10 +251,7 @@ def _seeds(
     if space.effect is None:
         raise ValueError("the seeds of a joint fit need a space with an effect")
     obj = Objective(record, space, nominal.sigma)
-    base = space.unit(nominal.values)
-    base[-1] = space.params[-1].unit_coord(space.effect.neutral)
-    grid = scan_grid(space, space.dim - 1, base, record, settings.n_scan)
-    U, c2 = obj.axis_scan(base, [space.dim - 1], grid, record.n_samples, SolverSettings(max_step=search_step))
+    U, c2 = _effect_scan(obj, nominal.values, settings.n_scan, SolverSettings(max_step=search_step))
     seeds = [space.values(U[-1])]
     i = int(np.argmin(c2[:-1]))
     if np.isfinite(c2[i]) and abs(U[i, -1] - U[-1, -1]) > 1e-9:
@@ -291,10 +305,7 @@ def refit_from_starts(
     step = SolverSettings(max_step=settings.seeded.search_step)
     seeds: list[Mapping[str, float]] = []
     for start in nominal.starts:
-        base = espace.unit(start)
-        base[-1] = espace.params[-1].unit_coord(effect.neutral)
-        grid = scan_grid(espace, espace.dim - 1, base, record, settings.n_scan)
-        U, c2 = obj.axis_scan(base, [espace.dim - 1], grid, record.n_samples, step)
+        U, c2 = _effect_scan(obj, start, settings.n_scan, step)
         if np.isfinite(c2).any():
             seeds.append(espace.values(U[int(np.argmin(c2))]))
     if not seeds:
