@@ -496,6 +496,13 @@ def test_scorer_marks_every_target_met_on_a_perfect_run() -> None:
     assert m["clean_false_alarm"].rate is not None and m["clean_false_alarm"].rate.text().startswith("0/40 = 0.0 %")
     assert m["median_gap_after"].median is not None and m["median_gap_after"].median.median == pytest.approx(1.01)
     assert m["seconds_single_p90"].value == 4.0 and m["seconds_compound_p90"].quantile.value == 6.0
+    b = {x.name: x for x in scores.breakdown}
+    secs = sorted(r["seconds"] for r in res.values())
+    # the all-cases median row is the median (it once showed the 90th percentile under that label)
+    assert b["seconds_all_median"].quantile is None and b["seconds_all_median"].value == float(np.median(secs))
+    assert b["seconds_all_p90"].quantile is not None and b["seconds_all_p90"].value == pytest.approx(
+        float(np.quantile(secs, 0.9))
+    )
     assert scores.status_by_kind["held_back"]["unexplained"] == 10
     assert scores.per_effect["load_inertia"]["single_named"] == [20, 20]
     assert scores.per_effect["clutch_offset"]["held_back_locus"] == [10, 10]

@@ -518,7 +518,10 @@ def score_cases(key: Sequence[KeyEntry], results: dict[str, dict[str, Any]]) -> 
             )
         )
     secs_all = [a.seconds for a in answers.values() if a.seconds is not None and a.status != "error"]
-    breakdown.append(_time_metric("seconds_all_median", "every case: diagnosis time [s], median", secs_all))
+    breakdown.append(
+        Metric("seconds_all_median", "every case: diagnosis time [s], median", median=median_interval(secs_all))
+    )
+    breakdown.append(_time_metric("seconds_all_p90", "every case: diagnosis time [s], 90th percentile", secs_all))
 
     status_by_kind: dict[str, dict[str, int]] = {}
     for kind in CASE_KINDS:
