@@ -20,7 +20,9 @@ a directory that holds no cases yet gets the run's cases drawn first (no diagnos
     python bench/rediagnose.py out/s105 --kind single --seed 105 --cases 60
 
 ``--sets`` updates the default :class:`~engine.diagnosis.sets.SetSettings` of the diagnosis
-(e.g. ``--sets '{"n_escalate_first": 0}'`` for the order before the early escalation).
+(e.g. ``--sets '{"n_escalate_first": 0}'`` for the order before the early escalation), and
+``--candidates`` its :class:`~engine.diagnosis.candidate.CandidateSettings` (e.g.
+``--candidates '{"reseed_seed_fits": null}'`` refines every seed of the pass-1b refits).
 
 One JSON line per case on stdout (with where its time went: ``stages``, wall seconds per stage of
 the work); the diagnosis's log on stderr (``--log-level``).
@@ -44,6 +46,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, help="seed of the run's case generator (with --cases: draw them if absent)")
     ap.add_argument("--cases", dest="n_cases", type=int, help="number of cases of the run (with --seed)")
     ap.add_argument("--sets", default="{}", help="SetSettings fields as JSON, e.g. '{\"n_escalate_first\": 0}'")
+    ap.add_argument(
+        "--candidates", default="{}", help="CandidateSettings fields as JSON, e.g. '{\"reseed_seed_fits\": null}'"
+    )
     ap.add_argument("--log-level", default="WARNING", help="log level of the diagnosis (default WARNING)")
     args = ap.parse_args(argv)
     logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(name)s %(message)s", stream=sys.stderr)
@@ -61,6 +66,10 @@ def main(argv: list[str] | None = None) -> int:
         settings = replace(ds, sets=replace(ds.sets, **json.loads(args.sets)))
     except (TypeError, ValueError) as e:
         ap.error(f"--sets: {e}")
+    try:
+        settings = replace(settings, candidates=replace(ds.candidates, **json.loads(args.candidates)))
+    except (TypeError, ValueError) as e:
+        ap.error(f"--candidates: {e}")
     if bool(args.ids) == bool(args.kind):
         ap.error("give case ids or --kind, not both and not neither")
     if (args.seed is None) != (args.n_cases is None):

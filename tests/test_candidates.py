@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -39,6 +40,20 @@ def test_a_fit_from_the_nominal_starts_reaches_the_basin_the_nominal_fit_was_dra
     assert again.calibration is not None and again.calibration.reduced_chi2 < 1.2
     assert again.value == pytest.approx(0.09, rel=0.05)
     assert again.calibration.values["K"] == pytest.approx(0.0134, rel=0.05)
+
+    # with the seeded fit and a start far from both as further seeds, refining only the seed that
+    # simulates best on the full record (reseed_seed_fits = 1) still reaches the basin, and costs
+    # fewer simulations than refining every seed
+    nominal.starts = [{"K": 0.0146, "J1": 0.70, "c": 0.9}, {"K": 0.002, "J1": 1.1, "c": 1.9}]
+    fits = {
+        n: refit_from_starts(record, nominal, space, friction, replace(cs, reseed_seed_fits=n), seeded.calibration)
+        for n in (1, None)
+    }
+    for fit in fits.values():
+        assert fit.calibration is not None and fit.calibration.reduced_chi2 < 1.2
+        assert fit.value == pytest.approx(0.09, rel=0.05)
+    assert fits[1].calibration is not None and fits[None].calibration is not None
+    assert fits[1].calibration.n_simulations < fits[None].calibration.n_simulations
 
 
 def _fake_cal(reduced_chi2: float, starts: list[dict[str, float]] | None = None) -> CalibrationResult:

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numba
@@ -184,6 +184,11 @@ class CandidateSettings:
     reseed_from_starts : bool
         When no seeded fit reaches the noise, refit every candidate from the nominal
         calibration's global starts (pass 1b, :func:`refit_from_starts`) before any escalation.
+    reseed_seed_fits : int or None
+        Seeds of a pass-1b refit refined (:attr:`CalibrationSettings.n_seed_fits`): its up to
+        five seeds (each start with the effect at its scanned best, and the seeded fit) are
+        simulated once on the full record and only this many of lowest chi2 are refined
+        (None: every seed).
     """
 
     seeded: CalibrationSettings = SEEDED_FITS
@@ -197,6 +202,7 @@ class CandidateSettings:
     n_quantum: int = 4000
     n_jobs: int | None = None
     reseed_from_starts: bool = True
+    reseed_seed_fits: int | None = 2
 
     def jobs(self) -> int:
         """Resolved ``n_jobs`` (at least 1)."""
@@ -312,7 +318,8 @@ def refit_from_starts(
         raise CalibrationError(f"no start of the nominal calibration can be simulated with {effect.name}")
     if previous is not None:
         seeds.append(previous.values)
-    cal = calibrate(record, espace, settings.seeded, noise=nominal.noise, seeds=seeds, polish=False)
+    fits = replace(settings.seeded, n_seed_fits=settings.reseed_seed_fits)
+    cal = calibrate(record, espace, fits, noise=nominal.noise, seeds=seeds, polish=False)
     return Candidate.from_fit(effect, cal, nominal)
 
 
