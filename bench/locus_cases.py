@@ -7,7 +7,8 @@ not depend on the candidates, so it can be measured apart, in about 15-25 s a re
 the 2-5 min of a whole diagnosis: this runs the nominal calibration and the locus estimate of
 each held-back case (or of the given ids) and prints one JSON line per case: the true effect and
 locus, the answered locus and its confidence, the share of the residual each locus's input
-explains, and the seconds. The run directory can be made again from its seed (``--seed S --cases
+explains, and the seconds. The locus is estimated whatever the nominal fit leaves (the diagnosis
+does it only for ``unexplained`` and ``weak_gap`` verdicts). The run directory can be made again from its seed (``--seed S --cases
 N`` draws the cases if absent; no diagnosis). docs/diagnosis.md, *Locus of a gap outside the
 catalogue*::
 
