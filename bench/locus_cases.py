@@ -3,14 +3,14 @@
 Development data only (a scored run's cases, read). The diagnosis answers a held-back effect
 ``unexplained`` after every candidate and set has failed, and then places the gap with
 :func:`engine.diagnosis.locus.estimate_locus` on the *nominal* calibration. That last step does
-not depend on the candidates, so it can be measured apart, in about 15-25 s a record instead of
-the 2-5 min of a whole diagnosis: this runs the nominal calibration and the locus estimate of
-each held-back case (or of the given ids) and prints one JSON line per case: the true effect and
-locus, the answered locus and its confidence, the share of the residual each locus's input
-explains, and the seconds. The locus is estimated whatever the nominal fit leaves (the diagnosis
-does it only for ``unexplained`` and ``weak_gap`` verdicts). The run directory can be made again from its seed (``--seed S --cases
-N`` draws the cases if absent; no diagnosis). docs/diagnosis.md, *Locus of a gap outside the
-catalogue*::
+not depend on the candidates, so it can be measured apart, in about 5-6 s a record on 2 cores
+instead of the 2-5 min of a whole diagnosis: this runs the nominal calibration and the locus
+estimate of each held-back case (or of the given ids) and prints one JSON line per case: the true
+effect and locus, the answered locus and its confidence, the share of the residual each locus's
+input explains, and the seconds. The locus is estimated whatever the nominal fit leaves (the
+diagnosis does it only for ``unexplained`` and ``weak_gap`` verdicts). The run directory can be
+made again from its seed (``--seed S --cases N`` draws the cases if absent; no diagnosis).
+docs/diagnosis.md, *Locus of a gap outside the catalogue*::
 
     python bench/locus_cases.py out/validation-v2-seed97 --seed 97 --cases 300 > locus.jsonl
     python bench/locus_cases.py out/validation-v2-seed97 --locus '{"refine_loci": 3}' > variant.jsonl
