@@ -28,15 +28,13 @@ import sys
 import time
 from collections import Counter
 from dataclasses import replace
-from pathlib import Path
+
+from _runs import add_run_arguments, chosen_entries
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("run", type=Path, help="directory of a validation run (its cases/ and key/)")
-    ap.add_argument("ids", nargs="?", default="", help="case ids, comma-separated (default: every held-back case)")
-    ap.add_argument("--seed", type=int, help="seed of the run's case generator (with --cases: draw them if absent)")
-    ap.add_argument("--cases", dest="n_cases", type=int, help="number of cases of the run (with --seed)")
+    add_run_arguments(ap, "case ids, comma-separated (default: every held-back case)")
     ap.add_argument("--locus", default="{}", help="LocusSettings fields as JSON, e.g. '{\"refine_loci\": 3}'")
     ap.add_argument("--log-level", default="WARNING", help="log level (default WARNING)")
     args = ap.parse_args(argv)
@@ -46,24 +44,13 @@ def main(argv: list[str] | None = None) -> int:
     from engine.diagnosis.diagnose import DiagnosisSettings
     from engine.diagnosis.locus import LocusSettings, estimate_locus
     from engine.diagnosis.space import default_space
-    from engine.validation.layout import RunLayout
-    from engine.validation.run import prepare_cases
     from engine.validation.stats import wilson_interval
 
     try:
         locus_settings = replace(LocusSettings(), **json.loads(args.locus))
     except (TypeError, ValueError) as e:
         ap.error(f"--locus: {e}")
-    if (args.seed is None) != (args.n_cases is None):
-        ap.error("--seed and --cases go together")
-    layout = RunLayout(args.run)
-    try:
-        if args.seed is not None:
-            prepare_cases(layout, args.n_cases, args.seed)
-        ids = [c for c in args.ids.split(",") if c]
-        entries = [k for k in layout.key_entries(ids or layout.case_ids()) if ids or k.kind == "held_back"]
-    except (FileNotFoundError, FileExistsError, KeyError) as e:
-        ap.error(str(e.args[0]))
+    layout, entries = chosen_entries(ap, args, "held_back")
     settings = DiagnosisSettings()
     right: Counter[str] = Counter()
     seen: Counter[str] = Counter()

@@ -35,16 +35,14 @@ import json
 import logging
 import sys
 import time
-from pathlib import Path
+
+from _runs import add_run_arguments, chosen_entries
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("run", type=Path, help="directory of a validation run (its cases/ and key/)")
-    ap.add_argument("ids", nargs="?", default="", help="case ids, comma-separated (e.g. case0018,case0040)")
+    add_run_arguments(ap, "case ids, comma-separated (e.g. case0018,case0040)")
     ap.add_argument("--kind", help="every case of this kind (single, pair, triple, held_back, clean) instead of ids")
-    ap.add_argument("--seed", type=int, help="seed of the run's case generator (with --cases: draw them if absent)")
-    ap.add_argument("--cases", dest="n_cases", type=int, help="number of cases of the run (with --seed)")
     ap.add_argument("--sets", default="{}", help="SetSettings fields as JSON, e.g. '{\"n_escalate_first\": 0}'")
     ap.add_argument(
         "--candidates", default="{}", help="CandidateSettings fields as JSON, e.g. '{\"reseed_seed_fits\": null}'"
@@ -57,8 +55,6 @@ def main(argv: list[str] | None = None) -> int:
 
     from engine.diagnosis import diagnose
     from engine.diagnosis.diagnose import DiagnosisSettings
-    from engine.validation.layout import RunLayout
-    from engine.validation.run import prepare_cases
     from engine.validation.score import answer_of, correct
 
     ds = DiagnosisSettings()
@@ -72,18 +68,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--candidates: {e}")
     if bool(args.ids) == bool(args.kind):
         ap.error("give case ids or --kind, not both and not neither")
-    if (args.seed is None) != (args.n_cases is None):
-        ap.error("--seed and --cases go together")
-    layout = RunLayout(args.run)
-    try:
-        if args.seed is not None:
-            prepare_cases(layout, args.n_cases, args.seed)
-        ids = [c for c in args.ids.split(",") if c]
-        if args.kind:
-            ids = [k.case_id for k in layout.key_entries(layout.case_ids()) if k.kind == args.kind]
-        entries = layout.key_entries(ids)
-    except (FileNotFoundError, FileExistsError, KeyError) as e:
-        ap.error(str(e.args[0]))
+    layout, entries = chosen_entries(ap, args, args.kind)
     for k in entries:
         cid = k.case_id
         t0 = time.perf_counter()

@@ -18,15 +18,13 @@ import logging
 import sys
 import time
 from dataclasses import replace
-from pathlib import Path
+
+from _runs import add_run_arguments, chosen_entries
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("run", type=Path, help="directory of a validation run (its cases/ and key/)")
-    ap.add_argument("ids", nargs="?", default="", help="case ids, comma-separated (default: every single)")
-    ap.add_argument("--seed", type=int, help="seed of the run's case generator (with --cases: draw them if absent)")
-    ap.add_argument("--cases", dest="n_cases", type=int, help="number of cases of the run (with --seed)")
+    add_run_arguments(ap, "case ids, comma-separated (default: every single)")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, stream=sys.stderr)
 
@@ -36,18 +34,10 @@ def main(argv: list[str] | None = None) -> int:
     from engine.diagnosis.space import default_space
     from engine.simulation import CATALOGUE
     from engine.validation.blind import library_of_run
-    from engine.validation.layout import RunLayout
-    from engine.validation.run import prepare_cases
 
-    layout = RunLayout(args.run)
-    if (args.seed is None) != (args.n_cases is None):
-        ap.error("--seed and --cases go together")
-    if args.seed is not None:
-        prepare_cases(layout, args.n_cases, args.seed)
+    layout, entries = chosen_entries(ap, args, "single")
     library = library_of_run(layout, CATALOGUE)
     settings = DiagnosisSettings()
-    ids = [c for c in args.ids.split(",") if c]
-    entries = layout.key_entries(ids or layout.case_ids())
     for k in entries:
         if k.kind != "single":
             continue

@@ -1,0 +1,45 @@
+"""Shared by the development scripts of ``bench/`` that re-run cases of a finished validation run.
+
+:func:`add_run_arguments` gives a script the run directory, the case ids and ``--seed``/``--cases``
+(to draw the cases again when the directory holds none); :func:`chosen_entries` opens the run and
+returns the answer-key entries of the chosen cases (the given ids, else every case of one kind).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from engine.validation.key import KeyEntry
+from engine.validation.layout import RunLayout
+from engine.validation.run import prepare_cases
+
+
+def add_run_arguments(ap: argparse.ArgumentParser, ids_help: str) -> None:
+    """Add ``run``, ``ids``, ``--seed`` and ``--cases`` to a script's parser."""
+    ap.add_argument("run", type=Path, help="directory of a validation run (its cases/ and key/)")
+    ap.add_argument("ids", nargs="?", default="", help=ids_help)
+    ap.add_argument("--seed", type=int, help="seed of the run's case generator (with --cases: draw them if absent)")
+    ap.add_argument("--cases", dest="n_cases", type=int, help="number of cases of the run (with --seed)")
+
+
+def chosen_entries(
+    ap: argparse.ArgumentParser, args: argparse.Namespace, kind: str | None
+) -> tuple[RunLayout, list[KeyEntry]]:
+    """The run and the key entries of the given ids, or (none given) of every case of ``kind`` (None: all).
+
+    Exits through ``ap.error`` with a message when ``--seed`` and ``--cases`` are not given
+    together, or the run or an id is not there.
+    """
+    if (args.seed is None) != (args.n_cases is None):
+        ap.error("--seed and --cases go together")
+    layout = RunLayout(args.run)
+    try:
+        if args.seed is not None:
+            prepare_cases(layout, args.n_cases, args.seed)
+        ids = [c for c in args.ids.split(",") if c]
+        if not ids:
+            ids = [k.case_id for k in layout.key_entries(layout.case_ids()) if kind is None or k.kind == kind]
+        return layout, list(layout.key_entries(ids))
+    except (FileNotFoundError, FileExistsError, KeyError) as e:
+        ap.error(str(e.args[0]))
