@@ -77,6 +77,7 @@ def main(argv: list[str] | None = None) -> int:
             "description": report.description,
             "nominal_chi2n": round(nominal.reduced_chi2, 2),
             "seconds": round(time.perf_counter() - t0, 1),
+            "locus_simulations": report.n_simulations,
         }
         print(json.dumps(row), flush=True)
     n, k_right = sum(seen.values()), sum(right.values())

@@ -150,6 +150,22 @@ def test_report_is_json_ready_and_series_lie_on_the_record_grid() -> None:
     np.testing.assert_allclose(out["term"]["t"], d.record.time)
 
 
+def test_a_zone_offset_the_calibration_took_up_in_the_width_is_found_in_the_clutch() -> None:
+    """The operating point unknown: the nominal calibration takes an offset of -3.8 mrad up in the
+    width (K 7.26 mm for 7.62) and in c (1.65 for 1.22), and the clutch's constant input scanned
+    around it explained 57 % of the residual against 95 % for a torque on the wheel (seed-97
+    case0027's operating point; docs/diagnosis.md section 10). Scanned densely from the early
+    window's start along the widths that keep one side of the zone in place, it is found."""
+    plant = PlantParameters(K=0.007623, J1=0.7497, c=1.217)
+    rec = _record("clutch_offset", -0.0038, plant, 36.0, seed=6, known=False)
+    cal = calibrate(rec)
+    assert cal.reduced_chi2 > 5.0 and cal.values["K"] < 0.0074  # the offset was taken up, not fitted
+    rep = estimate_locus(rec, cal)
+    assert rep.locus == "clutch", rep.description
+    assert rep.term is not None and rep.term.follows == "constant"
+    assert abs(rep.term.amplitude) == pytest.approx(0.0038, rel=0.1)
+
+
 def test_no_gap_no_confident_locus() -> None:
     """A record of the model itself (noise only): no locus beats the calibration by much."""
     rec = _record("motor_coulomb_friction", 0.0, PlantParameters(), 40.0, seed=3, known=True)
