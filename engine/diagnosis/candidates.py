@@ -173,6 +173,14 @@ def _order(cs: list[Candidate]) -> list[Candidate]:
     return sorted(cs, key=lambda c: c.bic)
 
 
+def _better(new: Candidate, old: Candidate) -> Candidate:
+    """The fit of lower BIC (``old`` on a tie), a copy that counts the simulations and seconds of both."""
+    kept, spent = (new, old) if new.bic < old.bic else (old, new)
+    cal, other = _fitted(kept), _fitted(spent)
+    work = replace(cal, n_simulations=cal.n_simulations + other.n_simulations, seconds=cal.seconds + other.seconds)
+    return replace(kept, calibration=work)
+
+
 def _reseed(
     record: Record,
     nominal: CalibrationResult,
@@ -198,10 +206,7 @@ def _reseed(
         except CalibrationError as exc:  # the seeded fit stands
             logger.info("%s could not be refitted from the nominal starts: %s", c.effect, exc)
             continue
-        kept, spent = (new, c) if new.bic < c.bic else (c, new)
-        _fitted(kept).n_simulations += _fitted(spent).n_simulations  # the work of both fits is counted
-        _fitted(kept).seconds += _fitted(spent).seconds
-        out[i] = kept
+        out[i] = _better(new, c)
     out = _order(out)
     logger.info(
         "re-seeded fits from %d nominal starts: %.1f s, best %s chi2/n %.4g",
@@ -249,9 +254,7 @@ def _escalate(
             tasks = {j: escalate(j) for j in idx[1:]}
         c = cands[i]
         new = (tasks[i] if i in tasks else escalate(i)).result()
-        _fitted(new).n_simulations += _fitted(c).n_simulations
-        _fitted(new).seconds += _fitted(c).seconds
-        cands[i] = replace(new if new.bic < c.bic else c, escalated=True)  # the caller's candidates stay as given
+        cands[i] = replace(_better(new, c), escalated=True)  # the caller's candidates stay as given
         if _fitted(cands[i]).reduced_chi2 <= settings.escalate_above:
             logger.info("escalation: %s (rank %d before it) fits to the noise", c.effect, i + 1)
             # one effect explains the record: the others keep their seeded fits
