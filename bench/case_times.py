@@ -44,17 +44,20 @@ BUDGET_P90_S: dict[str, float] = {"single": 10.0, "compound": 60.0}
 
 
 def _time_cases(layout: Any, ids: list[str], threads: int) -> dict[str, float]:
-    """Wall seconds of the diagnosis of each case with ``threads`` numba threads."""
+    """Wall seconds of the diagnosis of each case with ``threads`` numba threads (the run's library)."""
     import numba
 
     from engine.diagnosis import diagnose
+    from engine.simulation import CATALOGUE
+    from engine.validation.blind import library_of_run
 
+    library = library_of_run(layout, CATALOGUE)
     numba.set_num_threads(threads)
     out = {}
     for i, cid in enumerate(ids):
         rec = layout.read_case(cid)
         t0 = time.perf_counter()
-        diagnose(rec)
+        diagnose(rec, library)
         out[cid] = time.perf_counter() - t0
         logger.info(
             "%d/%d %s, %d threads: %.1f s (load %.2f)", i + 1, len(ids), cid, threads, out[cid], os.getloadavg()[0]

@@ -982,10 +982,9 @@ class _Estimate:
 
 def _moved(case: Case, names: list[str], p: np.ndarray) -> Case:
     """``case`` with its calibrated parameters moved by ``p`` (kept when that is not a valid case)."""
-    plant = {k: getattr(case.plant, k) + float(v) for k, v in zip(names, p, strict=True) if hasattr(case.plant, k)}
-    sensors = {
-        k: getattr(case.sensors, k) + float(v) for k, v in zip(names, p, strict=True) if not hasattr(case.plant, k)
-    }
+    moved = {k: _current(case, k) + float(v) for k, v in zip(names, p, strict=True)}
+    plant = {k: v for k, v in moved.items() if hasattr(case.plant, k)}
+    sensors = {k: v for k, v in moved.items() if k not in plant}
     try:
         return Case(case.plant.replace(**plant), case.sensors.replace(**sensors)).validate()
     except ValueError:
