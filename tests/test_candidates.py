@@ -115,3 +115,59 @@ def test_the_candidates_are_refitted_from_the_starts_only_when_no_seeded_fit_rea
     else:
         assert refitted == []
         assert cands[0].effect == "sensor_gain"
+
+
+@pytest.mark.parametrize("n_jobs", [1, 2])
+@pytest.mark.parametrize("stop", [True, False])
+def test_the_refits_from_the_starts_stop_at_the_first_that_fits_to_the_noise(
+    monkeypatch: pytest.MonkeyPatch, n_jobs: int, stop: bool
+) -> None:
+    """Pass 1b collects its refits in ranking order and stops at the first at the noise (whatever n_jobs)."""
+    names = ["sensor_gain", "load_inertia", "supply_voltage", "motor_viscous_friction"]
+    library = EffectLibrary([CATALOGUE[n] for n in names])
+    seeded = {n: 5.0 + i for i, n in enumerate(names)}  # ranked in this order
+    refitted: list[str] = []
+
+    def fake_fit(record, nominal, space, effect, settings, polish=True, global_search=False, extra_seeds=()):
+        return _candidate(effect.name, seeded[effect.name])
+
+    def fake_refit(record, nominal, space, effect, settings, previous=None):
+        refitted.append(effect.name)
+        return _candidate(effect.name, 1.0 if effect.name in ("load_inertia", "motor_viscous_friction") else 50.0)
+
+    monkeypatch.setattr(candidates_module, "fit_candidate", fake_fit)
+    monkeypatch.setattr(candidates_module, "refit_from_starts", fake_refit)
+    settings = CandidateSettings(n_escalate=0, n_jobs=n_jobs, reseed_stop_at_noise=stop)
+    starts = [{"K": 0.01, "J1": 0.7, "c": 1.5}]
+    cands = candidates_module.fit_candidates(None, _fake_cal(20.0, starts), None, library, settings, escalate=False)
+    by_name = {c.effect: c for c in cands}
+    assert cands[0].effect == "load_inertia" and cands[0].calibration.reduced_chi2 == 1.0
+    later = by_name["motor_viscous_friction"]
+    if stop:  # ranked after the first at the noise: its seeded fit stands, and says so
+        assert later.calibration.reduced_chi2 == seeded["motor_viscous_friction"]
+        assert "stopped once load_inertia fitted to the noise" in later.note
+        assert "sensor_gain" in refitted and (n_jobs > 1 or refitted == ["sensor_gain", "load_inertia"])
+    else:
+        assert later.calibration.reduced_chi2 == 1.0 and sorted(refitted) == sorted(names)
+
+
+def test_a_seeded_fit_refining_only_its_best_seed_finds_the_effect_for_fewer_simulations() -> None:
+    """Pass 1 with ``seed_fits`` 1 (an option, not the default): of the nominal fit with the effect at
+    neutral and at its scanned best, only the one that simulates better on the full record is refined."""
+    plant = PlantParameters(K=0.006, J1=0.9, c=1.2, c1=0.2)
+    clean = simulate(plant, effects={"load_inertia": 1.3})
+    rng = np.random.default_rng(5)
+    channels = {k: v + rng.standard_normal(v.size) * noise_std(v, 40.0)[0] for k, v in clean.channels.items()}
+    record = Record(channels, clean.sample_interval, clean.event_index, conditions={"c1": 0.2}).test_window()[0]
+    space = default_space(record)
+    cs = CandidateSettings()
+    nominal = calibrate(record, space, cs.seeded, seeds=[{"K": 0.006, "J1": 0.9, "c": 1.2}], polish=False)
+    fits = {
+        n: fit_candidate(record, nominal, space, CATALOGUE["load_inertia"], replace(cs, seed_fits=n), False)
+        for n in (1, None)
+    }
+    for fit in fits.values():
+        assert fit.calibration is not None and fit.calibration.reduced_chi2 < 1.2
+        assert fit.value == pytest.approx(1.3, rel=0.03)
+    assert fits[1].calibration is not None and fits[None].calibration is not None
+    assert fits[1].calibration.n_simulations < fits[None].calibration.n_simulations

@@ -792,3 +792,48 @@ def test_a_single_is_refitted_from_a_set_that_fits_with_it_as_its_only_strong_me
     assert out[0].effect == "stator_resistance_drift" and out[0].value == pytest.approx(1.451)
     verdict = decide(nominal, out, settings, [found])
     assert verdict.status == "explained" and verdict.effect == "stator_resistance_drift"
+
+
+@pytest.mark.parametrize("triples_explain", [True, False])
+def test_seeded_triples_that_explain_spare_the_escalation_of_the_singles(
+    monkeypatch: pytest.MonkeyPatch, triples_explain: bool
+) -> None:
+    """Staged search: when no first pair explains, the seeded triples come before the escalation of the
+    singles, which runs only when none of them explains; every set fitted by then is handed on."""
+    searches: list[tuple[int, bool, int, list[frozenset[str]]]] = []
+    escalations: list[int | None] = []
+    triple = ("load_inertia", "supply_voltage", "sensor_gain")
+
+    def fake_search(record, nominal, space, library, cands, cs, ss, previous=()):
+        searches.append((ss.max_size, ss.escalate, ss.n_exchange, [frozenset(s.effects) for s in previous]))
+        if len(searches) == 1:  # the first pairs: none fits to the noise; more than n_report of them
+            return [
+                pair(("load_inertia", n), 3.0 + i, (10.0, 10.0)) for i, n in enumerate(CATALOGUE) if n != "load_inertia"
+            ]
+        if len(searches) == 2:  # the seeded triples
+            return [pair(triple, 1.0 if triples_explain else 2.0, (10.0, 10.0, 10.0))]
+        return []
+
+    def fake_escalate(record, nominal, space, library, cands, cs):
+        escalations.append(cs.n_escalate)
+        return cands
+
+    monkeypatch.setattr(diagnose_module, "search_sets", fake_search)
+    monkeypatch.setattr(diagnose_module, "escalate_candidates", fake_escalate)
+    stages: list[str] = []
+    cands = [single(n, 50.0 + i, 10.0) for i, n in enumerate(("load_inertia", "supply_voltage", "sensor_gain"))]
+    settings = DiagnosisSettings()
+    _, sets = diagnose_module._staged_search(
+        None, fake_cal(100.0, k=3), None, CATALOGUE, cands, settings, stages.append
+    )
+
+    n_report = settings.set_search().n_report
+    assert searches[0][0] == 2 and searches[1][:3] == (3, False, 0)  # pairs, then seeded triples only
+    assert len(searches[1][3]) == len(CATALOGUE) - 1  # every first pair handed on, not only the reported ones
+    assert len(sets) <= n_report and frozenset(triple) in {frozenset(s.effects) for s in sets}
+    if triples_explain:
+        assert stages == ["early escalation of the best singles", "first pairs", "first triples"]
+        assert len(escalations) == 1 and len(searches) == 2  # the early escalation only
+    else:
+        assert stages[-2:] == ["escalation of the singles", "sets of up to three"]
+        assert len(escalations) == 2 and frozenset(triple) in searches[2][3]  # the triple is kept, not refitted

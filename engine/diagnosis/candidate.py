@@ -189,6 +189,17 @@ class CandidateSettings:
         five seeds (each start with the effect at its scanned best, and the seeded fit) are
         simulated once on the full record and only this many of lowest chi2 are refined
         (None: every seed).
+    seed_fits : int or None
+        Of the seeds of a seeded fit (pass 1: the nominal calibration with the effect at its
+        neutral value and at the best value of the scan, and any extra seed), only this many of
+        lowest chi2 on the full record are refined (:attr:`CalibrationSettings.n_seed_fits`;
+        None: every seed, the default). One was tried and not kept: it made the seeded fits of
+        the seed-151 singles about 10 % faster, but a single effect whose refined neutral seed
+        reaches the noise went on to the set search (docs/diagnosis.md 8b, *Three cuts*).
+    reseed_stop_at_noise : bool
+        Pass 1b collects its refits in ranking order (best seeded BIC first) and stops at the
+        first that fits to the noise (``escalate_above``), as the escalation does: the rest keep
+        their seeded fits (cancelled even when running). False refits every candidate.
     """
 
     seeded: CalibrationSettings = SEEDED_FITS
@@ -203,6 +214,8 @@ class CandidateSettings:
     n_jobs: int | None = None
     reseed_from_starts: bool = True
     reseed_seed_fits: int | None = 2
+    reseed_stop_at_noise: bool = True
+    seed_fits: int | None = None
 
     def jobs(self) -> int:
         """Resolved ``n_jobs`` (at least 1)."""
@@ -368,7 +381,7 @@ def fit_candidate(
         cal = fit_quantisation(record, nominal, space, effect, settings.n_quantum, first, settings.seeded)
         return Candidate.from_fit(effect, cal, nominal)
     espace = space.with_effect(effect)
-    cs = settings.escalated if global_search else settings.seeded
+    cs = settings.escalated if global_search else replace(settings.seeded, n_seed_fits=settings.seed_fits)
     seeds = _seeds(record, nominal, espace, settings, cs.search_step) + list(extra_seeds)
     cal = calibrate(record, espace, cs, noise=nominal.noise, seeds=seeds, polish=polish)
     return Candidate.from_fit(effect, cal, nominal)

@@ -5,14 +5,14 @@ calibration is refitted with the effect's scalar value as one more bounded
 parameter (:func:`engine.diagnosis.candidate.fit_candidate`), in three passes:
 
 1. **Seeded fits** (every candidate): least squares on the full record from
-   the nominal calibration with the effect at its neutral value, and from the
-   nominal calibration with the best value of a one-dimensional scan of the
-   effect (9 values across its range).
-1b. **Re-seeded fits** (only when no candidate fits to the noise after pass 1): every
-   candidate is fitted again from the nominal calibration's global starts, each with the
-   best value of a scan of the effect there (:func:`engine.diagnosis.candidate.refit_from_starts`):
-   a strong missing effect can drag the nominal fit out of the basin its early-window starts
-   were in, and every seeded fit with it.
+   the nominal calibration with the effect at its neutral value, and with the best
+   value of a one-dimensional scan of the effect (9 values across its range).
+1b. **Re-seeded fits** (only when no candidate fits to the noise after pass 1): the
+   candidates, best seeded BIC first, are fitted again from the nominal calibration's global
+   starts, each with the best value of a scan of the effect there
+   (:func:`engine.diagnosis.candidate.refit_from_starts`), until one fits to the noise
+   (``CandidateSettings.reseed_stop_at_noise``): a strong missing effect can drag the nominal
+   fit out of the basin its early-window starts were in, and every seeded fit with it.
 2. **Escalation** (only when no candidate fits to the noise after pass 1b):
    the candidates, best seeded BIC first, get the full global search (256
    Sobol points on the early window, continuation over 10, 20, 40, 80, 200 ms)
@@ -191,7 +191,12 @@ def _reseed(
     runner: Runner,
 ) -> list[Candidate]:
     """Pass 1b: every fitted candidate (but the speed quantum, fitted by scans) refitted from the
-    nominal calibration's starts; a refit replaces the seeded fit when its BIC is lower."""
+    nominal calibration's starts; a refit replaces the seeded fit when its BIC is lower.
+
+    With ``settings.reseed_stop_at_noise`` the refits are collected in ranking order and the
+    rest are cancelled at the first that fits to the noise (they keep their seeded fits, with a
+    note), so that the result does not depend on ``n_jobs``.
+    """
     t0 = time.perf_counter()
     todo = {
         i: runner.submit(refit_from_starts, record, nominal, space, library[c.effect], settings, _fitted(c))
@@ -199,14 +204,23 @@ def _reseed(
         if c.calibration is not None and not is_speed_quantum(library[c.effect])
     }
     out = list(cands)
+    stopped_by = ""
     for i, task in todo.items():
         c = cands[i]
+        if stopped_by:
+            task.cancel()  # stops it even if it is running
+            note = c.note or f"seeded fit only: the re-seeded fits stopped once {stopped_by} fitted to the noise"
+            out[i] = replace(c, note=note)
+            continue
         try:
             new = task.result()
         except CalibrationError as exc:  # the seeded fit stands
             logger.info("%s could not be refitted from the nominal starts: %s", c.effect, exc)
             continue
         out[i] = _better(new, c)
+        if settings.reseed_stop_at_noise and _fitted(out[i]).reduced_chi2 <= settings.escalate_above:
+            stopped_by = c.effect
+            logger.info("re-seeded fits: %s (rank %d) fits to the noise, the rest are not refitted", c.effect, i + 1)
     out = _order(out)
     logger.info(
         "re-seeded fits from %d nominal starts: %.1f s, best %s chi2/n %.4g",

@@ -124,6 +124,8 @@ __all__ = [
 IdentificationHook = Callable[[Record, "DiagnosisResult"], dict]
 
 
+#: ``n_report`` of the staged searches whose every set is kept for the later stages (all of them).
+_ALL_SETS = 10**6
 #: A single candidate's fit "moved" during the escalation (so that the pairs built from it are fitted
 #: again) when some value changed by more than this fraction (polishing moves values by ~0.1 %).
 MOVED_REL_TOL: float = 0.01
@@ -306,8 +308,8 @@ class DiagnosisResult:
         Excess energy before over after the named effects' fit.
     stages : list of dict
         Where the time went: ``{"stage", "seconds"}`` per stage of the work, in order (the nominal
-        calibration, the single candidates, the early escalation, the first pairs, the singles'
-        escalation, the sets of up to three, the decision, the gap after the fix or the locus, the
+        calibration, the single candidates, the early escalation, the first pairs, the first
+        triples, the singles' escalation, the sets of up to three, the decision, the gap after the fix or the locus, the
         identification), each that ran; wall times [s].
     """
 
@@ -740,6 +742,79 @@ def _singles_of_sets(
     return sorted(out, key=lambda c: c.bic)
 
 
+def _staged_search(
+    record: Record,
+    nominal: CalibrationResult,
+    space: ModelSpace,
+    library: EffectLibrary,
+    cands: list[Candidate],
+    settings: DiagnosisSettings,
+    stage: Callable[[str], None],
+) -> tuple[list[Candidate], list[CandidateSet]]:
+    """The staged search of :attr:`SetSettings.before_escalation`, from the seeded single fits.
+
+    In order, each stage only while nothing explains the record: the early escalation of the best
+    singles (a single effect whose seeded fit stayed in the nominal calibration's basin is most
+    often among them, and found in seconds); the first pairs from the seeded singles, the best with
+    a global search in their joint space; the first triples (``first_triples``: seeded fits only);
+    the escalation of the singles (``n_escalate_singles``); the search of sets of up to three from
+    the escalated singles. The first triples start from every first pair as fitted; the last
+    search keeps the ``n_report`` best sets so far unless the escalation moved a member's single
+    fit, and fits the rest again; the decision sees each search's ``n_report`` best.
+
+    Parameters
+    ----------
+    record, nominal, space, library
+        As in :func:`diagnose` (``record`` is the test window).
+    cands : list of Candidate
+        The seeded single candidates (``fit_candidates(..., escalate=False)``).
+    settings : DiagnosisSettings
+        The diagnosis's settings.
+    stage : callable
+        ``stage(name)`` closes a stage of the work (its wall time goes to ``DiagnosisResult.stages``).
+
+    Returns
+    -------
+    cands : list of Candidate
+        The single candidates, escalated where a stage escalated them.
+    sets : list of CandidateSet
+        The sets for the decision, best BIC first.
+    """
+    cs = settings.candidates
+    ss = settings.set_search()
+    sets: list[CandidateSet] = []
+    if ss.n_escalate_first > 0 and needs_escalation(cands, cs):
+        cands = escalate_candidates(record, nominal, space, library, cands, ss.escalation(cs, early=True))
+        stage("early escalation of the best singles")
+    if _explains_single(cands, settings):
+        return cands, sets
+    everything = replace(ss, n_report=_ALL_SETS)
+    fitted = search_sets(record, nominal, space, library, cands, cs, replace(everything, max_size=2))
+    sets = fitted[: ss.n_report]
+    stage("first pairs")
+    if ss.first_triples and ss.max_size >= 3 and not any(_explains(s, settings) for s in sets):
+        seeded_only = replace(everything, escalate=False, n_exchange=0)
+        fitted = _merge_sets(fitted, search_sets(record, nominal, space, library, cands, cs, seeded_only, fitted))
+        sets = fitted[: ss.n_report]
+        stage("first triples")
+    if any(_explains(s, settings) for s in sets):
+        return cands, sets
+    seeded = {c.effect: c.calibration.values for c in cands if c.calibration is not None}
+    if needs_escalation(cands, cs):
+        cands = escalate_candidates(record, nominal, space, library, cands, ss.escalation(cs))
+        stage("escalation of the singles")
+    if not _explains_single(cands, settings):
+        # the best sets so far stand as fitted unless the escalation moved a single they came from; the
+        # others are fitted again from the escalated singles (keeping every unmoved set lost seed-151
+        # case0168: its true triple was found from a pair refitted there, docs/diagnosis.md 8b)
+        moved = {c.effect for c in cands if c.calibration is not None and _moved(seeded, c)}
+        keep = [s for s in sets if not moved & set(s.effects)]
+        again = search_sets(record, nominal, space, library, cands, cs, ss, keep)
+        sets = _merge_sets(sets, again)
+        stage("sets of up to three")
+    return cands, sets
+
+
 def _merge_sets(first: Sequence[CandidateSet], second: Sequence[CandidateSet]) -> list[CandidateSet]:
     """The sets of two searches, the better fit of each group of effects, best BIC first."""
     best: dict[frozenset[str], CandidateSet] = {}
@@ -858,29 +933,8 @@ def _diagnose(
     if use_sets and not _explains_single(cands, settings):
         progress(0.55, "no single effect explains the record: searching sets of effects")
     sets: list[CandidateSet] = []
-    if staged and set_settings.n_escalate_first > 0 and needs_escalation(cands, cs):
-        # the few best singles' global search first: a single effect whose seeded fit stayed in the
-        # nominal calibration's basin is most often among them, and found in seconds
-        cands = escalate_candidates(record, nominal, space, library, cands, set_settings.escalation(cs, early=True))
-        stage("early escalation of the best singles")
-    if staged and not _explains_single(cands, settings):
-        # pairs from the seeded single fits first, the best with a global search in its joint space;
-        # the escalation of the best few singles (SetSettings.n_escalate_singles) only when none explains the record
-        first = replace(set_settings, max_size=2)
-        sets = search_sets(record, nominal, space, library, cands, cs, first)
-        stage("first pairs")
-        if not any(_explains(s, settings) for s in sets):
-            seeded = {c.effect: c.calibration.values for c in cands if c.calibration is not None}
-            if needs_escalation(cands, cs):
-                cands = escalate_candidates(record, nominal, space, library, cands, set_settings.escalation(cs))
-                stage("escalation of the singles")
-            if not _explains_single(cands, settings):
-                # the first pairs stand as fitted unless the escalation moved a single they came from
-                moved = {c.effect for c in cands if c.calibration is not None and _moved(seeded, c)}
-                keep = [s for s in sets if not moved & set(s.effects)]
-                again = search_sets(record, nominal, space, library, cands, cs, set_settings, keep)
-                sets = _merge_sets(sets, again)
-                stage("sets of up to three")
+    if staged:
+        cands, sets = _staged_search(record, nominal, space, library, cands, settings, stage)
     elif use_sets and not _explains_single(cands, settings):
         sets = search_sets(record, nominal, space, library, cands, cs, set_settings)
         stage("sets of up to three")

@@ -166,6 +166,14 @@ class SetSettings:
         is one no round has started from, the exchange starts again from it (sequential replacement
         until the best triple stays the same). One round (the order before 2026-11-25) leaves a triple
         whose global search reached the true basin with one member still wrong as it is.
+    first_triples : bool
+        With ``before_escalation``, when no first pair explains the record, the triples are fitted
+        from the seeded singles and the first pairs (seeded fits only: no global search, no
+        exchange) before the singles' escalation, which is skipped when one of them explains the
+        record (fits to the noise with every member strong): on a triple record no single and no
+        pair can pay off the escalation of the singles, which took a third of a triple's time
+        (docs/diagnosis.md 8b, *First triples*). When none explains, the search after the
+        escalation keeps the best of them as the first pairs are kept.
     n_swap : int
         Swap: once the best set fits to the noise, each of its members is replaced by this many of the
         effects the profiled screen ranks best beside the others, each such set fitted from the others'
@@ -210,6 +218,7 @@ class SetSettings:
     n_seed_fits: int | None = 2
     n_exchange_rounds: int = 3
     n_swap: int = 2
+    first_triples: bool = True
 
     def escalation(self, candidates: CandidateSettings, early: bool = False) -> CandidateSettings:
         """The candidate settings of the singles' escalation in the staged order (``before_escalation``).
@@ -621,8 +630,9 @@ def search_sets(
     settings : SetSettings, optional
         Settings of the set search.
     previous : sequence of CandidateSet
-        Sets already fitted from the same single candidates (the diagnosis's first pairs, when
-        the singles' escalation changed nothing): kept as they are, not fitted again.
+        Sets already fitted from the same single candidates (the diagnosis's first pairs, and
+        its best first sets whose members' single fits the escalation did not move): kept as
+        they are, not fitted again.
 
     Returns
     -------
@@ -774,7 +784,8 @@ def _search(
         # the search step's integration error alone can keep a right pair above the threshold:
         # refine the best pair at the final step before paying for the triples
         g = best_of(2)[0]
-        fit_all([g], cs.seeded, polish=True)
+        if fits[g].step != cs.seeded.final_step:  # not when refined already (a previous search's pair)
+            fit_all([g], cs.seeded, polish=True)
     if ss.max_size >= 3 and not any(fits_noise(g) for g in best_of(2)):
         triples: list[tuple[str, ...]] = []
         for i, p in enumerate(best_of(2)[: ss.n_extend]):
