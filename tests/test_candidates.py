@@ -18,15 +18,20 @@ from engine.simulation.noise import noise_std
 candidates_module = importlib.import_module("engine.diagnosis.candidates")
 
 
+def _noisy_window(plant: PlantParameters, effects: dict[str, float], snr_db: float, seed: int) -> Record:
+    """The test window of a simulated record with white noise of ``snr_db`` per channel."""
+    clean = simulate(plant, effects=effects)
+    rng = np.random.default_rng(seed)
+    channels = {k: v + rng.standard_normal(v.size) * noise_std(v, snr_db)[0] for k, v in clean.channels.items()}
+    return Record(channels, clean.sample_interval, clean.event_index, conditions={"c1": 0.2}).test_window()[0]
+
+
 def test_a_fit_from_the_nominal_starts_reaches_the_basin_the_nominal_fit_was_dragged_out_of() -> None:
     """Seed-137 case0004 in miniature: a Coulomb friction of 0.09 pu at K 13.4 mm drags the nominal fit to
     K 3.6 mm, where the seeded fit of the friction stays at zero; from a start near the early window's
     (K 14.6 mm) the refit finds the friction and fits to the noise."""
     plant = PlantParameters(K=0.0134, J1=0.724, c=0.833, c1=0.2)
-    clean = simulate(plant, effects={"motor_coulomb_friction": 0.09})
-    rng = np.random.default_rng(3)
-    channels = {k: v + rng.standard_normal(v.size) * noise_std(v, 45.0)[0] for k, v in clean.channels.items()}
-    record = Record(channels, clean.sample_interval, clean.event_index, conditions={"c1": 0.2}).test_window()[0]
+    record = _noisy_window(plant, {"motor_coulomb_friction": 0.09}, 45.0, seed=3)
     space = default_space(record)
     cs = CandidateSettings()
     nominal = calibrate(record, space, cs.seeded, seeds=[{"K": 0.0035, "J1": 0.643, "c": 0.567}], polish=False)
@@ -155,10 +160,7 @@ def test_a_seeded_fit_refining_only_its_best_seed_finds_the_effect_for_fewer_sim
     """Pass 1 with ``seed_fits`` 1 (an option, not the default): of the nominal fit with the effect at
     neutral and at its scanned best, only the one that simulates better on the full record is refined."""
     plant = PlantParameters(K=0.006, J1=0.9, c=1.2, c1=0.2)
-    clean = simulate(plant, effects={"load_inertia": 1.3})
-    rng = np.random.default_rng(5)
-    channels = {k: v + rng.standard_normal(v.size) * noise_std(v, 40.0)[0] for k, v in clean.channels.items()}
-    record = Record(channels, clean.sample_interval, clean.event_index, conditions={"c1": 0.2}).test_window()[0]
+    record = _noisy_window(plant, {"load_inertia": 1.3}, 40.0, seed=5)
     space = default_space(record)
     cs = CandidateSettings()
     nominal = calibrate(record, space, cs.seeded, seeds=[{"K": 0.006, "J1": 0.9, "c": 1.2}], polish=False)
