@@ -55,6 +55,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from engine.diagnosis import diagnose
     from engine.diagnosis.diagnose import DiagnosisSettings
+    from engine.simulation import CATALOGUE
+    from engine.validation.blind import library_of_run
     from engine.validation.score import answer_of, correct
 
     ds = DiagnosisSettings()
@@ -69,10 +71,11 @@ def main(argv: list[str] | None = None) -> int:
     if bool(args.ids) == bool(args.kind):
         ap.error("give case ids or --kind, not both and not neither")
     layout, entries = chosen_entries(ap, args, args.kind)
+    library = library_of_run(layout, CATALOGUE)  # the library the run gave every case
     for k in entries:
         cid = k.case_id
         t0 = time.perf_counter()
-        result = diagnose(layout.read_case(cid), settings=settings).to_dict(include_records=False)
+        result = diagnose(layout.read_case(cid), library, settings=settings).to_dict(include_records=False)
         seconds = time.perf_counter() - t0
         a = answer_of(result)
         row = {
