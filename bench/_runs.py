@@ -2,7 +2,8 @@
 
 :func:`add_run_arguments` gives a script the run directory, the case ids and ``--seed``/``--cases``
 (to draw the cases again when the directory holds none); :func:`chosen_entries` opens the run and
-returns the answer-key entries of the chosen cases (the given ids, else every case of one kind).
+returns the answer-key entries of the chosen cases (the given ids, else every case of one kind);
+:func:`run_library` the effect library the run gave every case, which a re-run must diagnose with.
 """
 
 from __future__ import annotations
@@ -10,6 +11,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from engine.simulation import CATALOGUE, EffectLibrary
+from engine.validation.blind import library_of_run
 from engine.validation.key import KeyEntry
 from engine.validation.layout import RunLayout
 from engine.validation.run import prepare_cases
@@ -42,4 +45,15 @@ def chosen_entries(
             ids = [k.case_id for k in layout.key_entries(layout.case_ids()) if kind is None or k.kind == kind]
         return layout, list(layout.key_entries(ids))
     except (FileNotFoundError, FileExistsError, KeyError) as e:
+        ap.error(str(e.args[0]))
+
+
+def run_library(ap: argparse.ArgumentParser, layout: RunLayout) -> EffectLibrary:
+    """The run's effect library (:func:`engine.validation.blind.library_of_run`, from the catalogue).
+
+    Exits through ``ap.error`` with a message when the run's cases are not completely written.
+    """
+    try:
+        return library_of_run(layout, CATALOGUE)
+    except FileNotFoundError as e:
         ap.error(str(e.args[0]))

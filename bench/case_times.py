@@ -33,7 +33,7 @@ import sys
 import time
 from typing import Any
 
-from _runs import add_run_arguments, chosen_entries
+from _runs import add_run_arguments, chosen_entries, run_library
 
 logger = logging.getLogger("bench.case_times")
 
@@ -43,15 +43,12 @@ GROUPS: dict[str, tuple[str, ...]] = {"single": ("single",), "compound": ("pair"
 BUDGET_P90_S: dict[str, float] = {"single": 10.0, "compound": 60.0}
 
 
-def _time_cases(layout: Any, ids: list[str], threads: int) -> dict[str, float]:
-    """Wall seconds of the diagnosis of each case with ``threads`` numba threads (the run's library)."""
+def _time_cases(layout: Any, library: Any, ids: list[str], threads: int) -> dict[str, float]:
+    """Wall seconds of the diagnosis of each case with ``threads`` numba threads and the run's library."""
     import numba
 
     from engine.diagnosis import diagnose
-    from engine.simulation import CATALOGUE
-    from engine.validation.blind import library_of_run
 
-    library = library_of_run(layout, CATALOGUE)
     numba.set_num_threads(threads)
     out = {}
     for i, cid in enumerate(ids):
@@ -99,8 +96,9 @@ def main(argv: list[str] | None = None) -> int:
     from engine.simulation import Case, PlantParameters, simulate_batch
 
     simulate_batch([Case(PlantParameters())] * 2)  # JIT (cached) before the first timing
-    times = _time_cases(layout, ids, threads)
-    base = _time_cases(layout, ids, args.baseline_threads) if args.baseline_threads else {}
+    library = run_library(ap, layout)
+    times = _time_cases(layout, library, ids, threads)
+    base = _time_cases(layout, library, ids, args.baseline_threads) if args.baseline_threads else {}
     recorded = {c: float(layout.read_result(c)["seconds"]) for c in ids if c in layout.done()}
     for c in ids:
         row = {"case": c, "kind": kind_of[c], "seconds": round(times[c], 2), "threads": threads}

@@ -36,7 +36,7 @@ import logging
 import sys
 import time
 
-from _runs import add_run_arguments, chosen_entries
+from _runs import add_run_arguments, chosen_entries, run_library
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -55,8 +55,6 @@ def main(argv: list[str] | None = None) -> int:
 
     from engine.diagnosis import diagnose
     from engine.diagnosis.diagnose import DiagnosisSettings
-    from engine.simulation import CATALOGUE
-    from engine.validation.blind import library_of_run
     from engine.validation.score import answer_of, correct
 
     ds = DiagnosisSettings()
@@ -71,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     if bool(args.ids) == bool(args.kind):
         ap.error("give case ids or --kind, not both and not neither")
     layout, entries = chosen_entries(ap, args, args.kind)
-    library = library_of_run(layout, CATALOGUE)  # the library the run gave every case
+    library = run_library(ap, layout)  # the library the run gave every case
     for k in entries:
         cid = k.case_id
         t0 = time.perf_counter()

@@ -19,7 +19,7 @@ import sys
 import time
 from dataclasses import replace
 
-from _runs import add_run_arguments, chosen_entries
+from _runs import add_run_arguments, chosen_entries, run_library
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -32,11 +32,9 @@ def main(argv: list[str] | None = None) -> int:
     from engine.diagnosis.candidates import fit_candidates
     from engine.diagnosis.diagnose import DiagnosisSettings
     from engine.diagnosis.space import default_space
-    from engine.simulation import CATALOGUE
-    from engine.validation.blind import library_of_run
 
     layout, entries = chosen_entries(ap, args, "single")
-    library = library_of_run(layout, CATALOGUE)
+    library = run_library(ap, layout)
     settings = DiagnosisSettings()
     for k in entries:
         if k.kind != "single":

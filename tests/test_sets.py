@@ -804,7 +804,7 @@ def test_seeded_triples_that_explain_spare_the_escalation_of_the_singles(
     escalations: list[int | None] = []
     triple = ("load_inertia", "supply_voltage", "sensor_gain")
 
-    def fake_search(record, nominal, space, library, cands, cs, ss, previous=()):
+    def fake_search(record, nominal, space, library, cands, cs, ss, previous=(), screens=None):
         searches.append((ss.max_size, ss.escalate, ss.n_exchange, [frozenset(s.effects) for s in previous]))
         if len(searches) == 1:  # the first pairs: none fits to the noise; more than n_report of them
             return [
@@ -837,3 +837,36 @@ def test_seeded_triples_that_explain_spare_the_escalation_of_the_singles(
     else:
         assert stages[-2:] == ["escalation of the singles", "sets of up to three"]
         assert len(escalations) == 2 and frozenset(triple) in searches[2][3]  # the triple is kept, not refitted
+
+
+def test_a_screen_beside_the_same_fit_is_not_simulated_again_in_a_later_search(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The staged searches of one diagnosis share their profiled screens (``screens``)."""
+    sets_module, cs, _ = fake_set_fits(monkeypatch, lambda names: 3.0)
+    screened: list[tuple[str, ...]] = []
+
+    def fake_rank(record, space, values, members, additions, *args):
+        screened.append(tuple(m.name for m in members))
+        return [(e.name, float(i), 1.0) for i, e in enumerate(additions)]
+
+    monkeypatch.setattr(sets_module, "rank_additions", fake_rank)
+    names = [
+        "load_inertia",
+        "supply_voltage",
+        "sensor_gain",
+        "contact_damping",
+        "motor_viscous_friction",
+        "sensor_offset",
+    ]
+    singles = [single(n, 20.0 + i, 10.0) for i, n in enumerate(names)]
+    settings = SetSettings(max_size=2, escalate=False, n_forward=2, n_swap=0)
+
+    def search(screens):
+        return sets_module.search_sets(None, fake_cal(100.0, k=3), None, CATALOGUE, singles, cs, settings, (), screens)
+
+    shared: dict = {}
+    search(shared)
+    assert screened == [("load_inertia",), ("supply_voltage",)]  # the n_base best singles
+    search(shared)
+    assert len(screened) == 2  # the same fits: nothing screened again
+    search(None)
+    assert len(screened) == 4  # without the shared screens, both again

@@ -195,7 +195,7 @@ class CandidateSettings:
         lowest chi2 on the full record are refined (:attr:`CalibrationSettings.n_seed_fits`;
         None: every seed, the default). One was tried and not kept: it made the seeded fits of
         the seed-151 singles about 10 % faster, but a single effect whose refined neutral seed
-        reaches the noise went on to the set search (docs/diagnosis.md 8b, *Three cuts*).
+        reaches the noise went on to the set search (docs/diagnosis.md 8b, *Cuts for the time budgets*).
     reseed_stop_at_noise : bool
         Pass 1b collects its refits in ranking order (best seeded BIC first) and stops at the
         first that fits to the noise (``escalate_above``), as the escalation does: the rest keep

@@ -98,7 +98,7 @@ from engine.diagnosis.candidate import Candidate, CandidateSettings, effect_stre
 from engine.diagnosis.candidates import escalate_candidates, fit_candidates, needs_escalation
 from engine.diagnosis.gap import Gap, closed_fraction, gap_of
 from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, localise
-from engine.diagnosis.sets import CandidateSet, SetSettings, search_sets
+from engine.diagnosis.sets import CandidateSet, ScreenCache, SetSettings, search_sets
 from engine.diagnosis.space import ALIGNMENT, Bounds, ModelSpace, default_space, indistinguishable
 from engine.parallel import single_threaded_blas
 from engine.records import Record, WindowUse
@@ -124,8 +124,6 @@ __all__ = [
 IdentificationHook = Callable[[Record, "DiagnosisResult"], dict]
 
 
-#: ``n_report`` of the staged searches whose every set is kept for the later stages (all of them).
-_ALL_SETS = 10**6
 #: A single candidate's fit "moved" during the escalation (so that the pairs built from it are fitted
 #: again) when some value changed by more than this fraction (polishing moves values by ~0.1 %).
 MOVED_REL_TOL: float = 0.01
@@ -309,8 +307,8 @@ class DiagnosisResult:
     stages : list of dict
         Where the time went: ``{"stage", "seconds"}`` per stage of the work, in order (the nominal
         calibration, the single candidates, the early escalation, the first pairs, the first
-        triples, the singles' escalation, the sets of up to three, the decision, the gap after the fix or the locus, the
-        identification), each that ran; wall times [s].
+        triples, the singles' escalation, the sets of up to three, the decision, the gap after
+        the fix or the locus, the identification), each that ran; wall times [s].
     """
 
     calibration: CalibrationResult
@@ -788,13 +786,15 @@ def _staged_search(
         stage("early escalation of the best singles")
     if _explains_single(cands, settings):
         return cands, sets
-    everything = replace(ss, n_report=_ALL_SETS)
-    fitted = search_sets(record, nominal, space, library, cands, cs, replace(everything, max_size=2))
+    everything = replace(ss, n_report=None)  # every set fitted, for the later stages
+    screens: ScreenCache = {}  # the staged searches screen the same best singles
+    fitted = search_sets(record, nominal, space, library, cands, cs, replace(everything, max_size=2), (), screens)
     sets = fitted[: ss.n_report]
     stage("first pairs")
     if ss.first_triples and ss.max_size >= 3 and not any(_explains(s, settings) for s in sets):
         seeded_only = replace(everything, escalate=False, n_exchange=0)
-        fitted = _merge_sets(fitted, search_sets(record, nominal, space, library, cands, cs, seeded_only, fitted))
+        triples = search_sets(record, nominal, space, library, cands, cs, seeded_only, fitted, screens)
+        fitted = _merge_sets(fitted, triples)
         sets = fitted[: ss.n_report]
         stage("first triples")
     if any(_explains(s, settings) for s in sets):
@@ -809,7 +809,7 @@ def _staged_search(
         # case0168: its true triple was found from a pair refitted there, docs/diagnosis.md 8b)
         moved = {c.effect for c in cands if c.calibration is not None and _moved(seeded, c)}
         keep = [s for s in sets if not moved & set(s.effects)]
-        again = search_sets(record, nominal, space, library, cands, cs, ss, keep)
+        again = search_sets(record, nominal, space, library, cands, cs, ss, keep, screens)
         sets = _merge_sets(sets, again)
         stage("sets of up to three")
     return cands, sets

@@ -101,7 +101,11 @@ from engine.simulation import Case, Effect, EffectLibrary, SolverSettings, run_c
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["CandidateSet", "SetSettings", "gap_budget", "same_physics", "search_sets"]
+__all__ = ["CandidateSet", "ScreenCache", "SetSettings", "gap_budget", "same_physics", "search_sets"]
+
+#: The profiled screens of one diagnosis: ``(group, additions, the group's fit values, n_forward)`` ->
+#: the additions to fit beside the group, best first (:func:`search_sets`, ``screens``).
+ScreenCache = dict[tuple[Any, ...], list[str]]
 
 
 @dataclass(frozen=True)
@@ -141,8 +145,8 @@ class SetSettings:
         goes on to the triples and the escalation instead of ending the search unexplained.
     n_polish : int
         Best sets (by BIC) refined at the final integrator step.
-    n_report : int
-        Sets kept in the result (best BIC first).
+    n_report : int or None
+        Sets kept in the result (best BIC first; None: every set fitted).
     min_strength : float
         A member of a set that fits to the noise but moves the record by at most this many
         noise RMS on its own is dropped and the rest refitted (backward elimination); the
@@ -172,7 +176,7 @@ class SetSettings:
         exchange) before the singles' escalation, which is skipped when one of them explains the
         record (fits to the noise with every member strong): on a triple record no single and no
         pair can pay off the escalation of the singles, which took a third of a triple's time
-        (docs/diagnosis.md 8b, *First triples*). When none explains, the search after the
+        (docs/diagnosis.md 8b, *Cuts for the time budgets*). When none explains, the search after the
         escalation keeps the best of them as the first pairs are kept.
     n_swap : int
         Swap: once the best set fits to the noise, each of its members is replaced by this many of the
@@ -209,7 +213,7 @@ class SetSettings:
     escalate_above: float = 1.1
     max_reduced_chi2: float = 1.05
     n_polish: int = 3
-    n_report: int = 5
+    n_report: int | None = 5
     min_strength: float = 3.0
     before_escalation: bool = True
     n_exchange: int = 2
@@ -610,6 +614,7 @@ def search_sets(
     candidate_settings: CandidateSettings | None = None,
     settings: SetSettings | None = None,
     previous: Sequence[CandidateSet] = (),
+    screens: ScreenCache | None = None,
 ) -> list[CandidateSet]:
     """Fit sets of two and three effects (see the module notes), best BIC first.
 
@@ -633,18 +638,22 @@ def search_sets(
         Sets already fitted from the same single candidates (the diagnosis's first pairs, and
         its best first sets whose members' single fits the escalation did not move): kept as
         they are, not fitted again.
+    screens : ScreenCache, optional
+        The profiled screens of earlier searches of the same diagnosis (same record, noise and
+        settings), filled in by this one: a screen of the same additions beside the same fit is
+        not simulated again (the diagnosis's staged searches screen the same best singles).
 
     Returns
     -------
     list of CandidateSet
-        At most ``settings.n_report``, best BIC first, with strengths and gap budgets for
+        At most ``settings.n_report`` (every set when None), best BIC first, with strengths and gap budgets for
         the polished ones; empty when fewer than two single candidates lower the nominal BIC.
     """
     cs = CandidateSettings() if candidate_settings is None else candidate_settings
     ss = SetSettings() if settings is None else settings
     runner = Runner(cs.jobs(), thread_context=serial_kernel, thread_name_prefix="set")
     with single_threaded_blas(), runner:
-        return _search(record, nominal, space, library, singles, cs, ss, runner, previous)
+        return _search(record, nominal, space, library, singles, cs, ss, runner, previous, screens)
 
 
 def _search(
@@ -657,8 +666,10 @@ def _search(
     ss: SetSettings,
     runner: Runner,
     previous: Sequence[CandidateSet] = (),
+    screens: ScreenCache | None = None,
 ) -> list[CandidateSet]:
     t0 = time.perf_counter()
+    screens = {} if screens is None else screens
     fitted = sorted((c for c in singles if c.calibration is not None), key=lambda c: c.bic)
     pool = [c for c in fitted if c.bic < nominal.bic][: ss.pool]
     if len(pool) < (1 if ss.n_base > 0 else 2) or ss.max_size < 2:
@@ -752,6 +763,13 @@ def _search(
     def _screen(g: tuple[str, ...], todo: list[str]) -> list[str]:
         if ss.n_forward is None or len(todo) <= ss.n_forward:
             return todo
+        key = (g, tuple(todo), tuple(sorted(fits[g].values.items())), ss.n_forward)
+        if key not in screens:
+            screens[key] = _ranked(g, todo)
+        return screens[key]
+
+    def _ranked(g: tuple[str, ...], todo: list[str]) -> list[str]:
+        assert ss.n_forward is not None  # _screen returns every addition otherwise
         try:
             order = rank_additions(
                 record,
