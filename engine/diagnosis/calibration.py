@@ -52,7 +52,7 @@ from scipy.stats import qmc
 
 from engine.constants import CHANNELS
 from engine.diagnosis.noise import NoiseModel, estimate_noise, noise_weights
-from engine.diagnosis.objective import Objective
+from engine.diagnosis.objective import ChannelResidual, Objective
 from engine.diagnosis.space import CALIBRATED, ModelSpace, across_switch_off, default_space
 from engine.features.wavelet import level_for_interval
 from engine.parallel import single_threaded_blas
@@ -354,6 +354,7 @@ def calibrate(
     noise: Mapping[str, float] | None = None,
     seeds: Sequence[Mapping[str, float]] = (),
     polish: bool = True,
+    residual_of: Mapping[str, ChannelResidual] | None = None,
 ) -> CalibrationResult:
     """Fit the uncertain parameters (and optionally one effect's value) to a record.
 
@@ -379,6 +380,11 @@ def calibrate(
     polish : bool
         Refine the best fit with ``settings.final_step`` and report chi2 and
         uncertainties at that step; otherwise everything is at ``search_step``.
+    residual_of : mapping of str to callable, optional
+        Per channel, its own normalised residual in place of the noise-normalised difference
+        (:class:`~engine.diagnosis.objective.ChannelResidual`); the result's chi-squares are of
+        the residuals fitted, its ``simulation`` is without the effects they take (its ``case``
+        with them).
 
     Returns
     -------
@@ -397,7 +403,7 @@ def calibrate(
     """
     record, _ = record.test_window()
     with single_threaded_blas():
-        return _calibrate(record, space, settings, noise, seeds, polish)
+        return _calibrate(record, space, settings, noise, seeds, polish, residual_of)
 
 
 def _calibrate(
@@ -407,12 +413,13 @@ def _calibrate(
     noise: Mapping[str, float] | None,
     seeds: Sequence[Mapping[str, float]],
     polish: bool,
+    residual_of: Mapping[str, ChannelResidual] | None = None,
 ) -> CalibrationResult:
     t0 = time.perf_counter()
     space = default_space(record) if space is None else space
     noise = estimate_noise(record) if noise is None else NoiseModel.of(noise)
     sigma = noise_weights(record, noise)
-    obj = Objective(record, space, sigma)
+    obj = Objective(record, space, sigma, residual_of)
     horizons = settings.horizons(record)
     coarse = SolverSettings(max_step=settings.search_step)
     final = SolverSettings(max_step=settings.final_step) if polish else coarse
@@ -493,12 +500,15 @@ def _calibrate(
             )
 
     case = space.case(u_best)
-    ch_all, t_e, st = run_cases([case], final, record.grid)
+    ch_all, t_e, st = run_cases([space.case(u_best, obj.taken)], final, record.grid)
     obj.n_simulations += 1
     if st[0] != 0:
         raise CalibrationError(f"the calibrated parameters cannot be simulated (kernel status {int(st[0])})")
     resid = ch_all[0, obj.rows] - obj.data
-    chi2_ch = {n: float(sigma.channel(n).chi2(resid[j])) for j, n in enumerate(obj.names)}
+    chi2_ch: dict[str, float] = {}
+    for j, n in enumerate(obj.names):
+        own = obj.own_chi2(n, ch_all[0, obj.rows[j]], u_best)
+        chi2_ch[n] = float(sigma.channel(n).chi2(resid[j])) if own is None else own
     chi2 = float(sum(chi2_ch.values()))
     level = level_for_interval(record.sample_interval, record.n_samples)
     lowfreq = {n: sigma.channel(n).lowfreq_ratio(resid[j], level) for j, n in enumerate(obj.names)}

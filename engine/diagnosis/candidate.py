@@ -32,6 +32,7 @@ import numpy as np
 from engine.constants import CHANNELS
 from engine.diagnosis.calibration import CalibrationError, CalibrationResult, CalibrationSettings, calibrate
 from engine.diagnosis.gap import Gap, gap_of, shrinkage_ratio
+from engine.diagnosis.noise import NOISE_FLOOR_REL
 from engine.diagnosis.objective import Objective
 from engine.diagnosis.quantisation import fit_quantisation, is_speed_quantum
 from engine.diagnosis.space import TIME_SHIFT_EFFECTS, ModelSpace, scan_grid
@@ -46,6 +47,7 @@ __all__ = [
     "effect_strength",
     "fit_candidate",
     "posterior_weights",
+    "strength_noise",
 ]
 
 
@@ -387,8 +389,46 @@ def fit_candidate(
     return Candidate.from_fit(effect, cal, nominal)
 
 
+def strength_noise(record: Record, cal: CalibrationResult, noise: Mapping[str, float]) -> dict[str, float]:
+    """Per channel, the noise level [channel unit] a fit's strengths are measured in.
+
+    The estimated noise standard deviation, or the RMS of the residual the fit leaves where
+    that is smaller, floored at ``NOISE_FLOOR_REL`` of the channel's RMS as the calibration's
+    noise is (:func:`engine.diagnosis.noise.noise_weights`). A fit that reaches the noise
+    leaves the noise itself; the estimate from the record alone can be larger, for example
+    where it counts the rounding of a quantised speed as noise (seed-151 development records:
+    a speed quantum of true strength 3.3 measured at 2.8 against the estimate, 3.2 against the
+    fit's residual).
+
+    Parameters
+    ----------
+    record : Record
+        The record's test window (the grid of ``cal``).
+    cal : CalibrationResult
+        The fit, with its simulation.
+    noise : mapping of str to float
+        Estimated noise standard deviation per channel [channel unit].
+
+    Returns
+    -------
+    dict of str to float
+        Per recorded channel, the smaller of the two [channel unit].
+    """
+    out = {name: float(noise[name]) for name in record.channels}
+    sim = cal.simulation
+    if sim is None or sim.shape[-1] != record.n_samples:
+        return out
+    for name in record.channels:
+        x = np.asarray(record[name], dtype=float)
+        left = float(np.sqrt(np.mean((x - sim[CHANNELS.index(name)]) ** 2)))
+        floor = max(NOISE_FLOOR_REL * float(np.sqrt(np.mean(x * x))), 1e-12)
+        out[name] = min(out[name], max(left, floor))
+    return out
+
+
 def effect_strength(cand: Candidate, space: ModelSpace, record: Record, noise: Mapping[str, float]) -> float:
-    """Largest channel RMS change the fitted effect causes, in noise standard deviations.
+    """Largest channel RMS change the fitted effect causes, in noise standard deviations
+    (the smaller of the estimate and the fit's residual RMS, :func:`strength_noise`).
 
     The fitted calibration is simulated once more without the effect and
     compared with the fit (noiseless, record channels only). This is the
@@ -419,11 +459,12 @@ def effect_strength(cand: Candidate, space: ModelSpace, record: Record, noise: M
     ch, _, status = run_cases([space.case(space.unit(plain))], SolverSettings(max_step=cal.step), record.grid)
     if status[0] != 0:
         return math.nan
+    sigma = strength_noise(record, cal, noise)
     out = 0.0
     for name in record.channels:
         j = CHANNELS.index(name)
         rms = float(np.sqrt(np.mean((cal.simulation[j] - ch[0, j]) ** 2)))
-        out = max(out, rms / max(float(noise[name]), 1e-300))
+        out = max(out, rms / max(sigma[name], 1e-300))
     return out
 
 

@@ -17,28 +17,58 @@ horizon). The simulations are sampled on the record's own grid
 (:attr:`engine.records.Record.grid`), so no record is ever resampled here. Simulations are cached per (integrator step, point), and every batch
 of points, finite-difference Jacobians included, is simulated in one call to
 the batch-parallel simulator rather than column by column.
+
+A channel may have its own residual (``residual_of``, a :class:`ChannelResidual`): a function
+of its simulated and recorded samples that replaces the noise-normalised difference, for a
+reading the difference describes badly (the rounded speed while its quantum is fitted,
+:class:`engine.diagnosis.quantisation.CellResidual`). Such a channel is never whitened. A
+channel residual may take one effect of the space as its own parameter (``takes``): the
+simulations are then run without that effect, their cache ignores its coordinate (its column
+of a Jacobian costs no simulation), and the residual gets its value.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Protocol
 
 import numpy as np
 from scipy.optimize import least_squares
 
 from engine.constants import CHANNELS
-from engine.diagnosis.noise import NoiseModel
+from engine.diagnosis.noise import ChannelNoise, NoiseModel
 from engine.diagnosis.space import ModelSpace
 from engine.parallel import raise_if_cancelled
 from engine.records import Record
 from engine.simulation import SolverSettings, run_cases
 
-__all__ = ["FAILED_RESIDUAL", "Objective"]
+__all__ = ["FAILED_RESIDUAL", "ChannelResidual", "Objective"]
 
 #: Residual used for a case the simulator could not run (no event, divergence), per sample.
 FAILED_RESIDUAL: float = 1e3
 #: The cache of simulations is halved when it exceeds this many points.
 _CACHE_SIZE = 4096
+
+
+class ChannelResidual(Protocol):
+    """A channel's own normalised residual (see the module notes).
+
+    Attributes
+    ----------
+    takes : str or None
+        Name of the space's effect whose value the residual applies (the simulations leave it
+        out), or None.
+    """
+
+    @property
+    def takes(self) -> str | None:
+        """The effect the residual applies, or None."""
+        ...
+
+    def __call__(self, sim: np.ndarray, data: np.ndarray, value: np.ndarray | None) -> np.ndarray:
+        """Residuals (m, k) [-] of simulated samples ``sim`` (m, k) against the record's ``data`` (k,);
+        ``value`` (m,) holds the taken effect's value per simulation (None when it takes none)."""
+        ...
 
 
 class Objective:
@@ -54,6 +84,8 @@ class Objective:
         Residual normalisation per channel: a :class:`~engine.diagnosis.noise.NoiseModel`
         (see :func:`engine.diagnosis.noise.noise_weights`), or standard deviations of white
         noise in the channel's unit.
+    residual_of : mapping of str to ChannelResidual, optional
+        Per channel, its own normalised residual in place of ``(sim - data) / sigma``.
 
     Attributes
     ----------
@@ -61,7 +93,13 @@ class Objective:
         Simulations run so far (cache hits not counted).
     """
 
-    def __init__(self, record: Record, space: ModelSpace, sigma: Mapping[str, float]):
+    def __init__(
+        self,
+        record: Record,
+        space: ModelSpace,
+        sigma: Mapping[str, float],
+        residual_of: Mapping[str, ChannelResidual] | None = None,
+    ):
         self.record = record
         self.space = space
         self.grid = record.grid
@@ -71,7 +109,22 @@ class Objective:
         self.sigma = np.array([sigma[n] for n in self.names])
         self.noise = NoiseModel.of(sigma)
         #: per channel, its noise model when the residual is whitened per level (None: white, r / sigma)
-        self._coloured = [None if self.noise.channel(n).white else self.noise.channel(n) for n in self.names]
+        unknown = set(residual_of or {}) - set(self.names)
+        if unknown:
+            raise ValueError(f"residual_of names channels the record does not hold: {sorted(unknown)}")
+        #: per channel, its own residual function (None: the noise-normalised difference)
+        self._own = [(residual_of or {}).get(n) for n in self.names]
+        taken = [f.takes for f in self._own if f is not None and f.takes is not None]
+        missing = set(taken) - set(space.effect_names)
+        if missing:
+            raise ValueError(f"a channel residual takes effects the space does not fit: {sorted(missing)}")
+        #: the effects the channel residuals apply, and their coordinates (left out of the simulations)
+        self._taken = tuple(taken)
+        self._taken_axes = [space.names.index(t) for t in taken]
+        self._coloured = [
+            None if self.noise.channel(n).white or f is not None else self.noise.channel(n)
+            for n, f in zip(self.names, self._own, strict=True)
+        ]
         self.white = all(c is None for c in self._coloured)
         self.n_simulations = 0
         #: simulated channels per (integrator step, unit-box point); None where the simulation failed
@@ -101,10 +154,12 @@ class Objective:
         """
         raise_if_cancelled()  # a fit made redundant on another thread stops here
         U = np.atleast_2d(np.asarray(U, dtype=float))
-        keys = [(solver.max_step, tuple(np.round(u, 14))) for u in U]
+        V = U.copy()
+        V[:, self._taken_axes] = 0.0  # a taken effect does not change the simulation
+        keys = [(solver.max_step, tuple(np.round(v, 14))) for v in V]
         todo = [i for i, k in enumerate(keys) if k not in self._cache]
         if todo:
-            cases = [self.space.case(U[i]) for i in todo]
+            cases = [self.space.case(U[i], self._taken) for i in todo]
             ch, _, status = run_cases(cases, solver, self.grid)
             self.n_simulations += len(todo)
             for j, i in enumerate(todo):
@@ -128,24 +183,69 @@ class Objective:
         (n_res fixed, whatever the horizon). A failed simulation gives
         :data:`FAILED_RESIDUAL` at every residual.
         """
+        U = np.atleast_2d(np.asarray(U, dtype=float))
         sims, ok = self.simulate(U, solver)
         if self.white:
-            r = (sims[:, :, :horizon] - self.data[None, :, :horizon]) / self.sigma[None, :, None]
+            r = self._normalised(sims, U, horizon)
             r[~ok] = FAILED_RESIDUAL
             return r.reshape(r.shape[0], -1)
-        return self._whitened(sims, ok, horizon)
+        return self._whitened(sims, ok, U, horizon)
 
-    def _whitened(self, sims: np.ndarray, ok: np.ndarray, horizon: int) -> np.ndarray:
+    def _normalised(self, sims: np.ndarray, U: np.ndarray, horizon: int) -> np.ndarray:
+        """Residuals (m, n_ch, horizon) [-] of white channels at points U: over sigma, or the channel's own."""
+        r = (sims[:, :, :horizon] - self.data[None, :, :horizon]) / self.sigma[None, :, None]
+        for j, f in enumerate(self._own):
+            if f is not None:
+                r[:, j] = f(sims[:, j, :horizon], self.data[j, :horizon], self._taken_value(f, U))
+        return r
+
+    @property
+    def taken(self) -> tuple[str, ...]:
+        """The effects the channel residuals apply (the simulations leave them out)."""
+        return self._taken
+
+    def own_chi2(self, name: str, sim: np.ndarray, u: np.ndarray) -> float | None:
+        """chi2 [-] of channel ``name``'s own residual for its simulated samples ``sim`` (n_samples,)
+        at point ``u`` (simulated without the taken effects); None for a channel without one."""
+        f = self._own[self.names.index(name)]
+        if f is None:
+            return None
+        value = None
+        if f.takes is not None:
+            i = self.space.names.index(f.takes)
+            value = np.array([self.space.params[i].value(u[i])])
+        return float(np.sum(f(sim[None], self.data[self.names.index(name)], value) ** 2))
+
+    def _taken_value(self, f: ChannelResidual, U: np.ndarray) -> np.ndarray | None:
+        """The values (m,) of the effect ``f`` takes at points U (None if it takes none)."""
+        if f.takes is None:
+            return None
+        i = self.space.names.index(f.takes)
+        return np.array([self.space.params[i].value(u) for u in U[:, i]])
+
+    def _whitened(self, sims: np.ndarray, ok: np.ndarray, U: np.ndarray, horizon: int) -> np.ndarray:
         """Whitened residuals (m, n_res) of the first ``horizon`` samples (zero-padded to the record)."""
         d = sims[:, :, :horizon] - self.data[None, :, :horizon]
         d[~ok] = 0.0
         n = self.data.shape[1]
-        parts = [
-            d[:, j] / self.sigma[j] if ch is None else ch.normalise(d[:, j], n) for j, ch in enumerate(self._coloured)
-        ]
+        parts = [self._part(sims, d, U, j, ch, horizon, n) for j, ch in enumerate(self._coloured)]
         r = np.concatenate(parts, axis=1)
         r[~ok] = FAILED_RESIDUAL
         return r
+
+    def _part(
+        self, sims: np.ndarray, d: np.ndarray, U: np.ndarray, j: int, ch: ChannelNoise | None, horizon: int, n: int
+    ) -> np.ndarray:
+        """Channel ``j``'s part (m, k) of the whitened residuals (see :meth:`_whitened`)."""
+        own = self._own[j]
+        if own is not None:
+            r = np.zeros((sims.shape[0], n))
+            r[:, :horizon] = own(sims[:, j, :horizon], self.data[j, :horizon], self._taken_value(own, U))
+            return r
+        if ch is None:
+            out: np.ndarray = d[:, j] / self.sigma[j]
+            return out
+        return ch.normalise(d[:, j], n)
 
     def chi2(self, U: np.ndarray, horizons: Sequence[int], solver: SolverSettings) -> np.ndarray:
         """chi2 (m, len(horizons)) [noise variances] of points U on each horizon (inf where the simulation failed).
@@ -154,12 +254,15 @@ class Objective:
         chi2 of the whitened residual of the first samples, without the levels left out of it
         (a constant).
         """
+        U = np.atleast_2d(np.asarray(U, dtype=float))
         sims, ok = self.simulate(U, solver)
         if not self.white:
-            out = np.stack([np.sum(self._whitened(sims, ok, h) ** 2, axis=1) for h in horizons], axis=1)
+            out = np.stack([np.sum(self._whitened(sims, ok, U, h) ** 2, axis=1) for h in horizons], axis=1)
             out[~ok] = np.inf
             return out
-        r2 = np.square((sims - self.data[None]) / self.sigma[None, :, None]).sum(axis=1)  # (m, n_samples)
+        r = self._normalised(sims, U, sims.shape[2])
+        r[~ok] = 0.0
+        r2 = np.square(r).sum(axis=1)  # (m, n_samples)
         cum = np.cumsum(r2, axis=1)
         out = np.stack([cum[:, h - 1] for h in horizons], axis=1)
         out[~ok] = np.inf

@@ -88,7 +88,7 @@ import numpy as np
 
 from engine.constants import CHANNELS
 from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings, calibrate
-from engine.diagnosis.candidate import Candidate, CandidateSettings
+from engine.diagnosis.candidate import Candidate, CandidateSettings, strength_noise
 from engine.diagnosis.gap import Gap, gap_of, shrinkage_ratio
 from engine.diagnosis.noise import NoiseModel, noise_weights
 from engine.diagnosis.objective import Objective
@@ -400,9 +400,11 @@ def _chi2_of_cases(record: Record, cases: Sequence[Case], sigma: Mapping[str, fl
 def _strengths(
     record: Record, cal: CalibrationResult, space: ModelSpace, effects: Sequence[Effect], noise: Mapping[str, float]
 ) -> dict[str, float]:
-    """Per effect: the largest channel RMS change (noise sigmas) when it alone is set back to none."""
+    """Per effect: the largest channel RMS change (noise sigmas, :func:`~engine.diagnosis.candidate.strength_noise`)
+    when it alone is set back to none."""
     if cal.simulation is None:
         return {e.name: math.nan for e in effects}
+    noise = strength_noise(record, cal, noise)
     cases = [_case_with(space, cal.values, [f for f in effects if f.name != e.name]) for e in effects]
     ch, _, status = run_cases(cases, SolverSettings(max_step=cal.step), record.grid)
     out = {}

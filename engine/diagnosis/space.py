@@ -29,7 +29,7 @@ simulations sampled at its own instants however coarse its interval.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -275,8 +275,8 @@ class ModelSpace:
         """Unit-box point of parameter values (missing names at the box centre)."""
         return np.array([p.unit_coord(values[p.name]) if p.name in values else 0.5 for p in self.params])
 
-    def case(self, u: np.ndarray) -> Case:
-        """The simulation case at unit-box point u (the effects applied in order)."""
+    def case(self, u: np.ndarray, without: Collection[str] = ()) -> Case:
+        """The simulation case at unit-box point u (the effects applied in order, but those named in ``without``)."""
         vals = self.values(u)
         mine = set(self.effect_names)
         own = {k: v for k, v in vals.items() if k not in mine}
@@ -284,7 +284,8 @@ class ModelSpace:
         plant_changes = {k: v for k, v in own.items() if k not in _SENSOR_FIELDS}
         case = Case(self.base.plant.replace(**plant_changes), self.base.sensors.replace(**sensor_changes))
         for e in self.effects:
-            case = e.apply(case, vals[e.name])
+            if e.name not in without:
+                case = e.apply(case, vals[e.name])
         return case
 
     def with_effect(self, effect: Effect) -> ModelSpace:
