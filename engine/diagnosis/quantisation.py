@@ -24,10 +24,10 @@ edges of width ``CELL_WIDTHS`` times q narrowed in turn), when the record shows 
 already fit to the noise (``CELL_SKIP_BELOW``). That cost is only a surrogate: with
 wide edges its optimum is biased, with narrow ones it is rough. So a cell fit is kept only
 where it lowers the chi-square of the *rounded* model, the one every fit is judged by; the
-answer is never worse than without it. On 33 quantised development records (seed-151 and
+answer is never worse than without it. On 38 quantised development records (seed-151 and
 seed-97 cases, the true set fitted from the nominal plant; ``docs/diagnosis.md`` 8b) it
-brought 2 true sets under chi2/n 1.05 that were not (1.063 -> 0.974, 1.081 -> 0.972) and one
-from 5.1 to 1.6, for 2-4 s more per fit.
+brought 3 true sets under chi2/n 1.05 that were not and one from 5.1 to 1.6, for 2-5 s more
+per fit.
 
 The scans weigh omega1's residual by its noise standard deviation in time; the fit's
 reported chi-square, which its BIC and the decision compare with every other fit's, is
