@@ -207,14 +207,11 @@ class Objective:
     def own_chi2(self, name: str, sim: np.ndarray, u: np.ndarray) -> float | None:
         """chi2 [-] of channel ``name``'s own residual for its simulated samples ``sim`` (n_samples,)
         at point ``u`` (simulated without the taken effects); None for a channel without one."""
-        f = self._own[self.names.index(name)]
+        j = self.names.index(name)
+        f = self._own[j]
         if f is None:
             return None
-        value = None
-        if f.takes is not None:
-            i = self.space.names.index(f.takes)
-            value = np.array([self.space.params[i].value(u[i])])
-        return float(np.sum(f(sim[None], self.data[self.names.index(name)], value) ** 2))
+        return float(np.sum(f(sim[None], self.data[j], self._taken_value(f, np.atleast_2d(u))) ** 2))
 
     def _taken_value(self, f: ChannelResidual, U: np.ndarray) -> np.ndarray | None:
         """The values (m,) of the effect ``f`` takes at points U (None if it takes none)."""

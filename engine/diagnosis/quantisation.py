@@ -26,8 +26,8 @@ wide edges its optimum is biased, with narrow ones it is rough. So a cell fit is
 where it lowers the chi-square of the *rounded* model, the one every fit is judged by; the
 answer is never worse than without it. On 38 quantised development records (seed-151 and
 seed-97 cases, the true set fitted from the nominal plant; ``docs/diagnosis.md`` 8b) it
-brought 3 true sets under chi2/n 1.05 that were not and one from 5.1 to 1.6, for 2-5 s more
-per fit.
+brought 3 true sets under chi2/n 1.05 that were not and one from 5.1 to 1.6 (its cost on an
+idle machine is not measured yet).
 
 The scans weigh omega1's residual by its noise standard deviation in time; the fit's
 reported chi-square, which its BIC and the decision compare with every other fit's, is
@@ -317,17 +317,17 @@ def _simulation(cal: CalibrationResult) -> np.ndarray:
     return cal.simulation
 
 
-def _rounded_chi2(record: Record, cal: CalibrationResult, q: float, sigma: Mapping[str, float]) -> float:
-    """chi2 [-] of a fit with its omega1 rounded to ``q``, as every fit's is reported (whitened when coloured)."""
-    sim = _simulation(cal)
+def _rounded_chi2(record: Record, sim: np.ndarray, q: float, sigma: Mapping[str, float]) -> dict[str, float]:
+    """Per channel, the chi2 [-] of simulated channels ``sim`` (unrounded) with omega1 rounded to ``q``
+    (none for q = 0), as every fit's is reported: whitened per wavelet level when the noise is coloured."""
     weights = NoiseModel.of(sigma)
-    total = 0.0
+    out = {}
     for n in record.channels:
         x = sim[CHANNELS.index(n)]
-        if n == "omega1":
+        if n == "omega1" and q > 0.0:
             x = q * np.round(x / q)
-        total += float(weights.chi2(n, np.asarray(record[n]) - x))
-    return total
+        out[n] = float(weights.chi2(n, np.asarray(record[n]) - x))
+    return out
 
 
 def fit_quantisation(
@@ -383,7 +383,7 @@ def fit_quantisation(
         n_sim += cal.n_simulations
         values, omega = cal.values, _simulation(cal)[j]
     q_best = float(q[int(np.argmin(quantum_scan(omega, data, sig, q)))])
-    c2_old = _rounded_chi2(record, cal, q_best, nominal.sigma) if q_best > 0.0 else math.inf
+    c2_old = sum(_rounded_chi2(record, _simulation(cal), q_best, nominal.sigma).values()) if q_best > 0.0 else math.inf
     lattice = record_lattice(data, effect.bounds)  # cells only where the record shows them
     if CELL_WIDTHS and lattice is not None and q_best > 0.0 and c2_old > CELL_SKIP_BELOW * cal.n_data:
         # q and the plant together on the recorded cells, q within LATTICE_BAND of the scan's;
@@ -400,7 +400,11 @@ def fit_quantisation(
             # the fitted q, and the scan's best q for the fitted omega1 (no simulation)
             q_scan = float(q[int(np.argmin(quantum_scan(_simulation(fit)[j], data, sig, q)))])
             for q_fit in (fit.values[effect.name], q_scan):
-                c2_fit = _rounded_chi2(record, fit, q_fit, nominal.sigma) if q_fit > 0.0 else math.inf
+                c2_fit = (
+                    sum(_rounded_chi2(record, _simulation(fit), q_fit, nominal.sigma).values())
+                    if q_fit > 0.0
+                    else math.inf
+                )
                 logger.debug("cell fit (width %.3g q): q = %.6g, chi2 %.6g (best %.6g)", width, q_fit, c2_fit, best[0])
                 if c2_fit < best[0]:
                     best = (c2_fit, fit, q_fit)
@@ -412,15 +416,12 @@ def fit_quantisation(
     c2 = quantum_scan(omega, data, sig, q)
     # report the fit with the record's own noise and the rounded omega1
     cal.noise, cal.sigma = dict(nominal.noise), dict(nominal.sigma)
-    rounded = q_best * np.round(omega / q_best) if q_best > 0 else omega
     simulation = _simulation(cal).copy()
-    simulation[j] = rounded
-    cal.simulation = simulation
     # the chi-square of every other fit: whitened per wavelet level when the noise is coloured
-    weights = NoiseModel.of(nominal.sigma)
-    others = {n: float(weights.chi2(n, np.asarray(record[n]) - simulation[CHANNELS.index(n)])) for n in record.channels}
-    cal.chi2_per_channel = others
-    cal.chi2 = float(sum(others.values()))
+    cal.chi2_per_channel = _rounded_chi2(record, simulation, q_best, nominal.sigma)
+    cal.chi2 = float(sum(cal.chi2_per_channel.values()))
+    simulation[j] = q_best * np.round(omega / q_best) if q_best > 0 else omega
+    cal.simulation = simulation
     if cal.case is not None:
         cal.case = Case(cal.case.plant, cal.case.sensors.replace(speed_quantum=q_best))
     inside = q[c2 <= c2.min() + 1.0]

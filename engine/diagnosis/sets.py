@@ -404,7 +404,7 @@ def _strengths(
     when it alone is set back to none."""
     if cal.simulation is None:
         return {e.name: math.nan for e in effects}
-    noise = strength_noise(record, cal, noise)
+    sigma = strength_noise(record, cal, noise)
     cases = [_case_with(space, cal.values, [f for f in effects if f.name != e.name]) for e in effects]
     ch, _, status = run_cases(cases, SolverSettings(max_step=cal.step), record.grid)
     out = {}
@@ -416,7 +416,7 @@ def _strengths(
         for name in record.channels:
             j = CHANNELS.index(name)
             rms = float(np.sqrt(np.mean((cal.simulation[j] - ch[i, j]) ** 2)))
-            worst = max(worst, rms / max(float(noise[name]), 1e-300))
+            worst = max(worst, rms / max(sigma[name], 1e-300))
         out[e.name] = worst
     return out
 
