@@ -3,7 +3,7 @@
 Development data only (a scored run's cases, read). The diagnosis answers a held-back effect
 ``unexplained`` after every candidate and set has failed, and then places the gap with
 :func:`engine.diagnosis.locus.estimate_locus` on the *nominal* calibration. That last step does
-not depend on the candidates, so it can be measured apart, in about 5-6 s a record on 2 cores
+not depend on the candidates, so it can be measured apart, in about 16 s a record on 2 cores
 instead of the 2-5 min of a whole diagnosis: this runs the nominal calibration and the locus
 estimate of each held-back case (or of the given ids) and prints one JSON line per case: the true
 effect and locus, the answered locus and its confidence, the share of the residual each locus's

@@ -166,6 +166,26 @@ def test_a_zone_offset_the_calibration_took_up_in_the_width_is_found_in_the_clut
     assert abs(rep.term.amplitude) == pytest.approx(0.0038, rel=0.1)
 
 
+def test_a_wheel_friction_that_stops_the_wheel_is_a_coulomb_friction_on_the_drive_wheel() -> None:
+    """The operating point unknown, a wheel friction of 0.09 pu at the nominal plant (40 dB): the
+    nominal calibration leaves chi2/n above 1000 with c at its box edge, and no schedule d(t)
+    linearised around it reproduces a wheel that stops (the kind of record the seed-163 blind run
+    placed on the motor shaft). The drive wheel's Coulomb friction fitted with K, J1 and c by a
+    global search finds it, and the term says it follows the wheel's speed
+    (docs/diagnosis.md, *Locus of a gap outside the catalogue*)."""
+    rec = _record("wheel_coulomb_friction", 0.09, PlantParameters(), 40.0, seed=4, known=False)
+    cal = calibrate(rec)
+    assert cal.reduced_chi2 > 100.0  # a strong gap the calibration could not absorb
+    rep = estimate_locus(rec, cal)
+    assert rep.locus == "drive_train", rep.description
+    assert rep.confidence > 0.9 and not rep.ties
+    assert rep.chi2_injected < 2.0 * rep.n_data  # the friction, simulated, brings the record to the noise
+    term = rep.term
+    assert term is not None and term.follows == "speed"
+    assert term.details["coulomb_friction"] == pytest.approx(0.09, rel=0.1)
+    assert "against the motion of the drive wheel" in term.description
+
+
 def test_no_gap_no_confident_locus() -> None:
     """A record of the model itself (noise only): no locus beats the calibration by much."""
     rec = _record("motor_coulomb_friction", 0.0, PlantParameters(), 40.0, seed=3, known=True)

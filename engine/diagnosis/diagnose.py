@@ -597,12 +597,14 @@ def _reweight(nominal: CalibrationResult, cands: Sequence[Candidate], sets: Sequ
         m.delta_bic = m.bic - best
 
 
-def _locate(record: Record, nominal: CalibrationResult, verdict: Verdict) -> tuple[Verdict, dict[str, Any] | None]:
+def _locate(
+    record: Record, nominal: CalibrationResult, verdict: Verdict, space: ModelSpace
+) -> tuple[Verdict, dict[str, Any] | None]:
     """The verdict with the locus and missing term the data point to (see :mod:`engine.diagnosis.locus`)."""
     from engine.diagnosis.locus import estimate_locus
 
     try:
-        report = estimate_locus(record, nominal)
+        report = estimate_locus(record, nominal, space=space)
     except (ValueError, RuntimeError) as exc:  # the diagnosis stands without it; say why
         logger.warning("locus estimate failed: %s", exc)
         return replace(verdict, reason=f"{verdict.reason}; the locus could not be estimated ({exc})"), None
@@ -966,7 +968,7 @@ def _diagnose(
         cells_after = localise(record, best_cal.simulated_record(record), nominal.sigma, DEFAULT_WINDOWS_MS)
         stage("gap after the fix")
     elif verdict.status in ("unexplained", "weak_gap") and settings.locate:
-        verdict, locus = _locate(record, nominal, verdict)
+        verdict, locus = _locate(record, nominal, verdict, space)
         stage("locus and missing term")
     result = DiagnosisResult(
         calibration=nominal,

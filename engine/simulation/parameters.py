@@ -44,6 +44,13 @@ DISTURBANCE_MEANING: dict[str, tuple[str, str]] = {
     "load": ("torque on the load (mass m2)", "pu"),
 }
 
+#: The plant's Coulomb friction against the motion of the part at each torque locus:
+#: ``field * tanh(w / W_SMOOTH)`` against the part's own speed w (w_1 of the motor shaft, w_2 of
+#: the drive wheel, w_3 of the load, the last being the absorber's discontinuity c_1). The locus
+#: estimate tries these as terms that follow the state, which a schedule d(t) found around the
+#: calibrated trajectory cannot represent once the part sticks (``engine.diagnosis.locus``).
+COULOMB_FIELDS: dict[str, str] = {"motor_shaft": "tau_C1", "drive_train": "tau_C2", "load": "c1"}
+
 
 class ParameterError(ValueError):
     """Raised for a physically absurd or non-finite parameter; the message says what to fix."""
