@@ -171,8 +171,9 @@ class LocusSettings:
         Highest frequency searched in the term [Hz] (at most 0.4 / knot_spacing is used).
     friction_fits : bool
         Fit the Coulomb friction of every part (:data:`COULOMB_FIELDS`) jointly with the
-        calibrated parameters from the calibration's global starts (a candidate's re-seeded fit,
-        :func:`engine.diagnosis.candidate.refit_from_starts`), as one more start of that locus.
+        calibrated parameters by a global search (a candidate's escalated fit,
+        :func:`engine.diagnosis.candidate.fit_candidate` with ``global_search=True``), as one
+        more start of that locus (False: the friction is only scanned).
     first_guess_chi2 : float
         When the best locus's fit leaves more than this chi2 per residual, the locus is a first
         guess: its confidence is capped at :data:`FIRST_GUESS_CONFIDENCE` and a note says so
