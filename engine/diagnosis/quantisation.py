@@ -26,8 +26,11 @@ wide edges its optimum is biased, with narrow ones it is rough. So a cell fit is
 where it lowers the chi-square of the *rounded* model, the one every fit is judged by; the
 answer is never worse than without it. On 38 quantised development records (seed-151 and
 seed-97 cases, the true set fitted from the nominal plant; ``docs/diagnosis.md`` 8b) it
-brought 3 true sets under chi2/n 1.05 that were not and one from 5.1 to 1.6 (its cost on an
-idle machine is not measured yet).
+brought 3 true sets under chi2/n 1.05 that were not and one from 5.1 to 1.6. Cost, one
+diagnosis at a time on 2 idle cores (``bench/case_times.py``, the 75 seed-151 singles, 5 of them
+quantised): median 5.9 s and p90 14.0 s with it, 5.9 s and 13.6 s before (median ratio per record
+1.01); two quantised singles it made right took 4.2 and 6.1 s (9.9 and 11.9 s before). Pairs and
+triples not measured.
 
 The scans weigh omega1's residual by its noise standard deviation in time; the fit's
 reported chi-square, which its BIC and the decision compare with every other fit's, is
