@@ -853,7 +853,6 @@ def _estimate(
     record: Record, calibration: CalibrationResult, settings: LocusSettings, space: ModelSpace | None
 ) -> LocusReport:
     t0 = time.perf_counter()
-    full_record = record
     record, _ = record.test_window()
     cal = calibration
     if cal.case is None or cal.event_time is None:
@@ -898,7 +897,8 @@ def _estimate(
     scan, chi2_base, used = _extras_scan(cal, resp, obs, settings)
     n_sim += used
     if settings.friction_fits:
-        scan, used = _friction_fits(full_record, cal, space or default_space(full_record), resp, obs, scan, settings)
+        # on the test window, as the calibration and every locus fit (a longer record is cut, not misread)
+        scan, used = _friction_fits(record, cal, space or default_space(record), resp, obs, scan, settings)
         n_sim += used
 
     # 3. Gauss-Newton refinement: one iteration of every locus (the linearised ranking misleads
