@@ -25,6 +25,7 @@ import pytest
 from engine.constants import CHANNELS, LOAD_RIPPLE_HZ, OPERATING_RANGE
 from engine.diagnosis.calibration import CalibrationResult, calibrate
 from engine.diagnosis.locus import LocusReport, estimate_locus
+from engine.diagnosis.noise import NoiseModel
 from engine.records import Record
 from engine.simulation import CATALOGUE, HELD_BACK, LOCI, Case, EffectLibrary, PlantParameters, simulate_batch
 from engine.simulation.noise import add_white_noise
@@ -176,6 +177,13 @@ def test_a_wheel_friction_that_stops_the_wheel_is_a_coulomb_friction_on_the_driv
     rec = _record("wheel_coulomb_friction", 0.09, PlantParameters(), 40.0, seed=4, known=False)
     cal = calibrate(rec)
     assert cal.reduced_chi2 > 100.0  # a strong gap the calibration could not absorb
+    # the friction's valley is narrow in K: the true friction, J1 and c with K 3 % off miss by far
+    # (why the locus fits the friction jointly with K, J1, c by a global search, not by its scan)
+    off = PlantParameters().replace(K=1.03 * PlantParameters().K)
+    sim = simulate_batch([Case(off)], {"wheel_coulomb_friction": 0.09}, library=HELD_BACK).channels[0]
+    noise = NoiseModel.of(cal.sigma)
+    chi2_off = sum(float(noise.chi2(n, sim[j] - rec[n])) for j, n in enumerate(CHANNELS))
+    assert chi2_off / cal.n_data > 100.0
     rep = estimate_locus(rec, cal)
     assert rep.locus == "drive_train", rep.description
     assert rep.confidence > 0.9 and not rep.ties

@@ -1265,14 +1265,16 @@ def _friction_fits(
 
     The scan's coarse friction sizes and two Gauss-Newton steps find a friction only near the
     calibrated point; one strong enough to stop a part moves the impacts, and its valley in
-    (friction, K, J1) is narrower than the scan's steps (a synthetic wheel friction of 0.09 pu at
-    the nominal plant, 40 dB: chi2/n 550 at the true friction, J1 and c with K 3 % off), and the
-    calibration's global starts, searched without the friction, are off too (re-seeded fits from
-    them: chi2/n 130). The joint fit is a catalogue candidate's fit with the global search
+    (friction, K, J1) is narrower than the scan's steps, and the calibration's global starts,
+    searched without the friction, are off too. On the record of
+    ``tests/test_locus.py::test_a_wheel_friction_that_stops_the_wheel_is_a_coulomb_friction_on_the_drive_wheel``
+    (a wheel friction of 0.09 pu at the nominal plant, 40 dB; the test asserts the last is above 100):
+    the true friction, J1 and c give chi2/n 1.02 with the true K, 159 with K 1 % off and 547 with
+    K 3 % off. The joint fit is a catalogue candidate's fit with the global search
     (:func:`~engine.diagnosis.candidate.fit_candidate`, ``global_search=True``; 2-3 s and about
-    1000 simulations each on 2 cores; chi2/n 1.02 on that record). Its point, simulated at the
-    locus's step, replaces the scan's start of that locus where its chi2 is lower. Returns the
-    starts and the simulations used.
+    1000 simulations each on 2 cores). Its point, simulated at the locus's step, replaces the
+    scan's start of that locus where its chi2 is lower. Returns the starts and the simulations
+    used.
     """
     assert cal.case is not None
     names = resp.param_names
