@@ -1,0 +1,227 @@
+"""The locus estimate: :func:`estimate_locus`.
+
+Runs the steps of the method in order (see :mod:`engine.diagnosis.locus`), ranks the refined loci
+and the sensor library by their evidence (step 6) and writes the report.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+
+import numpy as np
+
+from engine.constants import CHANNELS
+from engine.diagnosis.calibration import CalibrationError, CalibrationResult
+from engine.diagnosis.locus._linear import linear_fit, orth, penalised_fit, project
+from engine.diagnosis.locus._refine import Estimate, refine
+from engine.diagnosis.locus._report import LocusError, LocusReport, LocusScore, LocusSettings
+from engine.diagnosis.locus._responses import N_EXTRAS, Observed, responses
+from engine.diagnosis.locus._starts import extras_scan, friction_fits, refinement_start
+from engine.diagnosis.locus._term import locus_term, sensor_term
+from engine.diagnosis.space import ModelSpace, default_space
+from engine.parallel import single_threaded_blas
+from engine.records import Record
+from engine.simulation import DISTURBANCE_LOCI
+
+logger = logging.getLogger(__name__)
+
+
+#: Largest confidence of a locus whose fit leaves the record far from the noise (``first_guess_chi2``).
+FIRST_GUESS_CONFIDENCE: float = 0.5
+#: The measurement chain's locus (a parametric library, not an unknown input).
+SENSORS: str = "sensors"
+
+
+def estimate_locus(
+    record: Record,
+    calibration: CalibrationResult,
+    settings: LocusSettings = LocusSettings(),  # noqa: B008 (frozen, so immutable; imported, so ruff cannot tell)
+    space: ModelSpace | None = None,
+) -> LocusReport:
+    """Where in the plant the residual of a calibration comes from, and what the missing term looks like.
+
+    Parameters
+    ----------
+    record : Record
+        The record the calibration was fitted on (its test window is used); any subset of channels.
+    calibration : CalibrationResult
+        The nominal (or the best candidate's) calibration; its ``case``, ``simulation``,
+        ``event_time`` and ``sigma`` are used.
+    settings : LocusSettings
+        Method settings.
+    space : ModelSpace, optional
+        The calibration's model space (its free parameters and search box), for the joint fits
+        of a Coulomb friction with the calibration; default :func:`default_space` of the record.
+
+    Returns
+    -------
+    LocusReport
+
+    Raises
+    ------
+    LocusError
+        The calibration holds no simulation, or its case cannot be simulated.
+    """
+    with single_threaded_blas():  # small matrices: BLAS threads only compete with the simulations
+        return _estimate(record, calibration, settings, space)
+
+
+def _estimate(
+    record: Record, calibration: CalibrationResult, settings: LocusSettings, space: ModelSpace | None
+) -> LocusReport:
+    t0 = time.perf_counter()
+    record, _ = record.test_window()
+    cal = calibration
+    if cal.case is None or cal.event_time is None:
+        raise LocusError("the calibration holds no simulated case")
+    try:
+        sim = cal.simulated_record(record)
+    except CalibrationError as exc:
+        raise LocusError(str(exc)) from None
+    names = list(record.channels)
+    rows = [CHANNELS.index(n) for n in names]
+    sigma = np.array([cal.sigma[n] for n in names])
+    data = np.stack([record[n] for n in names])
+    model = np.stack([sim[n] for n in names])
+    r = ((data - model) / sigma[:, None]).ravel()
+    n = r.size
+    chi2 = float(r @ r)
+    ln_n = math.log(max(n, 2))
+    obs = Observed(record, rows, data, sigma)
+
+    # 1. linearised around the calibrated trajectory, every locus at once
+    resp = responses(record, cal, sigma, rows, settings)
+    n_sim = resp.n_simulations
+    Q = orth(resp.params, n)
+    k = Q.shape[1]
+    rp = project(Q, r[:, None])[:, 0]
+    rr = float(rp @ rp)
+    estimates: dict[str, Estimate] = {}
+    for locus in DISTURBANCE_LOCI:
+        hats, extras = resp.columns[locus][:, :-N_EXTRAS], resp.columns[locus][:, -N_EXTRAS:]
+        # the parameters and the locus's extras are unpenalised: projected out
+        free = np.hstack([resp.params, extras])
+        Qc = orth(free, n)
+        fit = penalised_fit(project(Qc, hats), project(Qc, r[:, None])[:, 0], Qc.shape[1], settings)
+        x = np.nan_to_num(fit.x)
+        coef = np.linalg.lstsq(free, r - hats @ x, rcond=None)[0]
+        estimates[locus] = Estimate(x, coef[-N_EXTRAS:], coef[:-N_EXTRAS], fit, fit.rss, fit.bic, refined=False)
+    s_rss, s_bic, s_coef = linear_fit(project(Q, resp.sensors), rp, k)
+    bic_none = rr + k * ln_n
+
+    # 2. a scan of a constant input per locus: a global start where a term is too strong to
+    # linearise (a constant offset of the backlash zone shifts the impacts)
+    scan, chi2_base, used = extras_scan(cal, resp, obs, settings)
+    n_sim += used
+    if settings.friction_fits:
+        # on the test window, as the calibration and every locus fit (a longer record is cut, not misread)
+        scan, used = friction_fits(record, cal, space or default_space(record), resp, obs, scan, settings)
+        n_sim += used
+
+    # 3. Gauss-Newton refinement: one iteration of every locus (the linearised ranking misleads
+    # when the term is strong), then more for the best ones
+    for locus in DISTURBANCE_LOCI:
+        start, used = refinement_start(cal, locus, resp, estimates[locus], obs, chi2_base, scan[locus], settings)
+        estimates[locus], more = refine(cal, locus, resp, start, obs, 1, settings)
+        n_sim += used + more
+    for locus in sorted(DISTURBANCE_LOCI, key=lambda key: estimates[key].bic)[: settings.refine_loci]:
+        estimates[locus], used = refine(
+            cal, locus, resp, estimates[locus], obs, settings.refine_iterations - 1, settings
+        )
+        n_sim += used
+
+    # 4. ranking: the refined loci (simulated chi2) and the sensor library. The evidence is
+    # scaled by the best fit's dispersion (quasi-likelihood): a best fit far above the noise says
+    # the model is still wrong somewhere, and BIC differences in chi2 units then overstate it.
+    bics = {locus: e.bic for locus, e in estimates.items() if e.refined}
+    bics[SENSORS] = s_bic
+    leader = min(bics, key=lambda key: bics[key])
+    lead_rss = estimates[leader].rss if leader in estimates else s_rss
+    lead_dof = (
+        estimates[leader].fit.dof + estimates[leader].n_extras if leader in estimates else float(resp.sensors.shape[1])
+    )
+    dispersion = max(1.0, lead_rss / max(n - lead_dof - k, 1.0))
+    best_bic = min(min(bics.values()), bic_none)
+    all_w = {key: math.exp(-0.5 * (b - best_bic) / dispersion) for key, b in {**bics, "none": bic_none}.items()}
+    total = sum(all_w.values())
+    scores: dict[str, LocusScore] = {}
+    for locus in (*DISTURBANCE_LOCI, SENSORS):
+        b = bics[locus] if locus in bics else estimates[locus].bic
+        rss = estimates[locus].rss if locus in estimates else s_rss
+        dof = estimates[locus].fit.dof if locus in estimates else float(resp.sensors.shape[1])
+        scores[locus] = LocusScore(
+            bic=b,
+            delta_bic=b - min(bics.values()),
+            rss=rss,
+            dof=dof,
+            explained=1.0 - rss / chi2 if chi2 > 0 else 0.0,
+            weight=all_w[locus] / total if locus in all_w else 0.0,
+            simulated=locus in estimates and estimates[locus].refined,
+        )
+    ranked = sorted(bics, key=lambda key: bics[key])
+    best = ranked[0]
+    notes: list[str] = []
+    if bic_none <= bics[best]:
+        logger.info("locus: no locus beats the calibration alone (chi2 %.4g, n %d)", chi2, n)
+        return LocusReport(
+            locus=None,
+            scores=scores,
+            term=None,
+            confidence=all_w["none"] / total,
+            ties=[],
+            chi2=chi2,
+            chi2_injected=math.nan,
+            n_data=n,
+            n_simulations=n_sim,
+            seconds=time.perf_counter() - t0,
+            notes=notes,
+        )
+    ties = [key for key in ranked[1:] if (bics[key] - bics[best]) / dispersion < settings.tie_delta]
+    t_rel = record.grid.time
+    chi2_injected = math.nan
+    if best == SENSORS:
+        values = dict(zip(resp.sensor_names, (float(v) for v in s_coef), strict=True))
+        term = sensor_term(values, names, settings)
+    else:
+        est = estimates[best]
+        chi2_injected = est.rss if est.refined else math.nan
+        term = locus_term(best, est, resp, cal, t_rel, settings)
+        if not est.refined or est.rss > chi2:
+            notes.append(
+                "injecting the estimated input into the calibrated case does not lower chi2: the gap is too "
+                "large for the linearisation around the calibrated trajectory; the locus is a first guess"
+            )
+    confidence = scores[best].weight
+    left = scores[best].rss / n
+    if left > settings.first_guess_chi2:
+        confidence = min(confidence, FIRST_GUESS_CONFIDENCE)
+        notes.append(
+            f"the best input leaves chi2/n = {left:.3g}, far above the noise: one additive input at one locus "
+            f"does not reproduce the record, and the locus is a first guess"
+        )
+    report = LocusReport(
+        locus=best,
+        scores=scores,
+        term=term,
+        confidence=confidence,
+        ties=ties,
+        chi2=chi2,
+        chi2_injected=chi2_injected,
+        n_data=n,
+        n_simulations=n_sim,
+        seconds=time.perf_counter() - t0,
+        notes=notes,
+        dispersion=dispersion,
+    )
+    logger.info(
+        "locus: %s (confidence %.2f%s), %s; %d simulations, %.1f s",
+        best,
+        report.confidence,
+        f", ties {ties}" if ties else "",
+        term.description,
+        n_sim,
+        report.seconds,
+    )
+    return report
