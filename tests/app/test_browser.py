@@ -31,8 +31,11 @@ CHROMIUM = Path("/usr/bin/chromium")
 ARTIFACTS = Path(__file__).resolve().parents[2] / "out" / "test-artifacts"
 #: Longest wait for a diagnosis job, in ms: the first job of a server also starts its worker process.
 DIAGNOSIS_TIMEOUT_MS = 150_000
-#: Longest wait for anything else the page does, in ms.
+#: Longest wait for anything else the page does, in ms (also for ``expect``, whose own default is 5 s).
 PAGE_TIMEOUT_MS = 30_000
+#: Longest wait for the page's identification with the continuous width (a K refit: a few seconds on
+#: an idle machine, over 30 s beside other work), in ms.
+IDENTIFY_TIMEOUT_MS = 120_000
 #: The unmodelled effect in the uploaded records (quick to diagnose: the record's conditions fix K, J1, c, c1).
 EFFECT = {"motor_coulomb_friction": 0.02}
 ASSET = "press-7"
@@ -55,6 +58,7 @@ def playwright() -> Any:
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Any]:
     """Headless Chromium of the system, shared by the tests of this module."""
+    playwright().expect.set_options(timeout=PAGE_TIMEOUT_MS)
     with playwright().sync_playwright() as p:
         chromium = p.chromium.launch(executable_path=str(CHROMIUM), headless=True)
         try:
@@ -230,7 +234,7 @@ def test_report_page_diagnoses_uploaded_records(start_server: ServerFactory, bro
         # 2. identify the width of the same upload with the small pattern set: a third estimate, so a trend
         page.select_option("#pattern-set", set_id)
         page.click("#identify-button")
-        expect(page.locator("#identification-text")).to_contain_text("Identified width:")
+        expect(page.locator("#identification-text")).to_contain_text("Identified width:", timeout=IDENTIFY_TIMEOUT_MS)
         text = page.inner_text("#identification-text")
         assert "Continuous width:" in text and "Stored in the drive's history" in text, text
         expect(page.locator("#history tbody tr")).to_have_count(4)
