@@ -19,7 +19,8 @@ the record (the calibration's noise model: each channel's noise, whitened where 
 plain channel chi2, without the calibration's own treatment of a rounded channel), and the
 calibrated point's relative errors. ``true point`` near 1 says the held-back effect is all that is
 missing; ``calibrated point`` much larger says the calibration took up part of it. The last line
-is a summary per held-back effect: the median of each chi2/n. About 5-10 s a case on 2 cores::
+is a summary per held-back effect: the median of each chi2/n. A case costs a nominal calibration (about
+5 s); the 60 held-back records of seed 151 took 37 min at `nice` 10 beside a blind run::
 
     python bench/locus_absorption.py out/validation-v2-seed151 > absorption.jsonl
     python bench/locus_absorption.py out/validation-v2-seed151 case0033,case0051,case0155
