@@ -55,14 +55,16 @@ def main(argv: list[str] | None = None) -> int:
     from engine.records import Record
     from engine.simulation import HELD_BACK, Case, PlantParameters, SolverSettings, run_cases
 
-    def chi2n(cal: CalibrationResult, record: Record, case: Case) -> float:
-        """chi2/n of ``case`` simulated on the record's grid, with the calibration's noise model."""
-        ch, _, status = run_cases([case], SolverSettings(max_step=cal.step), record.grid)
-        if status[0] != 0:
-            return float("nan")
+    def chi2n(cal: CalibrationResult, record: Record, cases: list[Case]) -> list[float]:
+        """chi2/n of each case simulated on the record's grid (one batch), with the calibration's noise model."""
+        ch, _, status = run_cases(cases, SolverSettings(max_step=cal.step), record.grid)
         noise = NoiseModel.of(cal.sigma)
-        total = sum(float(noise.chi2(n, ch[0, CHANNELS.index(n)] - record[n])) for n in record.channels)
-        return total / cal.n_data
+        return [
+            sum(float(noise.chi2(n, ch[i, CHANNELS.index(n)] - record[n])) for n in record.channels) / cal.n_data
+            if status[i] == 0
+            else float("nan")
+            for i in range(len(cases))
+        ]
 
     layout, entries = chosen_entries(ap, args, "held_back")
     settings = DiagnosisSettings()
@@ -76,12 +78,13 @@ def main(argv: list[str] | None = None) -> int:
         if cal.case is None:
             raise RuntimeError(f"{k.case_id}: the calibration has no case")
         effect = HELD_BACK[truth.name]
+        if "c1" not in record.conditions:
+            ap.error(f"{k.case_id}: the record does not state c1, so its true point is not known")
         plant = PlantParameters(K=k.K, J1=k.J1, c=k.c, c1=float(record.conditions["c1"]))
-        row = {
-            "nominal": cal.reduced_chi2,
-            "true point": chi2n(cal, record, effect.apply(Case(plant), truth.value)),
-            "calibrated point": chi2n(cal, record, effect.apply(cal.case, truth.value)),
-        }
+        at_truth, at_calibration = chi2n(
+            cal, record, [effect.apply(Case(plant), truth.value), effect.apply(cal.case, truth.value)]
+        )
+        row = {"nominal": cal.reduced_chi2, "true point": at_truth, "calibrated point": at_calibration}
         per_effect[truth.name].append(row)
         errors = {p: (cal.values[p] - getattr(k, p)) / getattr(k, p) for p in ("K", "J1", "c")}
         out = {
