@@ -19,6 +19,7 @@ from engine.simulation import CATALOGUE, HELD_BACK, EffectLibrary, PlantParamete
 from engine.simulation.noise import noise_std
 
 diagnose_module = importlib.import_module("engine.diagnosis.diagnose")
+staged_module = importlib.import_module("engine.diagnosis.staged")  # where the staged search looks its calls up
 
 
 def noisy(record: Record, snr_db: float, seed: int) -> Record:
@@ -225,7 +226,7 @@ def compound():
     truth = {"load_inertia": 1.4, "motor_coulomb_friction": 0.04}
     rec = noisy(simulate(plant, effects=truth), 40.0, seed=1)
     escalated: list[int | None] = []  # n_escalate of each escalation (None: every candidate)
-    real = diagnose_module.escalate_candidates
+    real = staged_module.escalate_candidates
 
     def counted(*args, **kwargs):
         settings = args[5] if len(args) > 5 else kwargs["settings"]
@@ -233,7 +234,7 @@ def compound():
         return real(*args, **kwargs)
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(diagnose_module, "escalate_candidates", counted)
+        mp.setattr(staged_module, "escalate_candidates", counted)
         res = diagnose(rec, bounds={"K": (0.0022, 0.0105), "J1": (0.72, 0.96), "c": (0.75, 1.6)})
     return truth, res, escalated
 
@@ -764,7 +765,6 @@ def test_a_single_is_refitted_from_a_set_that_fits_with_it_as_its_only_strong_me
     value, weak, and the record was answered `unexplained`: the backward elimination stops at pairs.
     The strong member is refitted alone from the pair's fit (faked here) and named; a pair whose
     members are both strong is left alone."""
-    diagnose_module = importlib.import_module("engine.diagnosis.diagnose")
     seeds_seen: list[dict[str, float]] = []
 
     def fake_calibrate(record, space, settings, noise=None, seeds=(), polish=False):
@@ -773,8 +773,8 @@ def test_a_single_is_refitted_from_a_set_that_fits_with_it_as_its_only_strong_me
         cal.values["stator_resistance_drift"] = 1.451
         return cal
 
-    monkeypatch.setattr(diagnose_module, "calibrate", fake_calibrate)
-    monkeypatch.setattr(diagnose_module, "effect_strength", lambda c, space, record, sigma: 458.0)
+    monkeypatch.setattr(staged_module, "calibrate", fake_calibrate)
+    monkeypatch.setattr(staged_module, "effect_strength", lambda c, space, record, sigma: 458.0)
 
     class Space:
         def with_effect(self, effect):
@@ -784,7 +784,7 @@ def test_a_single_is_refitted_from_a_set_that_fits_with_it_as_its_only_strong_me
     nominal = fake_cal(2726.0, k=3)
     cands = [single("supply_voltage", 692.0, 356.0), single("stator_resistance_drift", 2300.0, 300.0)]
     found = pair(("rotor_resistance_drift", "stator_resistance_drift"), 1.015, strengths)
-    out = diagnose_module._singles_of_sets(None, nominal, Space(), CATALOGUE, cands, [found], settings)
+    out = staged_module._singles_of_sets(None, nominal, Space(), CATALOGUE, cands, [found], settings)
     if min(strengths) > settings.min_strength:
         assert not seeds_seen and out == sorted(cands, key=lambda c: c.bic)
         return
@@ -818,14 +818,12 @@ def test_seeded_triples_that_explain_spare_the_escalation_of_the_singles(
         escalations.append(cs.n_escalate)
         return cands
 
-    monkeypatch.setattr(diagnose_module, "search_sets", fake_search)
-    monkeypatch.setattr(diagnose_module, "escalate_candidates", fake_escalate)
+    monkeypatch.setattr(staged_module, "search_sets", fake_search)
+    monkeypatch.setattr(staged_module, "escalate_candidates", fake_escalate)
     stages: list[str] = []
     cands = [single(n, 50.0 + i, 10.0) for i, n in enumerate(("load_inertia", "supply_voltage", "sensor_gain"))]
     settings = DiagnosisSettings()
-    _, sets = diagnose_module._staged_search(
-        None, fake_cal(100.0, k=3), None, CATALOGUE, cands, settings, stages.append
-    )
+    _, sets = staged_module._staged_search(None, fake_cal(100.0, k=3), None, CATALOGUE, cands, settings, stages.append)
 
     n_report = settings.set_search().n_report
     assert searches[0][0] == 2 and searches[1][:3] == (3, False, 0)  # pairs, then seeded triples only
