@@ -208,6 +208,7 @@ def main(argv: list[str] | None = None) -> int:
         "engine.diagnosis.calibration",
         "engine.diagnosis.candidates",
         "engine.diagnosis.diagnose",
+        "engine.diagnosis.staged",
     ):
         logging.getLogger(name).setLevel(logging.WARNING)
     if not (args.calibration or args.timing or args.validation):

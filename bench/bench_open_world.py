@@ -576,7 +576,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="directory for the per-record rows (JSON)")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s", stream=sys.stderr)
-    for name in ("engine.diagnosis.calibration", "engine.diagnosis.candidates", "engine.diagnosis.diagnose"):
+    for name in (
+        "engine.diagnosis.calibration",
+        "engine.diagnosis.candidates",
+        "engine.diagnosis.diagnose",
+        "engine.diagnosis.staged",
+    ):
         logging.getLogger(name).setLevel(logging.WARNING)
     results: dict[str, Any] = {}
     from engine.constants import CHANNELS

@@ -13,7 +13,10 @@ Modules, one idea each:
 * :mod:`~engine.diagnosis.candidate`: one candidate effect's joint fit and evidence;
 * :mod:`~engine.diagnosis.quantisation`: the speed quantum's dense-scan fit;
 * :mod:`~engine.diagnosis.candidates`: fitting and ranking every candidate;
-* :mod:`~engine.diagnosis.diagnose`: the decision rule and the result;
+* :mod:`~engine.diagnosis.diagnose`: the diagnosis in order (its settings in
+  :mod:`~engine.diagnosis.settings`, the staged search of sets in :mod:`~engine.diagnosis.staged`,
+  the decision rule in :mod:`~engine.diagnosis.decision`, verdict and result in
+  :mod:`~engine.diagnosis.result`);
 * :mod:`~engine.diagnosis.identification`: identification before and after the fix;
 * :mod:`~engine.diagnosis.plots`, :mod:`~engine.diagnosis.validation`: figures, blind validation.
 
