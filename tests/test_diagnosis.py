@@ -17,6 +17,7 @@ from engine.diagnosis.validation import (
     AnswerEntry,
     generate_cases,
     run_validation,
+    same_physics,
     score,
     write_cases,
 )
@@ -149,6 +150,39 @@ def test_generated_cases_are_blind_and_follow_the_strength_rule(tmp_path):
         assert k.expected_status == expected
         assert 30.0 <= k.snr_db <= 50.0
     assert {k.kind for k in key} == {"effect", "left_out", "clean"}
+
+
+def test_a_left_out_effect_takes_its_same_physics_twin_out_of_the_library():
+    """Protocol 1's leave-out (revision of 2026-11-26): a left-out time shift leaves both shifts out."""
+    cases, key = generate_cases(20, seed=5, fractions={"effect": 0.0, "left_out": 1.0, "clean": 0.0})
+    names = set(CATALOGUE)
+    assert {"measurement_delay", "trigger_offset"} <= {k.effect for k in key}  # a round covers the catalogue
+    for c, k in zip(cases, key, strict=True):
+        twins = {n for n in names if same_physics(n, str(k.effect))}
+        assert set(c.library) == names - twins
+        assert len(twins) == (2 if k.effect in ("measurement_delay", "trigger_offset") else 1)
+
+
+def test_scorer_takes_a_same_physics_twin_for_the_effect(tmp_path):
+    """A measurement delay named as a trigger offset is right (top-1 and top-2); another effect is not."""
+    key = [
+        AnswerEntry(cid, "effect", "measurement_delay", 4e-4, 0.005, 0.85, 1.0, 40.0, 30.0, True, "explained", eff)
+        for cid, eff in (("a", "measurement_delay"), ("b", "measurement_delay"))
+    ]
+    (tmp_path / "key").mkdir()
+    (tmp_path / "results").mkdir()
+    (tmp_path / "key" / "answer_key.json").write_text(json.dumps([asdict(k) for k in key]))
+    for cid, named in (("a", "trigger_offset"), ("b", "sensor_lowpass")):
+        res = {
+            "verdict": {"status": "explained", "effect": named, "value": 4e-4, "confidence": 0.5},
+            "candidates": [{"effect": named, "value": 4e-4, "uncertainty": 1e-5, "shrinkage": 50.0}],
+            "ranking": [named, "sensor_gain"],
+            "wall_seconds": 1.0,
+        }
+        (tmp_path / "results" / f"{cid}.json").write_text(json.dumps(res))
+    rep = score(tmp_path)
+    assert rep.top1 == 0.5 and rep.top2 == 0.5 and rep.rank1 == 0.5
+    assert same_physics("trigger_offset", "measurement_delay") and not same_physics("trigger_offset", "sensor_gain")
 
 
 def test_scorer_counts_what_it_should(tmp_path):

@@ -9,7 +9,9 @@ Protocol (issue 4)
      spanning two decades or more: contact stiffness, contact damping, and the
      sensor low-pass cut-off);
    * ``left_out``: the same, but the effect is removed from the library handed
-     to the diagnosis (leave-one-effect-out);
+     to the diagnosis (leave-one-effect-out), and with it every effect that is the
+     same physics on a record (:data:`SAME_PHYSICS`: a measurement delay and a trigger
+     offset are one shift of every channel; revision of 2026-11-26, below);
    * ``clean``: no effect.
 
    Every case has a random operating point (K uniform in [0.0025, 0.01] m, J1
@@ -31,10 +33,20 @@ Protocol (issue 4)
    ``cases/`` and writes ``results/``; :func:`score` reads the key only after
    every diagnosis is done.
 
-Expected answers: ``explained`` with the right effect (counting ``effect``
-cases), ``unexplained`` (counting ``left_out`` cases), ``no_gap`` (clean and
+Expected answers: ``explained`` with the right effect, or one that is the same
+physics (:data:`SAME_PHYSICS`) (counting ``effect`` cases), ``unexplained`` (counting ``left_out`` cases), ``no_gap`` (clean and
 weak cases; for a weak draw ``weak_gap``, a real gap too weak to attribute, is
 right too).
+
+Revision of 2026-11-26 (the same-physics groups of protocol 2)
+---------------------------------------------------------------
+Until then a left-out measurement delay left the trigger offset in the library, and a delay
+answered as a trigger offset was a top-1 miss. For a positive value the two are the same record
+(docs/diagnosis.md section 8), so neither figure measured the diagnosis: the blind run of seed 193
+(code 14aae4f) had 7 of its 16 abstention misses and 1 of its 3 top-1 misses there. Protocol 2
+(:mod:`engine.validation`) treated them as one physics from the start; protocol 1 now does the
+same, in its leave-out and in its top-1/top-2 scoring. A seed draws the same records as before;
+only the library of a left-out time shift and the scoring of a twin answer differ.
 """
 
 from __future__ import annotations
@@ -61,12 +73,14 @@ from engine.simulation.noise import noise_std
 logger = logging.getLogger(__name__)
 
 __all__ = [
+    "SAME_PHYSICS",
     "AnswerEntry",
     "BlindCase",
     "ValidationReport",
     "diagnose_cases",
     "generate_cases",
     "run_validation",
+    "same_physics",
     "score",
     "write_cases",
 ]
@@ -79,6 +93,10 @@ C_RANGE: tuple[float, float] = OPERATING_RANGE["c"][:2]
 SNR_RANGE_DB = (30.0, 50.0)
 #: An effect counts when it moves some channel by more than this many noise standard deviations (RMS).
 STRENGTH_THRESHOLD = 3.0
+#: Groups of catalogue effects that are the same physics on a record (pure time shifts of every
+#: channel): a left-out case leaves the whole group out, and naming one for another is right.
+#: Protocol 2 (:data:`engine.validation.protocol.SAME_PHYSICS`) uses the same groups.
+SAME_PHYSICS: tuple[frozenset[str], ...] = (frozenset({"measurement_delay", "trigger_offset"}),)
 #: Default mix of case kinds.
 DEFAULT_FRACTIONS = {"effect": 0.6, "left_out": 0.2, "clean": 0.2}
 
@@ -137,6 +155,11 @@ class AnswerEntry:
     counts: bool
     expected_status: str
     expected_effect: str | None
+
+
+def same_physics(a: str, b: str) -> bool:
+    """Whether two effect names are one effect or one :data:`SAME_PHYSICS` group."""
+    return a == b or any(a in g and b in g for g in SAME_PHYSICS)
 
 
 def _draw_value(name: str, library: EffectLibrary, rng: np.random.Generator) -> float:
@@ -212,7 +235,7 @@ def generate_cases(
             rec.event_index,
             conditions={"c1": PlantParameters().c1},
         )
-        lib = tuple(n for n in names if not (kind == "left_out" and n == effect))
+        lib = tuple(n for n in names if not (kind == "left_out" and effect is not None and same_physics(n, effect)))
         cases.append(BlindCase(cid, record, lib))
         if not counted:
             exp_status, exp_effect = "no_gap", None
@@ -311,11 +334,12 @@ class ValidationReport:
     n_by_expected : dict
         Cases per expected answer (``explained``, ``unexplained``, ``no_gap``).
     top1 : float or None
-        Counting effect cases whose verdict names the right effect (``explained``).
+        Counting effect cases whose verdict names the right effect (``explained``), or its
+        same-physics twin (:data:`SAME_PHYSICS`).
     top2 : float or None
-        Counting effect cases whose effect is among the two best-ranked candidates.
+        Counting effect cases whose effect (or twin) is among the two best-ranked candidates.
     rank1 : float or None
-        Counting effect cases whose effect is ranked first (whatever the verdict).
+        Counting effect cases whose effect (or twin) is ranked first (whatever the verdict).
     abstention : float or None
         Counting left-out cases answered ``unexplained``.
     false_alarm : float or None
@@ -366,13 +390,13 @@ class ValidationReport:
                 "cases (explained / unexplained / no_gap expected)",
                 f"{self.n_cases} ({n.get('explained', 0)} / {n.get('unexplained', 0)} / {n.get('no_gap', 0)})",
             ),
-            ("top-1 (verdict names the effect)", pct(self.top1)),
+            ("top-1 (verdict names the effect or its same-physics twin)", pct(self.top1)),
             ("top-2 (effect among two best-ranked)", pct(self.top2)),
             ("ranked first (any verdict)", pct(self.rank1)),
             ("median gap shrinkage (true effect)", _fmt(self.shrinkage.get("median"), "x")),
             ("share of shrinkage >= 5x", pct(self.shrinkage.get("share_ge_5"))),
             ("median value error / range width", pct(self.value_error.get("median_rel_range"))),
-            ("abstention on left-out effects", pct(self.abstention)),
+            ("abstention on left-out effects (and their same-physics twins)", pct(self.abstention)),
             ("false alarms on clean cases", pct(self.false_alarm)),
             (
                 "diagnosis time median / max",
@@ -439,8 +463,11 @@ def score(out_dir: str | Path, library: EffectLibrary = CATALOGUE) -> Validation
         }
         secs.append(res.get("wall_seconds", math.nan))
         if k.expected_status == "explained":
-            r = ranking.index(k.effect) + 1 if k.effect in ranking else None
-            top1.append(v["status"] == "explained" and v["effect"] == k.effect)
+            # the first of the ranking that is the true effect or its same-physics twin
+            r = next((i + 1 for i, n in enumerate(ranking) if same_physics(n, str(k.effect))), None)
+            top1.append(
+                v["status"] == "explained" and v["effect"] is not None and same_physics(v["effect"], str(k.effect))
+            )
             top2.append(r is not None and r <= 2)
             rank1.append(r == 1)
             cand = next((c for c in res["candidates"] if c["effect"] == k.effect), None)

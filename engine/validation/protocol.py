@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Final, Literal
 
 from engine.constants import C1_NOMINAL, PLAUSIBLE_RANGE
-from engine.diagnosis.validation import SNR_RANGE_DB, STRENGTH_THRESHOLD
+from engine.diagnosis.validation import SAME_PHYSICS, SNR_RANGE_DB, STRENGTH_THRESHOLD
 from engine.simulation.noise import LOWPASS_ORDERS
 
 __all__ = [
@@ -78,9 +78,9 @@ SUBSET_SHARE: Final[float] = 0.15
 #: accelerometer.
 CHANNEL_SUBSETS: Final[tuple[tuple[str, ...], ...]] = (("m_el", "omega1"), ("a1", "m_el", "omega1"))
 
-#: Groups of catalogue effects that are the same physics on a record (pure time shifts): a
-#: compound case never holds two of one group. Two effects on the same field are excluded too.
-SAME_PHYSICS: Final[tuple[frozenset[str], ...]] = (frozenset({"measurement_delay", "trigger_offset"}),)
+# SAME_PHYSICS (imported above, one home with protocol 1): groups of catalogue effects that are the
+# same physics on a record (pure time shifts); a compound case never holds two of one group. Two
+# effects on the same field are excluded too.
 
 #: Draws of values, operating point and noise for one set of effects before the set itself is
 #: drawn again (a set that cannot be made strong at any draw, e.g. an effect no recorded channel sees).
