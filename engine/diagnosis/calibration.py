@@ -61,7 +61,15 @@ from engine.simulation import Case, SolverSettings, run_cases
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["CalibrationError", "CalibrationResult", "CalibrationSettings", "Stage", "calibrate"]
+__all__ = [
+    "CalibrationError",
+    "CalibrationResult",
+    "CalibrationSettings",
+    "Stage",
+    "calibrate",
+    "correlation",
+    "unit_covariance",
+]
 
 
 class CalibrationError(RuntimeError):
@@ -549,14 +557,38 @@ def _calibrate(
     return res
 
 
+def unit_covariance(J: np.ndarray) -> np.ndarray:
+    """Gauss-Newton covariance ``pinv(J^T J)`` of the fitted parameters, in unit-box coordinates.
+
+    Parameters
+    ----------
+    J : ndarray, shape (n_res, d)
+        Jacobian of the whitened residuals with respect to the unit-box coordinates.
+
+    Returns
+    -------
+    ndarray, shape (d, d)
+        The covariance for unit noise variance (scale it by the fit's chi2/dof when that exceeds
+        one); all NaN when the pseudo-inverse fails.
+    """
+    d = J.shape[1]
+    try:
+        return np.asarray(np.linalg.pinv(J.T @ J))
+    except np.linalg.LinAlgError:
+        return np.full((d, d), np.nan)
+
+
+def correlation(cov: np.ndarray) -> np.ndarray:
+    """Correlation matrix of a covariance matrix (NaN rows and columns where a variance is not positive)."""
+    sd = np.sqrt(np.where(np.diag(cov) > 0, np.diag(cov), np.nan))
+    return np.asarray(cov / np.outer(sd, sd))
+
+
 def _uncertainties(space: ModelSpace, u: np.ndarray, J: np.ndarray, chi2: float, n: int) -> dict[str, float]:
     """One-sigma uncertainties from the Jacobian J (n_res, d) in unit-box coordinates."""
     d = space.dim
     scale = max(1.0, chi2 / max(n - d, 1))
-    try:
-        cov_u = np.linalg.pinv(J.T @ J) * scale
-    except np.linalg.LinAlgError:
-        cov_u = np.full((d, d), np.nan)
+    cov_u = unit_covariance(J) * scale
     out = {}
     for i, p in enumerate(space.params):
         su = math.sqrt(max(cov_u[i, i], 0.0)) if np.isfinite(cov_u[i, i]) else math.nan
