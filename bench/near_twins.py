@@ -32,7 +32,8 @@ def main(argv: list[str] | None = None) -> int:
     from engine.diagnosis.ambiguity import near_twins
     from engine.diagnosis.calibration import CalibrationResult
     from engine.diagnosis.candidate import SEEDED_FITS, Candidate
-    from engine.diagnosis.diagnose import DiagnosisSettings, _explains_as_well
+    from engine.diagnosis.decision import explains_as_well
+    from engine.diagnosis.diagnose import DiagnosisSettings
     from engine.diagnosis.sets import CandidateSet
     from engine.simulation import CATALOGUE
     from engine.validation.layout import RunLayout
@@ -99,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
             if chosen is None:
                 continue
             twins = near_twins(
-                chosen, models, lambda m: _explains_as_well(m, settings), settings.min_delta_bic, CATALOGUE
+                chosen, models, lambda m: explains_as_well(m, settings), settings.min_delta_bic, CATALOGUE
             )
             if not twins:
                 continue

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from engine.diagnosis import diagnose
+from engine.diagnosis import decision, diagnose
 from engine.diagnosis.ambiguity import near_twins
 from engine.diagnosis.calibration import CalibrationResult
 from engine.diagnosis.candidate import Candidate
@@ -18,7 +18,6 @@ from engine.records import Record
 from engine.simulation import CATALOGUE, HELD_BACK, EffectLibrary, PlantParameters, simulate
 from engine.simulation.noise import noise_std
 
-diagnose_module = importlib.import_module("engine.diagnosis.diagnose")
 staged_module = importlib.import_module("engine.diagnosis.staged")  # where the staged search looks its calls up
 
 
@@ -274,7 +273,7 @@ def test_the_verdict_says_which_named_effect_has_an_indistinguishable_twin() -> 
     st = pair(("trigger_offset", "load_inertia"), 1.0, (40.0, 90.0))
     st.calibration.values.update({"trigger_offset": 4e-4, "load_inertia": 1.3})
     st.shares = {"trigger_offset": 0.3, "load_inertia": 0.69}
-    v = diagnose_module._with_alternatives(decide(nominal, [], DiagnosisSettings(), [st]), CATALOGUE)
+    v = decision.with_alternatives(decide(nominal, [], DiagnosisSettings(), [st]), CATALOGUE)
     rows = {r["effect"]: r for r in v.to_dict()["effects"]}
     assert rows["trigger_offset"]["alternatives"] == ["measurement_delay"]
     assert rows["load_inertia"]["alternatives"] == []
@@ -295,7 +294,7 @@ def test_a_set_with_one_member_swapped_that_explains_as_well_makes_a_near_twin()
     two_off = pair(("trigger_offset", "supply_voltage", "sensor_offset"), 1.0, (30.0, 20.0, 8.0))
     smaller = pair(("trigger_offset", "supply_voltage"), 1.0, (30.0, 20.0))
     models = [chosen, swap, far, weak, coarse, two_off, smaller, single("supply_voltage", 1.0, 40.0)]
-    twins = near_twins(chosen, models, lambda m: diagnose_module._explains_as_well(m, s), s.min_delta_bic, CATALOGUE)
+    twins = near_twins(chosen, models, lambda m: decision.explains_as_well(m, s), s.min_delta_bic, CATALOGUE)
     assert list(twins) == ["rotor_resistance_drift"]
     (t,) = twins["rotor_resistance_drift"]
     assert t.effect == "supply_voltage" and t.value == 1.07 and t.unit == CATALOGUE["supply_voltage"].unit
@@ -317,11 +316,9 @@ def test_the_verdict_names_near_twins_apart_from_exact_twins() -> None:
     delay = pair(("measurement_delay", "load_inertia"), 1.0, (40.0, 90.0))  # the exact twin's set fits alike
     s = DiagnosisSettings()
     v = decide(nominal, [], s, [chosen, swap, delay])
-    near = diagnose_module._near_twins(
-        v, choose_model([], [chosen, swap, delay], s), [chosen, swap, delay], s, CATALOGUE
-    )
+    near = decision.model_near_twins(v, choose_model([], [chosen, swap, delay], s), [chosen, swap, delay], s, CATALOGUE)
     assert "trigger_offset" not in near  # the exact twin is an alternative, never a near twin
-    v = diagnose_module._with_alternatives(v, CATALOGUE, near)
+    v = decision.with_alternatives(v, CATALOGUE, near)
     rows = {r["effect"]: r for r in v.to_dict()["effects"]}
     assert (
         rows["trigger_offset"]["alternatives"] == ["measurement_delay"] and rows["trigger_offset"]["near_twins"] == []
@@ -332,7 +329,7 @@ def test_the_verdict_names_near_twins_apart_from_exact_twins() -> None:
     assert "cannot tell load_inertia from resilient_stiffness = 1.5" in v.reason
     # no near twins for a verdict that names nothing
     clean = decide(fake_cal(1.0, k=4), [], s, [])
-    assert diagnose_module._near_twins(clean, choose_model([], [], s), [chosen, swap], s, CATALOGUE) == {}
+    assert decision.model_near_twins(clean, choose_model([], [], s), [chosen, swap], s, CATALOGUE) == {}
 
 
 @pytest.mark.parametrize(("refined_chi2", "triples_expected"), [(1.079, True), (1.0, False)])
@@ -369,10 +366,10 @@ def test_a_first_pair_is_refitted_only_when_the_escalation_moved_a_member() -> N
     same = single("load_inertia", 1.0, 10.0)
     same.calibration.values.clear()
     same.calibration.values.update({"K": 0.00501, "J1": 0.8501, "load_inertia": 1.4003})  # polish-sized changes
-    assert not diagnose_module._moved(before, same)
+    assert not staged_module.left_basin(before, same)
     same.calibration.values["K"] = 0.0056  # another basin
-    assert diagnose_module._moved(before, same)
-    assert diagnose_module._moved({}, same)  # never fitted before
+    assert staged_module.left_basin(before, same)
+    assert staged_module.left_basin({}, same)  # never fitted before
 
 
 def test_a_set_with_the_speed_quantum_fits_its_quantum_by_scans_not_least_squares() -> None:
@@ -784,7 +781,7 @@ def test_a_single_is_refitted_from_a_set_that_fits_with_it_as_its_only_strong_me
     nominal = fake_cal(2726.0, k=3)
     cands = [single("supply_voltage", 692.0, 356.0), single("stator_resistance_drift", 2300.0, 300.0)]
     found = pair(("rotor_resistance_drift", "stator_resistance_drift"), 1.015, strengths)
-    out = staged_module._singles_of_sets(None, nominal, Space(), CATALOGUE, cands, [found], settings)
+    out = staged_module.singles_of_sets(None, nominal, Space(), CATALOGUE, cands, [found], settings)
     if min(strengths) > settings.min_strength:
         assert not seeds_seen and out == sorted(cands, key=lambda c: c.bic)
         return
@@ -823,7 +820,7 @@ def test_seeded_triples_that_explain_spare_the_escalation_of_the_singles(
     stages: list[str] = []
     cands = [single(n, 50.0 + i, 10.0) for i, n in enumerate(("load_inertia", "supply_voltage", "sensor_gain"))]
     settings = DiagnosisSettings()
-    _, sets = staged_module._staged_search(None, fake_cal(100.0, k=3), None, CATALOGUE, cands, settings, stages.append)
+    _, sets = staged_module.staged_search(None, fake_cal(100.0, k=3), None, CATALOGUE, cands, settings, stages.append)
 
     n_report = settings.set_search().n_report
     assert searches[0][0] == 2 and searches[1][:3] == (3, False, 0)  # pairs, then seeded triples only

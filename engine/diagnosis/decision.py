@@ -22,7 +22,18 @@ from engine.diagnosis.settings import DiagnosisSettings
 from engine.diagnosis.space import indistinguishable
 from engine.simulation import EffectLibrary
 
-__all__ = ["choose_model", "decide", "fit_statistic"]
+__all__ = [
+    "choose_model",
+    "decide",
+    "explains",
+    "explains_as_well",
+    "explains_single",
+    "fit_statistic",
+    "fits_noise",
+    "model_near_twins",
+    "reweight",
+    "with_alternatives",
+]
 
 
 def fit_statistic(cal: CalibrationResult) -> tuple[float, float]:
@@ -40,7 +51,7 @@ def _adequacy(cal: CalibrationResult, s: DiagnosisSettings) -> float:
     return float(expit(min(m_total, m_ch)))
 
 
-def _fits_noise(cal: CalibrationResult, s: DiagnosisSettings) -> bool:
+def fits_noise(cal: CalibrationResult, s: DiagnosisSettings) -> bool:
     total, worst = fit_statistic(cal)
     return total <= s.max_reduced_chi2 and worst <= s.max_channel_chi2
 
@@ -115,7 +126,7 @@ def decide(
             if model is not None
             else "no candidate could be fitted"
         )
-        if _fits_noise(nominal, settings):
+        if fits_noise(nominal, settings):
             return Verdict.without_effect(
                 "no_gap",
                 _adequacy(nominal, settings),
@@ -139,8 +150,8 @@ def decide(
     rows, left = _rows(model, nominal)
     strength = _strength(model)
     sure = float(expit((strength - settings.min_strength) / settings.strength_scatter))
-    if _fits_noise(m_cal, settings):
-        if strength <= settings.min_strength and _fits_noise(nominal, settings):
+    if fits_noise(m_cal, settings):
+        if strength <= settings.min_strength and fits_noise(nominal, settings):
             # as without a candidate: nothing beyond the noise, and what the best fit adds is too weak to count
             # (a noiseless record, judged against the noise floor, gets here: its BIC favours any refinement)
             return Verdict.without_effect(
@@ -190,7 +201,7 @@ def decide(
     )
 
 
-def _reweight(nominal: CalibrationResult, cands: Sequence[Candidate], sets: Sequence[CandidateSet]) -> None:
+def reweight(nominal: CalibrationResult, cands: Sequence[Candidate], sets: Sequence[CandidateSet]) -> None:
     """Posterior weights and delta BIC over every model fitted: the nominal one, single effects and sets."""
     models: list[Model] = [*cands, *sets]
     names = [m.effect if isinstance(m, Candidate) else m.name for m in models]
@@ -201,30 +212,30 @@ def _reweight(nominal: CalibrationResult, cands: Sequence[Candidate], sets: Sequ
         m.delta_bic = m.bic - best
 
 
-def _explains(s: CandidateSet, settings: DiagnosisSettings) -> bool:
+def explains(s: CandidateSet, settings: DiagnosisSettings) -> bool:
     """Whether a set fits to the noise with every member strong (no single escalation needed)."""
-    return s.calibration is not None and _fits_noise(s.calibration, settings) and _all_strong(s, settings)
+    return s.calibration is not None and fits_noise(s.calibration, settings) and _all_strong(s, settings)
 
 
-def _explains_single(cands: Sequence[Candidate], settings: DiagnosisSettings) -> bool:
+def explains_single(cands: Sequence[Candidate], settings: DiagnosisSettings) -> bool:
     """Whether the best fitted single candidate fits to the noise."""
     best = next((c for c in cands if c.calibration is not None), None)
-    return best is not None and best.calibration is not None and _fits_noise(best.calibration, settings)
+    return best is not None and best.calibration is not None and fits_noise(best.calibration, settings)
 
 
-def _explains_as_well(m: Model, settings: DiagnosisSettings) -> bool:
+def explains_as_well(m: Model, settings: DiagnosisSettings) -> bool:
     """Whether a model explains the record as a named one must: refined at the final integrator
     step, fits to the noise, every effect strong."""
     cal = m.calibration
     if cal is None or cal.step != settings.candidates.seeded.final_step:
         return False
     if isinstance(m, CandidateSet):
-        return _explains(m, settings)
+        return explains(m, settings)
     strong = m.strength is not None and math.isfinite(m.strength) and m.strength > settings.min_strength
-    return strong and _fits_noise(cal, settings)
+    return strong and fits_noise(cal, settings)
 
 
-def _near_twins(
+def model_near_twins(
     verdict: Verdict,
     model: Model | None,
     models: Sequence[Model],
@@ -234,10 +245,10 @@ def _near_twins(
     """Near twins of the named effects of ``model`` (:mod:`engine.diagnosis.ambiguity`); none unless explained."""
     if model is None or verdict.status != "explained":
         return {}
-    return near_twins(model, models, lambda m: _explains_as_well(m, settings), settings.min_delta_bic, library)
+    return near_twins(model, models, lambda m: explains_as_well(m, settings), settings.min_delta_bic, library)
 
 
-def _with_alternatives(
+def with_alternatives(
     verdict: Verdict, library: EffectLibrary, near: Mapping[str, Sequence[NearTwin]] | None = None
 ) -> Verdict:
     """The verdict with every named effect's indistinguishable twins (``alternatives``), its near twins

@@ -98,16 +98,15 @@ from typing import Any
 
 from engine.diagnosis.calibration import CalibrationResult, calibrate
 from engine.diagnosis.candidates import fit_candidates
-from engine.diagnosis.decision import _explains_as_well as _explains_as_well  # bench/near_twins.py, tests
 from engine.diagnosis.decision import (
-    _explains_single,
-    _fits_noise,
-    _near_twins,
-    _reweight,
-    _with_alternatives,
     choose_model,
     decide,
+    explains_single,
     fit_statistic,
+    fits_noise,
+    model_near_twins,
+    reweight,
+    with_alternatives,
 )
 from engine.diagnosis.gap import gap_of
 from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, localise
@@ -116,8 +115,7 @@ from engine.diagnosis.sets import CandidateSet, search_sets
 from engine.diagnosis.settings import NOMINAL_CALIBRATION as NOMINAL_CALIBRATION
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.diagnosis.space import Bounds, ModelSpace, default_space
-from engine.diagnosis.staged import _moved as _moved  # for tests/test_sets.py
-from engine.diagnosis.staged import _singles_of_sets, _staged_search
+from engine.diagnosis.staged import singles_of_sets, staged_search
 from engine.parallel import single_threaded_blas
 from engine.records import Record
 from engine.simulation import CATALOGUE, EffectLibrary
@@ -250,7 +248,7 @@ def _diagnose(
 
     cs = settings.candidates
     set_settings = settings.set_search()
-    use_sets = set_settings.max_size >= 2 and not _fits_noise(nominal, settings)
+    use_sets = set_settings.max_size >= 2 and not fits_noise(nominal, settings)
     staged = use_sets and set_settings.before_escalation
     progress(0.15, f"fitting {len(library)} candidate effects")
     cands = fit_candidates(
@@ -263,25 +261,25 @@ def _diagnose(
         progress=lambda f, what: progress(0.15 + 0.35 * f, what),
     )
     stage("single candidates" if staged else "single candidates, escalation included")
-    if use_sets and not _explains_single(cands, settings):
+    if use_sets and not explains_single(cands, settings):
         progress(0.55, "no single effect explains the record: searching sets of effects")
     sets: list[CandidateSet] = []
     if staged:
-        cands, sets = _staged_search(record, nominal, space, library, cands, settings, stage)
-    elif use_sets and not _explains_single(cands, settings):
+        cands, sets = staged_search(record, nominal, space, library, cands, settings, stage)
+    elif use_sets and not explains_single(cands, settings):
         sets = search_sets(record, nominal, space, library, cands, cs, set_settings)
         stage("sets of up to three")
     if sets:
-        cands = _singles_of_sets(record, nominal, space, library, cands, sets, settings)
+        cands = singles_of_sets(record, nominal, space, library, cands, sets, settings)
         stage("singles from the sets")
     n_sim += sum(c.calibration.n_simulations for c in cands if c.calibration)
     n_sim += sum(s.calibration.n_simulations for s in sets if s.calibration)
     if sets:
-        _reweight(nominal, cands, sets)
+        reweight(nominal, cands, sets)
     progress(0.85, "deciding the verdict")
     verdict = decide(nominal, cands, settings, sets)
     model = choose_model(cands, sets, settings)  # the model the verdict names, when explained
-    verdict = _with_alternatives(verdict, library, _near_twins(verdict, model, [*cands, *sets], settings, library))
+    verdict = with_alternatives(verdict, library, model_near_twins(verdict, model, [*cands, *sets], settings, library))
     stage("decision")
 
     after = None

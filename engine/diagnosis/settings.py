@@ -23,7 +23,7 @@ NOMINAL_CALIBRATION = CalibrationSettings(
 
 @dataclass(frozen=True)
 class DiagnosisSettings:
-    """Settings of :func:`diagnose`.
+    """Settings of :func:`~engine.diagnosis.diagnose.diagnose`.
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
 """The search of a diagnosis beyond its single candidates: the staged search of sets of effects
-(:func:`_staged_search`) and the singles refitted from a set that fits to the noise with them as its
-only strong member (:func:`_singles_of_sets`)."""
+(:func:`staged_search`) and the singles refitted from a set that fits to the noise with them as its
+only strong member (:func:`singles_of_sets`)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from dataclasses import replace
 from engine.diagnosis.calibration import CalibrationResult, calibrate
 from engine.diagnosis.candidate import Candidate, effect_strength
 from engine.diagnosis.candidates import escalate_candidates, needs_escalation
-from engine.diagnosis.decision import _explains, _explains_single, _fits_noise
+from engine.diagnosis.decision import explains, explains_single, fits_noise
 from engine.diagnosis.sets import CandidateSet, ScreenCache, search_sets
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.diagnosis.space import ModelSpace
@@ -21,14 +21,14 @@ from engine.simulation import EffectLibrary
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["MOVED_REL_TOL"]
+__all__ = ["MOVED_REL_TOL", "left_basin", "singles_of_sets", "staged_search"]
 
 #: A single candidate's fit "moved" during the escalation (so that the pairs built from it are fitted
 #: again) when some value changed by more than this fraction (polishing moves values by ~0.1 %).
 MOVED_REL_TOL: float = 0.01
 
 
-def _moved(before: Mapping[str, Mapping[str, float]], c: Candidate) -> bool:
+def left_basin(before: Mapping[str, Mapping[str, float]], c: Candidate) -> bool:
     """Whether a candidate's fit left its earlier fit's basin (a value changed by more than ``MOVED_REL_TOL``)."""
     old = before.get(c.effect)
     if old is None or c.calibration is None:
@@ -37,7 +37,7 @@ def _moved(before: Mapping[str, Mapping[str, float]], c: Candidate) -> bool:
     return any(not math.isclose(v, old.get(k, math.nan), rel_tol=MOVED_REL_TOL, abs_tol=1e-6) for k, v in new.items())
 
 
-def _singles_of_sets(
+def singles_of_sets(
     record: Record,
     nominal: CalibrationResult,
     space: ModelSpace,
@@ -60,7 +60,7 @@ def _singles_of_sets(
     index = {c.effect: i for i, c in enumerate(out)}
     source: dict[str, CandidateSet] = {}  # per single, the best set it is the only strong member of
     for st in sets:
-        if st.calibration is None or not _fits_noise(st.calibration, settings):
+        if st.calibration is None or not fits_noise(st.calibration, settings):
             continue
         strong = [e for e, v in st.strengths.items() if math.isfinite(v) and v > settings.min_strength]
         if len(strong) == 1 and strong[0] in index and (strong[0] not in source or st.bic < source[strong[0]].bic):
@@ -91,7 +91,7 @@ def _singles_of_sets(
     return sorted(out, key=lambda c: c.bic)
 
 
-def _staged_search(
+def staged_search(
     record: Record,
     nominal: CalibrationResult,
     space: ModelSpace,
@@ -114,7 +114,7 @@ def _staged_search(
     Parameters
     ----------
     record, nominal, space, library
-        As in :func:`diagnose` (``record`` is the test window).
+        As in :func:`~engine.diagnosis.diagnose.diagnose` (``record`` is the test window).
     cands : list of Candidate
         The seeded single candidates (``fit_candidates(..., escalate=False)``).
     settings : DiagnosisSettings
@@ -135,30 +135,30 @@ def _staged_search(
     if ss.n_escalate_first > 0 and needs_escalation(cands, cs):
         cands = escalate_candidates(record, nominal, space, library, cands, ss.escalation(cs, early=True))
         stage("early escalation of the best singles")
-    if _explains_single(cands, settings):
+    if explains_single(cands, settings):
         return cands, sets
     everything = replace(ss, n_report=None)  # every set fitted, for the later stages
     screens: ScreenCache = {}  # the staged searches screen the same best singles
     fitted = search_sets(record, nominal, space, library, cands, cs, replace(everything, max_size=2), (), screens)
     sets = fitted[: ss.n_report]
     stage("first pairs")
-    if ss.first_triples and ss.max_size >= 3 and not any(_explains(s, settings) for s in sets):
+    if ss.first_triples and ss.max_size >= 3 and not any(explains(s, settings) for s in sets):
         seeded_only = replace(everything, escalate=False, n_exchange=0)
         triples = search_sets(record, nominal, space, library, cands, cs, seeded_only, fitted, screens)
         fitted = _merge_sets(fitted, triples)
         sets = fitted[: ss.n_report]
         stage("first triples")
-    if any(_explains(s, settings) for s in sets):
+    if any(explains(s, settings) for s in sets):
         return cands, sets
     seeded = {c.effect: c.calibration.values for c in cands if c.calibration is not None}
     if needs_escalation(cands, cs):
         cands = escalate_candidates(record, nominal, space, library, cands, ss.escalation(cs))
         stage("escalation of the singles")
-    if not _explains_single(cands, settings):
+    if not explains_single(cands, settings):
         # the best sets so far stand as fitted unless the escalation moved a single they came from; the
         # others are fitted again from the escalated singles (keeping every unmoved set lost seed-151
         # case0168: its true triple was found from a pair refitted there, docs/diagnosis.md 8b)
-        moved = {c.effect for c in cands if c.calibration is not None and _moved(seeded, c)}
+        moved = {c.effect for c in cands if c.calibration is not None and left_basin(seeded, c)}
         keep = [s for s in sets if not moved & set(s.effects)]
         again = search_sets(record, nominal, space, library, cands, cs, ss, keep, screens)
         sets = _merge_sets(sets, again)
