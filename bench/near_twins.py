@@ -32,9 +32,9 @@ def main(argv: list[str] | None = None) -> int:
     from engine.diagnosis.ambiguity import near_twins
     from engine.diagnosis.calibration import CalibrationResult
     from engine.diagnosis.candidate import SEEDED_FITS, Candidate
+    from engine.diagnosis.candidate_set import CandidateSet
     from engine.diagnosis.decision import explains_as_well
     from engine.diagnosis.diagnose import DiagnosisSettings
-    from engine.diagnosis.sets import CandidateSet
     from engine.simulation import CATALOGUE
     from engine.validation.layout import RunLayout
 

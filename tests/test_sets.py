@@ -12,8 +12,9 @@ from engine.diagnosis import decision, diagnose
 from engine.diagnosis.ambiguity import near_twins
 from engine.diagnosis.calibration import CalibrationResult
 from engine.diagnosis.candidate import Candidate
+from engine.diagnosis.candidate_set import CandidateSet
 from engine.diagnosis.diagnose import DiagnosisSettings, choose_model, decide
-from engine.diagnosis.sets import CandidateSet, SetSettings, same_physics
+from engine.diagnosis.sets import SetSettings, same_physics
 from engine.records import Record
 from engine.simulation import CATALOGUE, HELD_BACK, EffectLibrary, PlantParameters, simulate
 from engine.simulation.noise import noise_std
@@ -105,7 +106,7 @@ def test_sets_given_as_previous_are_kept_and_not_fitted_again(monkeypatch: pytes
         fitted.append(tuple(sorted(m.name for m in members)))
 
     monkeypatch.setattr(sets_module, "_fit_set", fake_fit)
-    monkeypatch.setattr(sets_module, "_strengths", lambda *a, **k: {})
+    monkeypatch.setattr(sets_module, "member_strengths", lambda *a, **k: {})
     monkeypatch.setattr(sets_module, "gap_budget", lambda *a, **k: ({}, 0.0))
     names = ("load_inertia", "motor_coulomb_friction", "supply_voltage")
     singles = [single(n, 50.0, 10.0) for n in names]
@@ -350,7 +351,7 @@ def test_a_refined_pair_just_above_the_threshold_goes_on_to_the_triples(
 
     monkeypatch.setattr(sets_module, "_fit_set", fake_fit)
     monkeypatch.setattr(
-        sets_module, "_strengths", lambda record, cal, space, members, noise: {m.name: 10.0 for m in members}
+        sets_module, "member_strengths", lambda record, cal, space, members, noise: {m.name: 10.0 for m in members}
     )
     monkeypatch.setattr(sets_module, "gap_budget", lambda *a, **k: ({}, 0.0))
     singles = [single(n, 50.0 + i, 10.0) for i, n in enumerate(("load_inertia", "supply_voltage", "sensor_gain"))]
@@ -419,7 +420,7 @@ def test_the_set_search_tries_a_quantum_the_lattice_shows_even_when_the_screen_r
 
     monkeypatch.setattr(sets_module, "_fit_set", fake_fit)
     monkeypatch.setattr(sets_module, "rank_additions", screen_without_quantum)
-    monkeypatch.setattr(sets_module, "_strengths", lambda record, cal, space, members, noise: {})
+    monkeypatch.setattr(sets_module, "member_strengths", lambda record, cal, space, members, noise: {})
     monkeypatch.setattr(sets_module, "gap_budget", lambda *a, **k: ({}, 0.0))
     names = [n for n in CATALOGUE if n not in ("speed_quantization", "motor_coulomb_friction")]
     singles = [single("motor_coulomb_friction", 20.0, 10.0)]
@@ -457,7 +458,7 @@ def fake_set_fits(monkeypatch: pytest.MonkeyPatch, chi2n_of, refined_of=None, po
         return cal
 
     monkeypatch.setattr(sets_module, "_fit_set", fake_fit)
-    monkeypatch.setattr(sets_module, "_strengths", lambda record, cal, space, members, noise: {})
+    monkeypatch.setattr(sets_module, "member_strengths", lambda record, cal, space, members, noise: {})
     monkeypatch.setattr(sets_module, "gap_budget", lambda *a, **k: ({}, 0.0))
     return sets_module, cs, fitted
 

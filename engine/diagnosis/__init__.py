@@ -13,6 +13,9 @@ Modules, one idea each:
 * :mod:`~engine.diagnosis.candidate`: one candidate effect's joint fit and evidence;
 * :mod:`~engine.diagnosis.quantisation`: the speed quantum's dense-scan fit;
 * :mod:`~engine.diagnosis.candidates`: fitting and ranking every candidate;
+* :mod:`~engine.diagnosis.sets`: sets of up to three effects fitted together (the set type in
+  :mod:`~engine.diagnosis.candidate_set`; each member's share of the gap and strength in
+  :mod:`~engine.diagnosis.budget`);
 * :mod:`~engine.diagnosis.diagnose`: the diagnosis in order (its settings in
   :mod:`~engine.diagnosis.settings`, the staged search of sets in :mod:`~engine.diagnosis.staged`,
   the decision rule in :mod:`~engine.diagnosis.decision`, verdict and result in

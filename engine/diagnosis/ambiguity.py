@@ -41,7 +41,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from engine.diagnosis.candidate import Candidate
-from engine.diagnosis.sets import CandidateSet
+from engine.diagnosis.candidate_set import CandidateSet
 from engine.diagnosis.space import indistinguishable
 from engine.simulation import EffectLibrary
 

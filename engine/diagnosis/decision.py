@@ -15,9 +15,9 @@ from scipy.special import expit
 from engine.diagnosis.ambiguity import Model, NearTwin, near_twins
 from engine.diagnosis.calibration import CalibrationResult
 from engine.diagnosis.candidate import Candidate, posterior_weights
+from engine.diagnosis.candidate_set import CandidateSet
 from engine.diagnosis.gap import closed_fraction
 from engine.diagnosis.result import Verdict
-from engine.diagnosis.sets import CandidateSet
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.diagnosis.space import indistinguishable
 from engine.simulation import EffectLibrary

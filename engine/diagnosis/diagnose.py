@@ -97,6 +97,7 @@ from dataclasses import replace
 from typing import Any
 
 from engine.diagnosis.calibration import CalibrationResult, calibrate
+from engine.diagnosis.candidate_set import CandidateSet
 from engine.diagnosis.candidates import fit_candidates
 from engine.diagnosis.decision import (
     choose_model,
@@ -111,7 +112,7 @@ from engine.diagnosis.decision import (
 from engine.diagnosis.gap import gap_of
 from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, localise
 from engine.diagnosis.result import DiagnosisResult, Verdict
-from engine.diagnosis.sets import CandidateSet, search_sets
+from engine.diagnosis.sets import search_sets
 from engine.diagnosis.settings import NOMINAL_CALIBRATION as NOMINAL_CALIBRATION
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.diagnosis.space import Bounds, ModelSpace, default_space

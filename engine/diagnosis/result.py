@@ -9,9 +9,9 @@ from typing import Any
 
 from engine.diagnosis.calibration import CalibrationResult
 from engine.diagnosis.candidate import Candidate
+from engine.diagnosis.candidate_set import CandidateSet
 from engine.diagnosis.gap import Gap
 from engine.diagnosis.localisation import Cell
-from engine.diagnosis.sets import CandidateSet
 from engine.diagnosis.space import ALIGNMENT
 from engine.records import Record, WindowUse
 

@@ -62,16 +62,8 @@ added effect must lower chi2 by more than ln(n) (about 9 for five channels) to
 pay for its parameter, and the decision (:func:`engine.diagnosis.diagnose.decide`)
 asks a larger set to beat the best smaller model by ``min_delta_bic``.
 
-Gap budget (:func:`gap_budget`)
--------------------------------
-How much of the nominal model's excess residual energy ``E0 = chi2_0 - n``
-[noise variances] each effect of a fit removes, and what is left: the fit
-closes ``E0 - E_S`` (``E_S = max(chi2_S - n, 0)``), and that is split among
-its effects in proportion to their Shapley values of the game
-``v(T) = chi2(fit with only the effects in T) - chi2(fit with all)``
-evaluated at the fit's operating point without refitting (``2^k``
-simulations): an order-free attribution that credits interacting effects
-fairly. Shares and ``left = E_S / E0`` sum to 1.
+The gap budget of a fit (:func:`~engine.diagnosis.budget.gap_budget`) and each member's strength
+are in :mod:`engine.diagnosis.budget`; the set type in :mod:`engine.diagnosis.candidate_set`.
 """
 
 from __future__ import annotations
@@ -81,15 +73,15 @@ import logging
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from engine.constants import CHANNELS
+from engine.diagnosis.budget import gap_budget, member_strengths
 from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings, calibrate
-from engine.diagnosis.candidate import Candidate, CandidateSettings, strength_noise
-from engine.diagnosis.gap import Gap, gap_of, shrinkage_ratio
+from engine.diagnosis.candidate import Candidate, CandidateSettings
+from engine.diagnosis.candidate_set import CandidateSet
 from engine.diagnosis.noise import NoiseModel, noise_weights
 from engine.diagnosis.objective import Objective
 from engine.diagnosis.quantisation import fit_quantisation, is_speed_quantum, record_lattice
@@ -97,11 +89,11 @@ from engine.diagnosis.screening import rank_additions
 from engine.diagnosis.space import TIME_SHIFT_EFFECTS, ModelSpace, scan_grid
 from engine.parallel import Runner, single_threaded_blas
 from engine.records import Record
-from engine.simulation import Case, Effect, EffectLibrary, SolverSettings, run_cases, serial_kernel
+from engine.simulation import Effect, EffectLibrary, SolverSettings, serial_kernel
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["CandidateSet", "ScreenCache", "SetSettings", "gap_budget", "same_physics", "search_sets"]
+__all__ = ["ScreenCache", "SetSettings", "same_physics", "search_sets"]
 
 #: The profiled screens of one diagnosis: ``(group, additions, the group's fit values, n_forward)`` ->
 #: the additions to fit beside the group, best first (:func:`search_sets`, ``screens``).
@@ -247,244 +239,11 @@ class SetSettings:
         return replace(candidates, n_escalate=cap if own is None else min(cap, own))
 
 
-@dataclass
-class CandidateSet:
-    """A set of effects fitted together with the calibration.
-
-    Attributes
-    ----------
-    effects : tuple of str
-        Effect names, in the order fitted.
-    calibration : CalibrationResult or None
-        The joint fit.
-    units : dict of str to str
-        Unit of each effect's value.
-    loci : dict of str to str
-        Locus of each effect.
-    bic : float
-        Bayesian information criterion of the fit.
-    gap : Gap or None
-        The gap left by the fit.
-    shrinkage : float
-        Excess energy of the nominal fit over that of this fit.
-    strengths : dict of str to float
-        Per effect: the largest channel RMS change when that effect alone is set to neutral
-        at the fit's operating point [noise standard deviations].
-    shares : dict of str to float
-        Gap budget: fraction of the nominal excess energy each effect removes (see module notes).
-    left : float
-        Fraction of the nominal excess energy left by the fit.
-    delta_bic : float
-        BIC minus the best model's BIC.
-    weight : float
-        Posterior probability among every model fitted (nominal, singles, sets).
-    note : str
-        Remarks (e.g. why it was not refined).
-    searched : bool
-        Whether its joint space has had the global search (the escalation), so that a later
-        search that reuses it does not pay for it again.
-    """
-
-    effects: tuple[str, ...]
-    calibration: CalibrationResult | None
-    units: dict[str, str]
-    loci: dict[str, str]
-    bic: float
-    gap: Gap | None = None
-    shrinkage: float = 1.0
-    strengths: dict[str, float] = field(default_factory=dict)
-    shares: dict[str, float] = field(default_factory=dict)
-    left: float = math.nan
-    delta_bic: float = 0.0
-    weight: float = 0.0
-    note: str = ""
-    searched: bool = False
-
-    @property
-    def name(self) -> str:
-        """The effects joined by ``+``."""
-        return "+".join(self.effects)
-
-    @property
-    def values(self) -> dict[str, float]:
-        """Fitted value of every effect, in its unit."""
-        cal = self.calibration
-        return {e: cal.values[e] for e in self.effects} if cal is not None else {}
-
-    @property
-    def uncertainties(self) -> dict[str, float | None]:
-        """One standard deviation of every effect's value."""
-        cal = self.calibration
-        return {e: cal.uncertainties.get(e) for e in self.effects} if cal is not None else {}
-
-    @property
-    def strength(self) -> float:
-        """The weakest member's strength (a set is only as credible as its weakest effect)."""
-        return min(self.strengths.values()) if self.strengths else math.nan
-
-    @classmethod
-    def from_fit(cls, effects: Sequence[Effect], cal: CalibrationResult, nominal: CalibrationResult) -> CandidateSet:
-        """The set of a joint fit ``cal`` of ``effects``, compared with the ``nominal`` calibration."""
-        return cls(
-            effects=tuple(e.name for e in effects),
-            calibration=cal,
-            units={e.name: e.unit for e in effects},
-            loci={e.name: e.locus for e in effects},
-            bic=cal.bic,
-            gap=gap_of(cal),
-            shrinkage=shrinkage_ratio(nominal, cal),
-        )
-
-    def effect_rows(self) -> list[dict[str, Any]]:
-        """One row per effect, ``{"effect", "value", "uncertainty", "unit", "locus", "share", "strength"}``,
-        largest share first."""
-        rows = [
-            {
-                "effect": e,
-                "value": self.values.get(e),
-                "uncertainty": self.uncertainties.get(e),
-                "unit": self.units[e],
-                "locus": self.loci[e],
-                "share": self.shares.get(e),
-                "strength": self.strengths.get(e),
-            }
-            for e in self.effects
-        ]
-        return sorted(rows, key=lambda r: -(r["share"] if r["share"] is not None else -math.inf))
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary (the calibration without arrays)."""
-        return {
-            "kind": "set",
-            "effect": self.name,
-            "effects": self.effect_rows(),
-            "bic": self.bic if math.isfinite(self.bic) else None,
-            "delta_bic": self.delta_bic if math.isfinite(self.delta_bic) else None,
-            "weight": self.weight,
-            "gap_after": self.gap.to_dict() if self.gap else None,
-            "shrinkage": self.shrinkage,
-            "left": self.left if math.isfinite(self.left) else None,
-            "calibration": self.calibration.to_dict() if self.calibration else None,
-            "note": self.note,
-        }
-
-
 def same_physics(a: Effect, b: Effect) -> bool:
     """Whether two effects cannot be told apart in one set (both pure time shifts, or the same field)."""
     if a.name in TIME_SHIFT_EFFECTS and b.name in TIME_SHIFT_EFFECTS:
         return True
     return a.target == b.target and a.field == b.field
-
-
-def _case_with(space: ModelSpace, values: Mapping[str, float], effects: Sequence[Effect]) -> Case:
-    """The case of ``space``'s plant parameters at ``values`` with only ``effects`` applied."""
-    plain = {k: v for k, v in values.items() if k in space.names}
-    case = space.case(space.unit(plain))
-    for e in effects:
-        case = e.apply(case, values[e.name])
-    return case
-
-
-def _chi2_of_cases(record: Record, cases: Sequence[Case], sigma: Mapping[str, float], step: float) -> np.ndarray:
-    """chi2 [noise variances] of each case on the record (inf where it cannot be simulated)."""
-    rows = [CHANNELS.index(n) for n in record.channels]
-    data = np.stack([record.channels[n] for n in record.channels])
-    sig = np.array([sigma[n] for n in record.channels])
-    ch, _, status = run_cases(list(cases), SolverSettings(max_step=step), record.grid)
-    r = (ch[:, rows] - data[None]) / sig[None, :, None]
-    out = np.sum(r**2, axis=(1, 2))
-    out[status != 0] = np.inf
-    return out
-
-
-def _strengths(
-    record: Record, cal: CalibrationResult, space: ModelSpace, effects: Sequence[Effect], noise: Mapping[str, float]
-) -> dict[str, float]:
-    """Per effect: the largest channel RMS change (noise sigmas, :func:`~engine.diagnosis.candidate.strength_noise`)
-    when it alone is set back to none."""
-    if cal.simulation is None:
-        return {e.name: math.nan for e in effects}
-    sigma = strength_noise(record, cal, noise)
-    cases = [_case_with(space, cal.values, [f for f in effects if f.name != e.name]) for e in effects]
-    ch, _, status = run_cases(cases, SolverSettings(max_step=cal.step), record.grid)
-    out = {}
-    for i, e in enumerate(effects):
-        if status[i] != 0:
-            out[e.name] = math.nan
-            continue
-        worst = 0.0
-        for name in record.channels:
-            j = CHANNELS.index(name)
-            rms = float(np.sqrt(np.mean((cal.simulation[j] - ch[i, j]) ** 2)))
-            worst = max(worst, rms / max(sigma[name], 1e-300))
-        out[e.name] = worst
-    return out
-
-
-def gap_budget(
-    record: Record,
-    cal: CalibrationResult,
-    space: ModelSpace,
-    effects: Sequence[Effect],
-    nominal: CalibrationResult,
-) -> tuple[dict[str, float], float]:
-    """Share of the nominal excess residual energy each effect of a fit removes, and what is left.
-
-    Parameters
-    ----------
-    record : Record
-        The record's test window (the grid calibrated on).
-    cal : CalibrationResult
-        The joint fit of ``effects``.
-    space : ModelSpace
-        The nominal model space (its plant parameters are read from ``cal``).
-    effects : sequence of Effect
-        The fitted effects.
-    nominal : CalibrationResult
-        The nominal calibration (its excess energy is the whole gap).
-
-    Returns
-    -------
-    shares : dict of str to float
-        Per effect, the fraction [-] of the nominal excess energy it removes.
-    left : float
-        The fraction left by the fit [-]; ``sum(shares) + left == 1``.
-
-    Notes
-    -----
-    See the module notes: the closed part ``E0 - E_S`` is split by the Shapley values of
-    ``v(T)``, evaluated with ``2^k`` simulations at the fit's operating point.
-    """
-    n = cal.n_data
-    e0 = max(nominal.chi2 - nominal.n_data, 0.0)
-    e_s = max(cal.chi2 - n, 0.0)
-    if e0 <= 0.0:
-        return {e.name: 0.0 for e in effects}, 1.0
-    closed = max(min(e0 - e_s, e0), 0.0)
-    left = 1.0 - closed / e0
-    k = len(effects)
-    if k == 1:
-        return {effects[0].name: closed / e0}, left
-    subsets = [s for r in range(k + 1) for s in itertools.combinations(range(k), r)]
-    cases = [_case_with(space, cal.values, [effects[i] for i in s]) for s in subsets]
-    chi2 = dict(zip(subsets, _chi2_of_cases(record, cases, cal.sigma, cal.step), strict=True))
-    full = chi2[tuple(range(k))]
-    # v(T): how much of the chi2 of "no effect" the effects in T remove (at the fit's operating point)
-    v = {s: chi2[()] - chi2[s] for s in subsets}
-    phi = np.zeros(k)
-    for i in range(k):
-        for s in subsets:
-            if i in s:
-                continue
-            with_i = tuple(sorted((*s, i)))
-            w = math.factorial(len(s)) * math.factorial(k - len(s) - 1) / math.factorial(k)
-            phi[i] += w * (v[with_i] - v[s])
-    if not np.all(np.isfinite(phi)) or not math.isfinite(full) or phi.clip(min=0).sum() <= 0:
-        logger.warning("gap budget: the effects' contributions could not be evaluated; split evenly")
-        phi = np.ones(k)
-    phi = phi.clip(min=0)
-    shares = phi / phi.sum() * (closed / e0)
-    return {e.name: float(s) for e, s in zip(effects, shares, strict=True)}, left
 
 
 def _seeds(
@@ -878,7 +637,7 @@ def _search(
         for g in groups:
             st, cal = sets[g], fits[g]
             members = [effects[n] for n in g]
-            st.strengths = _strengths(record, cal, space, members, nominal.sigma)  # the floored noise of the fit
+            st.strengths = member_strengths(record, cal, space, members, nominal.sigma)  # the floored noise of the fit
             st.shares, st.left = gap_budget(record, cal, space, members, nominal)
 
     def _swap(best: tuple[str, ...] | None) -> None:

@@ -11,9 +11,10 @@ from dataclasses import replace
 
 from engine.diagnosis.calibration import CalibrationResult, calibrate
 from engine.diagnosis.candidate import Candidate, effect_strength
+from engine.diagnosis.candidate_set import CandidateSet
 from engine.diagnosis.candidates import escalate_candidates, needs_escalation
 from engine.diagnosis.decision import explains, explains_single, fits_noise
-from engine.diagnosis.sets import CandidateSet, ScreenCache, search_sets
+from engine.diagnosis.sets import ScreenCache, search_sets
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.diagnosis.space import ModelSpace
 from engine.records import Record
