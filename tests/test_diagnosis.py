@@ -17,7 +17,7 @@ from engine.diagnosis.validation import (
     AnswerEntry,
     generate_cases,
     run_validation,
-    same_physics,
+    same_physics_names,
     score,
     write_cases,
 )
@@ -158,7 +158,7 @@ def test_a_left_out_effect_takes_its_same_physics_twin_out_of_the_library():
     names = set(CATALOGUE)
     assert {"measurement_delay", "trigger_offset"} <= {k.effect for k in key}  # a round covers the catalogue
     for c, k in zip(cases, key, strict=True):
-        twins = {n for n in names if same_physics(n, str(k.effect))}
+        twins = {n for n in names if same_physics_names(n, str(k.effect))}
         assert set(c.library) == names - twins
         assert len(twins) == (2 if k.effect in ("measurement_delay", "trigger_offset") else 1)
 
@@ -182,7 +182,9 @@ def test_scorer_takes_a_same_physics_twin_for_the_effect(tmp_path):
         (tmp_path / "results" / f"{cid}.json").write_text(json.dumps(res))
     rep = score(tmp_path)
     assert rep.top1 == 0.5 and rep.top2 == 0.5 and rep.rank1 == 0.5
-    assert same_physics("trigger_offset", "measurement_delay") and not same_physics("trigger_offset", "sensor_gain")
+    assert same_physics_names("trigger_offset", "measurement_delay") and not same_physics_names(
+        "trigger_offset", "sensor_gain"
+    )
 
 
 def test_scorer_counts_what_it_should(tmp_path):

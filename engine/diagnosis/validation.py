@@ -80,7 +80,7 @@ __all__ = [
     "diagnose_cases",
     "generate_cases",
     "run_validation",
-    "same_physics",
+    "same_physics_names",
     "score",
     "write_cases",
 ]
@@ -157,7 +157,7 @@ class AnswerEntry:
     expected_effect: str | None
 
 
-def same_physics(a: str, b: str) -> bool:
+def same_physics_names(a: str, b: str) -> bool:
     """Whether two effect names are one effect or one :data:`SAME_PHYSICS` group."""
     return a == b or any(a in g and b in g for g in SAME_PHYSICS)
 
@@ -235,7 +235,9 @@ def generate_cases(
             rec.event_index,
             conditions={"c1": PlantParameters().c1},
         )
-        lib = tuple(n for n in names if not (kind == "left_out" and effect is not None and same_physics(n, effect)))
+        lib = tuple(
+            n for n in names if not (kind == "left_out" and effect is not None and same_physics_names(n, effect))
+        )
         cases.append(BlindCase(cid, record, lib))
         if not counted:
             exp_status, exp_effect = "no_gap", None
@@ -464,9 +466,11 @@ def score(out_dir: str | Path, library: EffectLibrary = CATALOGUE) -> Validation
         secs.append(res.get("wall_seconds", math.nan))
         if k.expected_status == "explained":
             # the first of the ranking that is the true effect or its same-physics twin
-            r = next((i + 1 for i, n in enumerate(ranking) if same_physics(n, str(k.effect))), None)
+            r = next((i + 1 for i, n in enumerate(ranking) if same_physics_names(n, str(k.effect))), None)
             top1.append(
-                v["status"] == "explained" and v["effect"] is not None and same_physics(v["effect"], str(k.effect))
+                v["status"] == "explained"
+                and v["effect"] is not None
+                and same_physics_names(v["effect"], str(k.effect))
             )
             top2.append(r is not None and r <= 2)
             rank1.append(r == 1)

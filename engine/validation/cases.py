@@ -46,6 +46,7 @@ import numpy as np
 from engine.constants import CHANNELS
 from engine.diagnosis.calibration import CalibrationError, CalibrationSettings, calibrate
 from engine.diagnosis.space import LOG_SCALED_EFFECTS, default_space
+from engine.diagnosis.validation import same_physics_names
 from engine.records import PROTOCOL_GRID, Record
 from engine.simulation import Case, Effect, EffectLibrary, ParameterError, PlantParameters, SimulationError
 from engine.simulation import simulate_batch as _simulate_batch
@@ -66,7 +67,6 @@ from engine.validation.protocol import (
     OPERATING_BOX,
     REFIT_FD_STEP,
     REFIT_NFEV,
-    SAME_PHYSICS,
     SNR_RANGE_DB,
     STRENGTH_THRESHOLD,
     SUBSET_SHARE,
@@ -124,10 +124,9 @@ def case_counts(n_cases: int, mix: Mapping[str, float] | None = None) -> dict[st
 
 
 def same_physics(a: Effect, b: Effect) -> bool:
-    """Whether two effects are the same physics on a record (same field, or one :data:`SAME_PHYSICS` group)."""
-    if (a.target, a.field) == (b.target, b.field):
-        return True
-    return any(a.name in g and b.name in g for g in SAME_PHYSICS)
+    """Whether two effects are the same physics on a record (same field, or one
+    :data:`~engine.validation.protocol.SAME_PHYSICS` group, :func:`~engine.diagnosis.validation.same_physics_names`)."""
+    return (a.target, a.field) == (b.target, b.field) or same_physics_names(a.name, b.name)
 
 
 def admissible_sets(library: EffectLibrary, size: int) -> list[tuple[str, ...]]:
