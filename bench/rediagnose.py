@@ -22,7 +22,8 @@ a directory that holds no cases yet gets the run's cases drawn first (no diagnos
 ``--sets`` updates the default :class:`~engine.diagnosis.sets.SetSettings` of the diagnosis
 (e.g. ``--sets '{"n_escalate_first": 0}'`` for the order before the early escalation), and
 ``--candidates`` its :class:`~engine.diagnosis.candidate.CandidateSettings` (e.g.
-``--candidates '{"reseed_seed_fits": null}'`` refines every seed of the pass-1b refits).
+``--candidates '{"reseed_seed_fits": null}'`` refines every seed of the pass-1b refits); a dict for a
+field that is itself settings updates that field (``--candidates '{"seeded": {"max_nfev": 20}}'``).
 
 One JSON line per case on stdout (with where its time went: ``stages``, wall seconds per stage of
 the work); the diagnosis's log on stderr (``--log-level``).
@@ -35,8 +36,20 @@ import json
 import logging
 import sys
 import time
+from typing import Any
 
 from _runs import add_run_arguments, chosen_entries, run_library
+
+
+def _updated(settings: Any, changes: dict[str, Any]) -> Any:
+    """``settings`` (a dataclass) with ``changes``; a dict given for a dataclass field updates that field."""
+    from dataclasses import is_dataclass, replace
+
+    fields = {}
+    for name, value in changes.items():
+        old = getattr(settings, name)
+        fields[name] = _updated(old, value) if is_dataclass(old) and isinstance(value, dict) else value
+    return replace(settings, **fields)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -59,11 +72,11 @@ def main(argv: list[str] | None = None) -> int:
 
     ds = DiagnosisSettings()
     try:
-        settings = replace(ds, sets=replace(ds.sets, **json.loads(args.sets)))
+        settings = replace(ds, sets=_updated(ds.sets, json.loads(args.sets)))
     except (TypeError, ValueError) as e:
         ap.error(f"--sets: {e}")
     try:
-        settings = replace(settings, candidates=replace(ds.candidates, **json.loads(args.candidates)))
+        settings = replace(settings, candidates=_updated(ds.candidates, json.loads(args.candidates)))
     except (TypeError, ValueError) as e:
         ap.error(f"--candidates: {e}")
     if bool(args.ids) == bool(args.kind):
