@@ -16,7 +16,9 @@ a seed draws the same records under the revision of 2026-11-26). Example, from a
     python bench/set_correlation.py /tmp/v193/results --seed 193 --cases 200 \\
         case0004,case0034,case0057,case0069,case0091,case0161,case0176
 
-One JSON line per case on stdout: the members, chi2/n of the stored fit recomputed, the
+A case whose drawn record does not reproduce the stored fit's chi2/n (wrong seed, case count or
+results) or whose fit used a coloured noise model is refused with a message. One JSON line per
+case on stdout: the members, chi2/n of the stored fit recomputed, the
 correlations between members, and each member's largest correlation with any parameter (K, J1,
 c included). Seconds per case (one Jacobian, central differences).
 """
@@ -28,6 +30,15 @@ import json
 import logging
 import sys
 from pathlib import Path
+
+#: Largest relative difference between the stored fit's chi2/n and the one recomputed on the drawn
+#: record (the same simulation at the same step: they agree to rounding when the record is the same).
+CHI2N_REL_TOL = 1e-3
+
+
+def cal_model(candidate: dict) -> dict[str, dict]:
+    """The stored fit's noise model per channel (``{"colour": ...}``; empty when not stored)."""
+    return dict(candidate["calibration"].get("noise_model") or {})
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -60,6 +71,9 @@ def main(argv: list[str] | None = None) -> int:
         if best.get("calibration") is None:
             print(json.dumps({"case": cid, "skipped": "the best candidate has no fit"}), flush=True)
             continue
+        coloured = sorted(n for n, m in cal_model(best).items() if m.get("colour", "white") != "white")
+        if coloured:  # protocol 1's noise is white; a coloured model would be read as white here
+            ap.error(f"{cid}: the stored fit has a coloured noise model on {', '.join(coloured)}; only white is read")
         members = [e["effect"] for e in best["effects"]] if best.get("effects") else [best["effect"]]
         record, _ = cases[cid].record.test_window()
         space = default_space(record).with_effects([CATALOGUE[m] for m in members])
@@ -69,12 +83,18 @@ def main(argv: list[str] | None = None) -> int:
         solver = SolverSettings(max_step=cal["step"])
         r0 = obj.residuals(u[None], record.n_samples, solver)[0]
         J = obj.jacobian(u, record.n_samples, solver, args.rel_step, r0, central=True)
+        chi2n, stored = float(r0 @ r0) / r0.size, best["calibration"]["reduced_chi2"]
+        if abs(chi2n - stored) > CHI2N_REL_TOL * stored:  # the drawn record is not the one diagnosed
+            ap.error(
+                f"{cid}: the record drawn from --seed {args.seed} --cases {args.cases} gives chi2/n {chi2n:.4g} "
+                f"at the stored fit, not the stored {stored:.4g}: wrong seed, case count or results directory?"
+            )
         C = correlation(unit_covariance(J))
         idx = [space.names.index(m) for m in members]
         row = {
             "case": cid,
             "members": members,
-            "chi2n": round(float(r0 @ r0) / r0.size, 3),
+            "chi2n": round(chi2n, 3),
             "corr": {
                 f"{space.names[i]}~{space.names[j]}": round(float(C[i, j]), 3)
                 for a, i in enumerate(idx)
