@@ -272,3 +272,34 @@ def test_a_seed_cap_below_one_is_refused(clean):
     seeds = [{"K": TRUTH.K, "J1": TRUTH.J1, "c": TRUTH.c}, {"K": 0.012, "J1": 0.65, "c": 0.6}]
     with pytest.raises(ValueError, match="n_seed_fits must be at least 1"):
         calibrate(rec, default_space(rec), CalibrationSettings(n_global=0, n_seed_fits=0), seeds=seeds)
+
+
+def test_the_objective_simulates_only_as_far_as_its_horizon(clean, monkeypatch):
+    """A chi2 on the first samples renders only those (the same values as the whole record's);
+    a cached simulation serves shorter horizons and is run again for a longer one."""
+    from engine.diagnosis import objective as obj_module
+    from engine.diagnosis.noise import noise_weights
+    from engine.diagnosis.objective import Objective
+    from engine.simulation import SolverSettings
+
+    rec, _ = noisy(clean, 40.0, seed=5)
+    space = default_space(rec)
+    obj = Objective(rec, space, noise_weights(rec, estimate_noise(rec)))
+    rendered: list[int | None] = []
+    real = obj_module.run_cases
+
+    def counted(cases, solver, grid, first=None):
+        rendered.append(first)
+        return real(cases, solver, grid, first=first)
+
+    monkeypatch.setattr(obj_module, "run_cases", counted)
+    solver = SolverSettings(max_step=5e-5)
+    u = space.unit({"K": TRUTH.K, "J1": TRUTH.J1, "c": TRUTH.c, "c1": 0.2})
+    h = EVENT_INDEX + 200
+    early = obj.chi2(u[None], [h], solver)[0, 0]
+    whole = Objective(rec, space, noise_weights(rec, estimate_noise(rec))).chi2(u[None], [h, rec.n_samples], solver)[0]
+    assert early == whole[0] and whole[1] > early  # the early chi2 is the whole record's chi2 over its first samples
+    assert rendered == [h, rec.n_samples]
+    assert obj.chi2(u[None], [h // 2], solver)[0, 0] < early and rendered == [h, rec.n_samples]  # served by the cache
+    obj.chi2(u[None], [rec.n_samples], solver)
+    assert rendered == [h, rec.n_samples, rec.n_samples] and obj.n_simulations == 2

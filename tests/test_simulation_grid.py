@@ -284,3 +284,33 @@ def test_the_largest_negative_shift_renders():
     plain, _, _ = run_cases([Case(NOMINAL)], grid=SampleGrid(1e-3, 210, 0))
     assert status[0] == kern.OK
     np.testing.assert_allclose(ch[0], plain[0][:, 5:], rtol=0, atol=1e-9 * np.ptp(plain[0], axis=1).max())
+
+
+# -- rendering the first samples only ------------------------------------------------------------
+@pytest.mark.parametrize(
+    "sensors",
+    [
+        SensorParameters(),
+        SensorParameters(delay=3e-4, lowpass_hz=800.0),
+        SensorParameters(trigger_offset=-1.5e-3, gain=1.1, speed_quantum=0.05),
+        SensorParameters(offset_rms=0.12),  # its RMS needs the whole test window: rendered whole, then cut
+    ],
+    ids=["plain", "delay-lowpass", "trigger-gain-quantum", "offset"],
+)
+@pytest.mark.parametrize("grid", [PROTOCOL_GRID, SampleGrid.around_event(2e-4, 0.01, 0.3)], ids=str)
+def test_the_first_samples_alone_are_those_of_the_whole_record(sensors, grid):
+    cases = [Case(PLANTS[0], sensors), Case(PLANTS[1])]
+    whole, t_e, status = run_cases(cases, grid=grid)
+    assert status.tolist() == [kern.OK, kern.OK]
+    for first in (1, grid.event_index, grid.event_index + 7, grid.n_samples // 3, grid.n_samples):
+        part, t_e2, status2 = run_cases(cases, grid=grid, first=first)
+        assert part.shape == (2, len(CHANNELS), first)
+        np.testing.assert_array_equal(part, whole[:, :, :first])  # bit for bit
+        np.testing.assert_array_equal(t_e2, t_e)
+        assert status2.tolist() == status.tolist()
+
+
+@pytest.mark.parametrize("first", [0, -3, N_SAMPLES + 1, 10.5])
+def test_a_first_sample_count_outside_the_grid_is_refused(first):
+    with pytest.raises(ValueError, match="first must be a sample count from 1 to 2048"):
+        run_cases([Case(NOMINAL)], first=first)

@@ -277,12 +277,23 @@ def apply_sensor_readout(channels: np.ndarray, cases: Sequence[Case], grid: Samp
 
 
 def run_cases(
-    cases: Sequence[Case], solver: SolverSettings = DEFAULT_SOLVER, grid: SampleGrid = PROTOCOL_GRID
+    cases: Sequence[Case],
+    solver: SolverSettings = DEFAULT_SOLVER,
+    grid: SampleGrid = PROTOCOL_GRID,
+    first: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Simulate validated cases without raising: (channels, event_times, status).
 
     For search loops (calibration) that prefer an infinite cost to an
     exception; ``status`` holds the kernel's codes (0 is success).
+
+    With ``first``, only the grid's first samples are rendered: the kernel stops integrating
+    after the last of them, so a fit on the early part of a record pays only for that part. The
+    samples are bit for bit those of the whole grid, because the kernel integrates sample
+    instant after sample instant and every step of the readout but one is per sample; that one,
+    a sensor offset (its RMS is taken over the whole test window), makes its batch render the
+    whole grid and cut it. Only the rendered samples decide a divergence: a case that would turn
+    non-finite after them is a success here.
 
     Parameters
     ----------
@@ -293,20 +304,34 @@ def run_cases(
         steps of at most ``solver.max_step`` [s].
     grid : SampleGrid
         Sample instants of the records (default: MODEL.md's grid).
+    first : int, optional
+        Render only the first ``first`` samples of ``grid`` (1 to ``grid.n_samples``; None: all).
 
     Returns
     -------
-    channels : ndarray, shape (n_cases, 5, grid.n_samples)
+    channels : ndarray, shape (n_cases, 5, first or grid.n_samples)
         a1 [m/s^2], m_el [pu], omega1 [rad/s], a2 [m/s^2], v2 [m/s], after the whole sensor chain.
     event_times : ndarray, shape (n_cases,)
         t_e [s] since switch-on (NaN where the case failed).
     status : ndarray of int, shape (n_cases,)
         The kernel's status codes.
+
+    Raises
+    ------
+    ValueError
+        ``first`` is not a sample count of ``grid``.
     """
     solver.validate()
-    P = np.stack([parameter_vector(c, solver, grid) for c in cases]) if cases else np.empty((0, kern.N_PARAMS))
+    n_first = grid.n_samples if first is None else int(first)
+    if first is not None and (n_first != first or not 1 <= n_first <= grid.n_samples):
+        raise ValueError(f"first must be a sample count from 1 to {grid.n_samples}, got {first}")
+    render = grid  # the kernel renders as many samples as its output holds; the grid must hold the event
+    n_render = max(n_first, grid.event_index + 1, 2)
+    if n_render < grid.n_samples and not any(c.sensors.offset_rms != 0.0 for c in cases):
+        render = SampleGrid(grid.sample_interval, n_render, grid.event_index)
+    P = np.stack([parameter_vector(c, solver, render) for c in cases]) if cases else np.empty((0, kern.N_PARAMS))
     n = P.shape[0]
-    out = np.zeros((n, kern.N_CHANNELS, grid.n_samples))
+    out = np.zeros((n, kern.N_CHANNELS, render.n_samples))
     t_e = np.full(n, np.nan)
     status = np.zeros(n, dtype=np.int64)
     if n == 1 or (n and getattr(_THREAD, "serial", False) and _n_serial > 1):
@@ -318,8 +343,8 @@ def run_cases(
     diverged = (status == kern.OK) & ~np.isfinite(out).all(axis=(1, 2))
     status[diverged] = kern.NON_FINITE
     # gain, offset and quantisation (post-sampling: properties of the reading)
-    apply_sensor_readout(out, cases, grid)
-    return out, t_e, status
+    apply_sensor_readout(out, cases, render)
+    return out[:, :, :n_first], t_e, status
 
 
 def simulate_batch(
