@@ -1,4 +1,5 @@
-"""The candidate fits' re-seeded pass (1b): fits from the nominal calibration's global starts."""
+"""The candidate fits' passes 1a (the leaders finished with a fine difference step) and 1b (fits from
+the nominal calibration's global starts)."""
 
 from __future__ import annotations
 
@@ -173,3 +174,55 @@ def test_a_seeded_fit_refining_only_its_best_seed_finds_the_effect_for_fewer_sim
         assert fit.value == pytest.approx(1.3, rel=0.03)
     assert fits[1].calibration is not None and fits[None].calibration is not None
     assert fits[1].calibration.n_simulations < fits[None].calibration.n_simulations
+
+
+@pytest.fixture(scope="module")
+def creeping() -> tuple[Record, CalibrationResult]:
+    """Seed-173 case0228 (tests/data/README.md): a sensor gain of 1.0958 at K 4.6 mm, J1 0.80, c 1.13,
+    coloured noise at 35 dB, and its nominal calibration (the diagnosis's settings)."""
+    import gzip
+    import json
+    from pathlib import Path
+
+    from engine.diagnosis.diagnose import NOMINAL_CALIBRATION
+
+    path = Path(__file__).parent / "data" / "v2-seed173-case0228.json.gz"
+    record = Record.from_dict(json.loads(gzip.decompress(path.read_bytes()))).test_window()[0]
+    return record, calibrate(record, default_space(record), NOMINAL_CALIBRATION)
+
+
+def test_the_leaders_finished_with_a_fine_step_reach_the_noise_the_seeded_fit_creeps_towards(creeping) -> None:
+    """Along a valley narrower in K than the seeded fits' difference step (1e-4 of the box, 0.03 % of K)
+    the seeded fit creeps: chi2/n 2.0 after its 30 evaluations. Pass 1a refines the leaders from there
+    with a step of 1e-5 and the gain fits to the noise, so neither pass 1b nor an escalation runs."""
+    record, nominal = creeping
+    space = default_space(record)
+    library = EffectLibrary([CATALOGUE[n] for n in ("sensor_gain", "sensor_offset", "load_inertia")])
+    seeded = fit_candidate(record, nominal, space, CATALOGUE["sensor_gain"], CandidateSettings(), polish=False)
+    assert seeded.calibration.reduced_chi2 > 1.5  # pass 1 alone: creeping
+    cs = CandidateSettings(reseed_from_starts=False)  # no pass 1b: pass 1a must do it
+    after = candidates_module.fit_candidates(record, nominal, space, library, cs, escalate=False)
+    assert after[0].effect == "sensor_gain" and after[0].calibration.reduced_chi2 < 1.05
+    assert after[0].value == pytest.approx(1.0958, rel=0.01)
+    assert not after[0].escalated
+
+
+def test_a_leader_refit_that_does_not_reach_the_noise_is_dropped(creeping) -> None:
+    """Without the true effect in the library no refit of pass 1a fits to the noise: every candidate
+    keeps its seeded fit (values and chi2 as without the pass); only the work is counted."""
+    record, nominal = creeping
+    space = default_space(record)
+    library = EffectLibrary([CATALOGUE[n] for n in ("sensor_offset", "load_inertia", "contact_damping")])
+    settings = {"reseed_from_starts": False, "n_polish": 0, "polish_within": 0.0}
+    without = candidates_module.fit_candidates(
+        record, nominal, space, library, CandidateSettings(n_finish=0, **settings), escalate=False
+    )
+    with_pass = candidates_module.fit_candidates(
+        record, nominal, space, library, CandidateSettings(**settings), escalate=False
+    )
+    assert without[0].calibration.reduced_chi2 > 1.1  # no single effect explains the record
+    assert [(c.effect, c.calibration.values, c.calibration.chi2) for c in with_pass] == [
+        (c.effect, c.calibration.values, c.calibration.chi2) for c in without
+    ]
+    spent = [w.calibration.n_simulations - o.calibration.n_simulations for w, o in zip(with_pass, without, strict=True)]
+    assert sorted(n > 0 for n in spent) == [False, True, True]  # the two leaders' refits, counted
