@@ -358,11 +358,11 @@ def test_a_running_fit_stops_when_cancelled(monkeypatch):
     batches: list[int] = []
     real_run_cases = objective.run_cases
 
-    def run_cases(cases, solver, grid):
+    def run_cases(cases, solver, grid, first=None):
         batches.append(len(cases))
         started.set()
         assert cancelled.wait(60), "the test never cancelled the fit"
-        return real_run_cases(cases, solver, grid)
+        return real_run_cases(cases, solver, grid, first=first)
 
     monkeypatch.setattr(objective, "run_cases", run_cases)
     rec = noisy(simulate(PLANT), 40.0, seed=22)
