@@ -43,7 +43,7 @@ def bench_calibration(n: int, snr_db: float, seed: int) -> dict[str, Any]:
     from engine.diagnosis import calibrate
     from engine.records import Record
     from engine.simulation import Case, PlantParameters, simulate_batch
-    from engine.simulation.noise import noise_std
+    from engine.simulation.noise import add_white_noise
 
     rng = np.random.default_rng(seed)
     (K_lo, K_hi, _), (J1_lo, J1_hi, _), (c_lo, c_hi, _) = (OPERATING_RANGE[k] for k in ("K", "J1", "c"))
@@ -54,8 +54,7 @@ def bench_calibration(n: int, snr_db: float, seed: int) -> dict[str, Any]:
     sims = simulate_batch([Case(p) for p in plants])
     rows: list[dict[str, float]] = []
     for i, p in enumerate(plants):
-        x = sims.channels[i]
-        noisy = x + rng.standard_normal(x.shape) * noise_std(x, snr_db, axis=1)
+        noisy = add_white_noise(sims.channels[i], snr_db, rng, axis=1)
         rec = Record({c: noisy[j] for j, c in enumerate(sims.record(i).channels)}, conditions={"c1": 0.2})
         t0 = time.perf_counter()
         cal = calibrate(rec)

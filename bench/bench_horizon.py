@@ -37,10 +37,10 @@ logger = logging.getLogger("bench_horizon")
 
 def _records(n: int, seed: int) -> list[Any]:
     """``n`` noisy records of plants drawn uniformly in the plausible box."""
-    from engine.constants import PLAUSIBLE_RANGE
+    from engine.constants import CHANNELS, PLAUSIBLE_RANGE
     from engine.records import Record
     from engine.simulation import Case, PlantParameters, simulate_batch
-    from engine.simulation.noise import noise_std
+    from engine.simulation.noise import add_white_noise
 
     rng = np.random.default_rng(seed)
     (K_lo, K_hi, _), (J1_lo, J1_hi, _), (c_lo, c_hi, _) = (PLAUSIBLE_RANGE[k] for k in ("K", "J1", "c"))
@@ -49,12 +49,16 @@ def _records(n: int, seed: int) -> list[Any]:
         for _ in range(n)
     ]
     sims = simulate_batch([Case(p) for p in plants])
-    out = []
-    for i in range(n):
-        x = sims.channels[i]
-        noisy = x + rng.standard_normal(x.shape) * noise_std(x, 40.0, axis=1)
-        out.append(Record({c: noisy[j] for j, c in enumerate(sims.record(i).channels)}, conditions={"c1": 0.2}))
-    return out
+    g = sims.grid
+    return [
+        Record(
+            dict(zip(CHANNELS, add_white_noise(sims.channels[i], 40.0, rng, axis=1), strict=True)),
+            g.sample_interval,
+            g.event_index,
+            conditions={"c1": 0.2},  # the calibration fits K, J1 and c
+        )
+        for i in range(n)
+    ]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -310,7 +310,7 @@ def test_the_first_samples_alone_are_those_of_the_whole_record(sensors, grid):
         assert status2.tolist() == status.tolist()
 
 
-@pytest.mark.parametrize("first", [0, -3, N_SAMPLES + 1, 10.5])
+@pytest.mark.parametrize("first", [0, -3, N_SAMPLES + 1, 10.5, True])
 def test_a_first_sample_count_outside_the_grid_is_refused(first):
     with pytest.raises(ValueError, match="first must be a sample count from 1 to 2048"):
         run_cases([Case(NOMINAL)], first=first)

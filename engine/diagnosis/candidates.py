@@ -188,12 +188,16 @@ def _order(cs: list[Candidate]) -> list[Candidate]:
     return sorted(cs, key=lambda c: c.bic)
 
 
-def _better(new: Candidate, old: Candidate) -> Candidate:
-    """The fit of lower BIC (``old`` on a tie), a copy that counts the simulations and seconds of both."""
-    kept, spent = (new, old) if new.bic < old.bic else (old, new)
+def _with_work(kept: Candidate, spent: Candidate) -> Candidate:
+    """``kept``, a copy whose fit counts the simulations and seconds of ``spent``'s fit too."""
     cal, other = _fitted(kept), _fitted(spent)
     work = replace(cal, n_simulations=cal.n_simulations + other.n_simulations, seconds=cal.seconds + other.seconds)
     return replace(kept, calibration=work)
+
+
+def _better(new: Candidate, old: Candidate) -> Candidate:
+    """The fit of lower BIC (``old`` on a tie), a copy that counts the simulations and seconds of both."""
+    return _with_work(new, old) if new.bic < old.bic else _with_work(old, new)
 
 
 def _finish_leaders(
@@ -237,14 +241,9 @@ def _finish_leaders(
         except CalibrationError as exc:  # the seeded fit stands
             logger.info("%s could not be refined with the fine step: %s", c.effect, exc)
             continue
-        if _fitted(new).reduced_chi2 <= settings.escalate_above and new.bic < c.bic:
-            out[i] = _better(new, c)
-        else:  # dropped: the seeded fit stands, with the work spent on the refit
-            old, spent = _fitted(c), _fitted(new)
-            work = replace(
-                old, n_simulations=old.n_simulations + spent.n_simulations, seconds=old.seconds + spent.seconds
-            )
-            out[i] = replace(c, calibration=work)
+        at_noise = _fitted(new).reduced_chi2 <= settings.escalate_above
+        # kept only at the noise; dropped otherwise: the seeded fit stands, with the work spent on the refit
+        out[i] = _better(new, c) if at_noise else _with_work(c, new)
     out = _order(out)
     logger.info(
         "leaders finished with the fine step: %.1f s, best %s chi2/n %.4g",

@@ -323,7 +323,7 @@ def run_cases(
     """
     solver.validate()
     n_first = grid.n_samples if first is None else int(first)
-    if first is not None and (n_first != first or not 1 <= n_first <= grid.n_samples):
+    if first is not None and (isinstance(first, bool) or n_first != first or not 1 <= n_first <= grid.n_samples):
         raise ValueError(f"first must be a sample count from 1 to {grid.n_samples}, got {first}")
     render = grid  # the kernel renders as many samples as its output holds; the grid must hold the event
     n_render = max(n_first, grid.event_index + 1, 2)
