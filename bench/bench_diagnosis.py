@@ -39,18 +39,16 @@ logger = logging.getLogger("bench_diagnosis")
 
 
 def bench_calibration(n: int, snr_db: float, seed: int) -> dict[str, Any]:
+    from _plants import uniform_plants
+
     from engine.constants import OPERATING_RANGE
     from engine.diagnosis import calibrate
     from engine.records import Record
-    from engine.simulation import Case, PlantParameters, simulate_batch
+    from engine.simulation import Case, simulate_batch
     from engine.simulation.noise import add_white_noise
 
     rng = np.random.default_rng(seed)
-    (K_lo, K_hi, _), (J1_lo, J1_hi, _), (c_lo, c_hi, _) = (OPERATING_RANGE[k] for k in ("K", "J1", "c"))
-    plants = [
-        PlantParameters(K=rng.uniform(K_lo, K_hi), J1=rng.uniform(J1_lo, J1_hi), c=rng.uniform(c_lo, c_hi))
-        for _ in range(n)
-    ]
+    plants = uniform_plants(OPERATING_RANGE, n, rng)
     sims = simulate_batch([Case(p) for p in plants])
     rows: list[dict[str, float]] = []
     for i, p in enumerate(plants):

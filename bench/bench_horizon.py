@@ -37,17 +37,15 @@ logger = logging.getLogger("bench_horizon")
 
 def _records(n: int, seed: int) -> list[Any]:
     """``n`` noisy records of plants drawn uniformly in the plausible box."""
+    from _plants import uniform_plants
+
     from engine.constants import CHANNELS, PLAUSIBLE_RANGE
     from engine.records import Record
-    from engine.simulation import Case, PlantParameters, simulate_batch
+    from engine.simulation import Case, simulate_batch
     from engine.simulation.noise import add_white_noise
 
     rng = np.random.default_rng(seed)
-    (K_lo, K_hi, _), (J1_lo, J1_hi, _), (c_lo, c_hi, _) = (PLAUSIBLE_RANGE[k] for k in ("K", "J1", "c"))
-    plants = [
-        PlantParameters(K=rng.uniform(K_lo, K_hi), J1=rng.uniform(J1_lo, J1_hi), c=rng.uniform(c_lo, c_hi))
-        for _ in range(n)
-    ]
+    plants = uniform_plants(PLAUSIBLE_RANGE, n, rng)
     sims = simulate_batch([Case(p) for p in plants])
     g = sims.grid
     return [
