@@ -287,22 +287,34 @@ def rhs(t, y, P, motor_on, dy, ch):
             dy[10 + i] = 0.0
 
 
-@njit(cache=True, fastmath=False)
+#: :func:`rhs` compiled to be inlined (numba IR) into :func:`rk4_step`, its one hot caller: the
+#: four evaluations of a step then optimise as one body (about 1.2x faster, the same floating-point
+#: operations). Other callers use :func:`rhs`, so the kernel compiles in seconds, not minutes.
+_rhs_inlined = njit(cache=True, fastmath=False, inline="always")(rhs.py_func)
+
+
+@njit(cache=True, fastmath=False, inline="always")
 def rk4_step(t, y, h, P, motor_on, out, k1, k2, k3, k4, tmp, ch):
-    """One classical Runge-Kutta step of size h from (t, y) into ``out``."""
+    """One classical Runge-Kutta step of size h from (t, y) into ``out``.
+
+    Inlined into :func:`hybrid_step`, its only caller, which calls it from one place.
+    """
     n = y.shape[0]
-    rhs(t, y, P, motor_on, k1, ch)
+    hh = 0.5 * h  # the operations of y + 0.5 * h * k, evaluated left to right
+    t_half = t + hh
+    _rhs_inlined(t, y, P, motor_on, k1, ch)
     for i in range(n):
-        tmp[i] = y[i] + 0.5 * h * k1[i]
-    rhs(t + 0.5 * h, tmp, P, motor_on, k2, ch)
+        tmp[i] = y[i] + hh * k1[i]
+    _rhs_inlined(t_half, tmp, P, motor_on, k2, ch)
     for i in range(n):
-        tmp[i] = y[i] + 0.5 * h * k2[i]
-    rhs(t + 0.5 * h, tmp, P, motor_on, k3, ch)
+        tmp[i] = y[i] + hh * k2[i]
+    _rhs_inlined(t_half, tmp, P, motor_on, k3, ch)
     for i in range(n):
         tmp[i] = y[i] + h * k3[i]
-    rhs(t + h, tmp, P, motor_on, k4, ch)
+    _rhs_inlined(t + h, tmp, P, motor_on, k4, ch)
+    h6 = h / 6.0
     for i in range(n):
-        out[i] = y[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+        out[i] = y[i] + h6 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
 
 @njit(cache=True, fastmath=False)
@@ -324,8 +336,11 @@ def zone(t, y, P, motor_on):
     return -1 if P[P_K12] * (d + b) + P[P_D12] * dw < 0.0 else -2
 
 
+_zone_inlined = njit(cache=True, fastmath=False, inline="always")(zone.py_func)
+
+
 @njit(cache=True, fastmath=False)
-def hybrid_step(t, y, h, P, motor_on, work):
+def hybrid_step(t, y, h, P, motor_on, work, z0):
     """One RK4 step of at most h from (t, y) that stops at a clutch-zone change.
 
     The contact torque is discontinuous where the clutch enters contact
@@ -334,46 +349,68 @@ def hybrid_step(t, y, h, P, motor_on, work):
     smooth right-hand side and keeps its order. The new state is in
     ``work[0]``.
 
+    The whole step, the bisection's trial steps and the step to the crossing are one loop with
+    one RK4 call, so that :func:`rk4_step` is inlined once.
+
+    Parameters
+    ----------
+    z0 : int
+        The zone at (t, y), ``zone(t, y, P, motor_on)``: the callers carry it from step to step
+        (the last step's ``z1``) instead of evaluating it again.
+
     Returns
     -------
     h_taken : float
         Step actually taken [s] (h, or the time to the zone change).
     crossed : bool
         Whether the step ended at a zone change.
+    z1 : int
+        The zone at the step's end (t + h_taken, ``work[0]``).
     """
-    z0 = zone(t, y, P, motor_on)
     out = work[0]
-    rk4_step(t, y, h, P, motor_on, out, work[1], work[2], work[3], work[4], work[5], work[6])
-    if zone(t + h, out, P, motor_on) == z0:
-        return h, False
     lo = 0.0
     hi = h
-    trial = work[7]
-    while hi - lo > 1e-12:
-        mid = 0.5 * (lo + hi)
-        rk4_step(t, y, mid, P, motor_on, trial, work[1], work[2], work[3], work[4], work[5], work[6])
-        if zone(t + mid, trial, P, motor_on) == z0:
-            lo = mid
+    h_try = h
+    stage = 0  # 0: the whole step; 1: bisecting the zone change; 2: the step to it
+    while True:
+        rk4_step(t, y, h_try, P, motor_on, out, work[1], work[2], work[3], work[4], work[5], work[6])
+        z1 = _zone_inlined(t + h_try, out, P, motor_on)
+        if stage == 0:
+            if z1 == z0:
+                return h, False, z1
+            stage = 1
+        elif stage == 1:
+            if z1 == z0:
+                lo = h_try
+            else:
+                hi = h_try
         else:
-            hi = mid
-    rk4_step(t, y, hi, P, motor_on, out, work[1], work[2], work[3], work[4], work[5], work[6])
-    return hi, True
+            return hi, True, z1
+        if hi - lo > 1e-12:
+            h_try = 0.5 * (lo + hi)
+        else:
+            stage = 2
+            h_try = hi
 
 
 @njit(cache=True, fastmath=False)
 def advance(t, y, t_end, P, motor_on, work):
     """Integrate y in place from t to t_end with hybrid steps no longer than P[P_STEP]."""
     n_bad = 0
+    z = zone(t, y, P, motor_on)
     while t_end - t > 1e-15:
         span = t_end - t
         n = math.ceil(span / P[P_STEP] - 1e-9)
         h = span / max(n, 1)
         h_knot = step_to_knot(t, h, P)
         short = h_knot < h
-        taken, crossed = hybrid_step(t, y, h_knot, P, motor_on, work)
+        taken, crossed, z = hybrid_step(t, y, h_knot, P, motor_on, work, z)
         for i in range(y.shape[0]):
             y[i] = work[0][i]
-        t = t_end if (not crossed and not short and n <= 1) else t + taken
+        t_next = t_end if (not crossed and not short and n <= 1) else t + taken
+        if t_next != t + taken:  # the zone may depend on t (an unknown input in the clutch)
+            z = zone(t_next, y, P, motor_on)
+        t = t_next
         if not (abs(y[4]) < 1e6):
             n_bad += 1
             break
@@ -407,8 +444,7 @@ def simulate_one(P, out):
     P[P_T_SWITCH_OFF] = math.inf
     h = P[P_STEP]
     y = np.zeros(N_STATES)
-    work = (
-        np.zeros(N_STATES),
+    work = (  # hybrid_step's: the new state, RK4's four stages and its intermediate state, channels
         np.zeros(N_STATES),
         np.zeros(N_STATES),
         np.zeros(N_STATES),
@@ -426,6 +462,7 @@ def simulate_one(P, out):
     armed = False
     t_e = math.nan
     n_ck = 0
+    z = zone(t, y, P, True)
     while t < P[P_T_MAX]:
         if t >= next_ck:
             slot = n_ck % n_ring
@@ -434,13 +471,12 @@ def simulate_one(P, out):
                 ring_y[slot, i] = y[i]
             n_ck += 1
             next_ck += ck_dt
-        taken, crossed = hybrid_step(t, y, step_to_knot(t, h, P), P, True, work)
+        taken, crossed, z = hybrid_step(t, y, step_to_knot(t, h, P), P, True, work, z)
         for i in range(N_STATES):
             y[i] = work[0][i]
-        t += taken
+        t += taken  # the instant hybrid_step evaluated z at
         if not (abs(y[4]) < 1e6 and abs(y[7] - y[8]) < 1e6):
             return NON_FINITE, math.nan
-        z = zone(t, y, P, True)
         if z != 0:
             armed = True
         elif armed and crossed:
