@@ -303,3 +303,33 @@ def test_the_objective_simulates_only_as_far_as_its_horizon(clean, monkeypatch):
     assert obj.chi2(u[None], [h // 2], solver)[0, 0] < early and rendered == [h, rec.n_samples]  # served by the cache
     obj.chi2(u[None], [rec.n_samples], solver)
     assert rendered == [h, rec.n_samples, rec.n_samples] and obj.n_simulations == 2
+
+
+def test_a_cached_failure_serves_longer_horizons_and_is_run_again_for_shorter_ones(clean, monkeypatch):
+    """A simulation that failed over its first n samples fails over more (served from the cache,
+    infinite chi2); over fewer it may not have failed yet, so it is simulated again."""
+    from engine.diagnosis import objective as obj_module
+    from engine.diagnosis.noise import noise_weights
+    from engine.diagnosis.objective import Objective
+    from engine.simulation import SolverSettings
+
+    rec, _ = noisy(clean, 40.0, seed=5)
+    space = default_space(rec)
+    obj = Objective(rec, space, noise_weights(rec, estimate_noise(rec)))
+    rendered: list[int | None] = []
+    real = obj_module.run_cases
+
+    def failing_after(cases, solver, grid, first=None):  # the kernel reports a divergence past sample 300
+        rendered.append(first)
+        ch, t_e, status = real(cases, solver, grid, first=first)
+        if first is None or first > 300:
+            status = np.full_like(status, 2)  # NON_FINITE
+        return ch, t_e, status
+
+    monkeypatch.setattr(obj_module, "run_cases", failing_after)
+    solver = SolverSettings(max_step=5e-5)
+    u = space.unit({"K": TRUTH.K, "J1": TRUTH.J1, "c": TRUTH.c, "c1": 0.2})
+    assert np.isinf(obj.chi2(u[None], [1000], solver)[0, 0]) and rendered == [1000]
+    assert np.isinf(obj.chi2(u[None], [rec.n_samples], solver)[0, 0]) and rendered == [1000]  # served: fails too
+    assert np.isfinite(obj.chi2(u[None], [200], solver)[0, 0]) and rendered == [1000, 200]  # run again
+    assert obj.n_simulations == 2
