@@ -108,14 +108,14 @@ def v1_range_records(
     Returns the points (K [m], J1 [kg m^2], c [pu]), the batch simulation (with ``effect`` on every
     record) and the channel names.
     """
-    from engine.constants import OPERATING_RANGE
-    from engine.simulation import Case, PlantParameters, simulate_batch
+    from _plants import uniform_plants
 
-    (K_lo, K_hi, _), (J_lo, J_hi, _), (c_lo, c_hi, _) = (OPERATING_RANGE[k] for k in ("K", "J1", "c"))
-    points = [
-        {"K": rng.uniform(K_lo, K_hi), "J1": rng.uniform(J_lo, J_hi), "c": rng.uniform(c_lo, c_hi)} for _ in range(n)
-    ]
-    sims = simulate_batch([Case(PlantParameters(K=p["K"], J1=p["J1"], c=p["c"])) for p in points], effects=effect)
+    from engine.constants import OPERATING_RANGE
+    from engine.simulation import Case, simulate_batch
+
+    plants = uniform_plants(OPERATING_RANGE, n, rng)
+    points = [{"K": p.K, "J1": p.J1, "c": p.c} for p in plants]
+    sims = simulate_batch([Case(p) for p in plants], effects=effect)
     return points, sims, list(sims.record(0).channels)
 
 
