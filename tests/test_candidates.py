@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from engine.diagnosis.calibration import CalibrationResult, calibrate
-from engine.diagnosis.candidate import Candidate, CandidateSettings, fit_candidate, refit_from_starts
+from engine.diagnosis.candidate import SEEDED_FITS, Candidate, CandidateSettings, fit_candidate, refit_from_starts
 from engine.diagnosis.space import default_space
 from engine.records import Record
 from engine.simulation import CATALOGUE, EffectLibrary, PlantParameters, simulate
@@ -191,16 +191,32 @@ def creeping() -> tuple[Record, CalibrationResult]:
     return record, calibrate(record, default_space(record), NOMINAL_CALIBRATION)
 
 
-def test_the_leaders_finished_with_a_fine_step_reach_the_noise_the_seeded_fit_creeps_towards(creeping) -> None:
-    """Along a valley narrower in K than the seeded fits' difference step (1e-4 of the box, 0.03 % of K)
-    the seeded fit creeps: chi2/n 2.0 after its 30 evaluations. Pass 1a refines the leaders from there
-    with a step of 1e-5 and the gain fits to the noise, so neither pass 1b nor an escalation runs."""
+#: The seeded fits' settings before 2026-11-27: differences over 1e-4 of the box.
+COARSE_SEEDED = replace(SEEDED_FITS, fd_step=1e-4)
+
+
+def test_the_seeded_fit_reaches_the_noise_along_a_valley_the_coarse_step_creeps_in(creeping) -> None:
+    """Along a valley narrower in K than 1e-4 of the box (0.03 % of K) a seeded fit differencing over
+    that step creeps: chi2/n 2.0 after its 30 evaluations. The default seeded fits difference over
+    1e-5 and the gain fits to the noise within the same 30."""
+    record, nominal = creeping
+    space = default_space(record)
+    gain = CATALOGUE["sensor_gain"]
+    coarse = fit_candidate(record, nominal, space, gain, CandidateSettings(seeded=COARSE_SEEDED), polish=False)
+    assert coarse.calibration.reduced_chi2 > 1.5  # creeping
+    fine = fit_candidate(record, nominal, space, gain, CandidateSettings(), polish=False)
+    assert fine.calibration.reduced_chi2 < 1.05
+    assert fine.value == pytest.approx(1.0958, rel=0.01)
+
+
+def test_the_leaders_finished_with_a_fine_step_reach_the_noise_the_coarse_seeded_fit_creeps_towards(creeping) -> None:
+    """Pass 1a (an option for coarse seeded fits): the leaders are refined from where the coarse
+    seeded fits stopped with a step of 1e-5 and the gain fits to the noise, so neither pass 1b nor an
+    escalation runs."""
     record, nominal = creeping
     space = default_space(record)
     library = EffectLibrary([CATALOGUE[n] for n in ("sensor_gain", "sensor_offset", "load_inertia")])
-    seeded = fit_candidate(record, nominal, space, CATALOGUE["sensor_gain"], CandidateSettings(), polish=False)
-    assert seeded.calibration.reduced_chi2 > 1.5  # pass 1 alone: creeping
-    cs = CandidateSettings(reseed_from_starts=False)  # no pass 1b: pass 1a must do it
+    cs = CandidateSettings(seeded=COARSE_SEEDED, n_finish=2, reseed_from_starts=False)  # no pass 1b
     after = candidates_module.fit_candidates(record, nominal, space, library, cs, escalate=False)
     assert after[0].effect == "sensor_gain" and after[0].calibration.reduced_chi2 < 1.05
     assert after[0].value == pytest.approx(1.0958, rel=0.01)
@@ -213,12 +229,12 @@ def test_a_leader_refit_that_does_not_reach_the_noise_is_dropped(creeping) -> No
     record, nominal = creeping
     space = default_space(record)
     library = EffectLibrary([CATALOGUE[n] for n in ("sensor_offset", "load_inertia", "contact_damping")])
-    settings = {"reseed_from_starts": False, "n_polish": 0, "polish_within": 0.0}
+    settings = {"seeded": COARSE_SEEDED, "reseed_from_starts": False, "n_polish": 0, "polish_within": 0.0}
     without = candidates_module.fit_candidates(
         record, nominal, space, library, CandidateSettings(n_finish=0, **settings), escalate=False
     )
     with_pass = candidates_module.fit_candidates(
-        record, nominal, space, library, CandidateSettings(**settings), escalate=False
+        record, nominal, space, library, CandidateSettings(n_finish=2, **settings), escalate=False
     )
     assert without[0].calibration.reduced_chi2 > 1.1  # no single effect explains the record
     assert [(c.effect, c.calibration.values, c.calibration.chi2) for c in with_pass] == [

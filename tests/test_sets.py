@@ -719,19 +719,20 @@ def test_a_shift_fitted_at_the_edge_of_the_switch_off_jump_is_refitted_from_the_
 @pytest.mark.parametrize(("finish", "reseed"), [(2, True), (0, True), (0, False)], ids=["1a", "1b", "escalation"])
 def test_a_single_effect_out_of_the_seeded_basin_is_found_before_any_pair(finish: int, reseed: bool) -> None:
     """The operating point of development case s105/case0007 (stator resistance drift 0.798 at
-    K = 5.56 mm, J1 = 0.657 kg m^2, c = 0.592; 45 dB): no seeded single fit reaches the noise (they
-    start from the nominal calibration's basin). The leaders fitted again with the fine step
-    (pass 1a, the default) reach the drift without any escalation; without them, so do the refits
-    from the nominal calibration's starts (pass 1b); without either, the drift, among the best
-    seeded singles, fits to the noise once escalated, and escalating the best few before the first
-    pairs names it without searching any set."""
+    K = 5.56 mm, J1 = 0.657 kg m^2, c = 0.592; 45 dB): no seeded single fit with the former coarse
+    difference step (1e-4) reaches the noise (they start from the nominal calibration's basin).
+    The leaders fitted again with the fine step (pass 1a) reach the drift without any escalation;
+    without them, so do the refits from the nominal calibration's starts (pass 1b); without either,
+    the drift, among the best seeded singles, fits to the noise once escalated, and escalating the
+    best few before the first pairs names it without searching any set."""
     from dataclasses import replace
 
-    from engine.diagnosis.candidate import CandidateSettings
+    from engine.diagnosis.candidate import SEEDED_FITS, CandidateSettings
 
     plant = PlantParameters(K=0.005558, J1=0.6565, c=0.5923, c1=0.2)
     rec = noisy(simulate(plant, effects={"stator_resistance_drift": 0.798}), 45.0, seed=0)
-    cs = replace(CandidateSettings(), n_finish=finish, reseed_from_starts=reseed)
+    coarse = replace(SEEDED_FITS, fd_step=1e-4)
+    cs = replace(CandidateSettings(), seeded=coarse, n_finish=finish, reseed_from_starts=reseed)
     res = diagnose(rec, settings=DiagnosisSettings(candidates=cs))
     assert res.verdict.status == "explained" and res.verdict.effect == "stator_resistance_drift"
     assert res.verdict.value == pytest.approx(0.798, rel=0.01)

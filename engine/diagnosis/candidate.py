@@ -141,8 +141,11 @@ class Candidate:
         }
 
 
-#: Search settings of the seeded fits (no global search; seeds refined on the full record).
-SEEDED_FITS = CalibrationSettings(n_global=0, max_nfev=30)
+#: Search settings of the seeded fits (no global search; seeds refined on the full record). Their
+#: difference step is 1e-5 of the box, a tenth of the nominal calibration's: on the whole record a
+#: true effect's valley can be narrower than 1e-4 in K, and a fit with the coarser step creeps along
+#: it (docs/diagnosis.md 8b, *The seeded fits' difference step*; 2026-11-27).
+SEEDED_FITS = CalibrationSettings(n_global=0, max_nfev=30, fd_step=1e-5)
 #: Search settings of the escalated fits (global search, 16 of its points screened on the first
 #: horizon, continuation of the best 2 over 10-200 ms; the screening was added for the plausible
 #: box of issue 10, docs/diagnosis.md section 8c).
@@ -187,7 +190,8 @@ class CandidateSettings:
         When no seeded fit reaches the noise, this many best seeded candidates are fitted again
         (from their seeds and from their seeded fits) with the difference step
         ``finish_fd_step``, and a refit that fits to the noise replaces its seeded fit (pass 1a,
-        :mod:`engine.diagnosis.candidates`; 0: none).
+        :mod:`engine.diagnosis.candidates`; 0, the default: none). For seeded fits with a
+        coarser step than ``finish_fd_step``; the default seeded fits have that step already.
     finish_fd_step : float
         Finite-difference step of those refits, in unit-box coordinates.
     reseed_from_starts : bool
@@ -221,7 +225,7 @@ class CandidateSettings:
     max_polish: int = 6
     n_quantum: int = 4000
     n_jobs: int | None = None
-    n_finish: int = 2
+    n_finish: int = 0
     finish_fd_step: float = 1e-5
     reseed_from_starts: bool = True
     reseed_seed_fits: int | None = 2

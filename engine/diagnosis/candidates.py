@@ -7,19 +7,20 @@ the first and the second:
 
 1. **Seeded fits** (every candidate): least squares on the full record from
    the nominal calibration with the effect at its neutral value, and with the best
-   value of a one-dimensional scan of the effect (9 values across its range).
-1a. **The leaders finished with a fine difference step** (only when no candidate fits to the noise
-   after pass 1): the ``n_finish`` best seeded candidates are fitted again, from their seeds and
-   from where their seeded fits ended, with a finite-difference step of ``finish_fd_step`` (1e-5
-   of the box, a tenth of the seeded fits'), and a refit replaces its seeded fit only when it fits
-   to the noise. On the whole record a true effect's valley can be so narrow in K that the seeded
-   fits' differences point the trust region off it and the fit creeps (seed-173 case0228, a sensor
-   gain: chi2/n 2.0 after the seeded fit's 30 evaluations, 1.01 after 100, 0.99 in 17-27 with the
-   fine step). The fine step is not the seeded fits' own: far from the noise it can settle in a
-   dent of the rugged cost that the coarse step passes over, and it changes the single fits every
-   set search starts from (docs/diagnosis.md 8b, *The seeded fits' difference step*). A refit that
-   does not reach the noise is dropped, so a record no single effect explains goes on as without
-   this pass.
+   value of a one-dimensional scan of the effect (9 values across its range). Their
+   finite-difference step is 1e-5 of the box (:data:`engine.diagnosis.candidate.SEEDED_FITS`): on
+   the whole record a true effect's valley can be so narrow in K that differences over 1e-4 point
+   the trust region off it and the fit creeps (seed-173 case0228, a sensor gain: chi2/n 2.0 after
+   30 evaluations at 1e-4, 1.01 after 100; 0.99 in 17-27 at 1e-5; docs/diagnosis.md 8b, *The
+   seeded fits' difference step*).
+1a. **The leaders finished with a fine difference step** (an option, off by default:
+   ``CandidateSettings.n_finish`` 0; for seeded fits with a coarser step than ``finish_fd_step``):
+   when no candidate fits to the noise after pass 1, the ``n_finish`` best seeded candidates are
+   fitted again, from their seeds and from where their seeded fits ended, with the step
+   ``finish_fd_step``, and a refit replaces its seeded fit only when it fits to the noise; a refit
+   that does not is dropped, so a record no single effect explains goes on as without this pass.
+   It was the default from 2026-11-27 (bec621a) while the seeded fits differenced over 1e-4, until
+   a compound run showed that the fine step for every seeded fit costs no compound record.
 1b. **Re-seeded fits** (only when no candidate fits to the noise after pass 1 and 1a): the
    candidates, best seeded BIC first, are fitted again from the nominal calibration's global
    starts, each with the best value of a scan of the effect there
