@@ -20,7 +20,8 @@ the first and the second:
    ``finish_fd_step``, and a refit replaces its seeded fit only when it fits to the noise; a refit
    that does not is dropped, so a record no single effect explains goes on as without this pass.
    It was the default from 2026-11-27 (bec621a) while the seeded fits differenced over 1e-4, until
-   a compound run showed that the fine step for every seeded fit costs no compound record.
+   the fine step for every seeded fit was right on as many of the 75 seed-173 compound records
+   (68 against 66; docs/diagnosis.md 8b, *The compound run of the fine step*).
 1b. **Re-seeded fits** (only when no candidate fits to the noise after pass 1 and 1a): the
    candidates, best seeded BIC first, are fitted again from the nominal calibration's global
    starts, each with the best value of a scan of the effect there
