@@ -1,5 +1,5 @@
-"""The candidate fits' passes 1a (the leaders finished with a fine difference step) and 1b (fits from
-the nominal calibration's global starts)."""
+"""The candidate fits: the seeded fits' difference step (pass 1) and the re-seeded pass (1b): fits from
+the nominal calibration's global starts."""
 
 from __future__ import annotations
 
@@ -207,38 +207,3 @@ def test_the_seeded_fit_reaches_the_noise_along_a_valley_the_coarse_step_creeps_
     fine = fit_candidate(record, nominal, space, gain, CandidateSettings(), polish=False)
     assert fine.calibration.reduced_chi2 < 1.05
     assert fine.value == pytest.approx(1.0958, rel=0.01)
-
-
-def test_the_leaders_finished_with_a_fine_step_reach_the_noise_the_coarse_seeded_fit_creeps_towards(creeping) -> None:
-    """Pass 1a (an option for coarse seeded fits): the leaders are refined from where the coarse
-    seeded fits stopped with a step of 1e-5 and the gain fits to the noise, so neither pass 1b nor an
-    escalation runs."""
-    record, nominal = creeping
-    space = default_space(record)
-    library = EffectLibrary([CATALOGUE[n] for n in ("sensor_gain", "sensor_offset", "load_inertia")])
-    cs = CandidateSettings(seeded=COARSE_SEEDED, n_finish=2, reseed_from_starts=False)  # no pass 1b
-    after = candidates_module.fit_candidates(record, nominal, space, library, cs, escalate=False)
-    assert after[0].effect == "sensor_gain" and after[0].calibration.reduced_chi2 < 1.05
-    assert after[0].value == pytest.approx(1.0958, rel=0.01)
-    assert not after[0].escalated
-
-
-def test_a_leader_refit_that_does_not_reach_the_noise_is_dropped(creeping) -> None:
-    """Without the true effect in the library no refit of pass 1a fits to the noise: every candidate
-    keeps its seeded fit (values and chi2 as without the pass); only the work is counted."""
-    record, nominal = creeping
-    space = default_space(record)
-    library = EffectLibrary([CATALOGUE[n] for n in ("sensor_offset", "load_inertia", "contact_damping")])
-    settings = {"seeded": COARSE_SEEDED, "reseed_from_starts": False, "n_polish": 0, "polish_within": 0.0}
-    without = candidates_module.fit_candidates(
-        record, nominal, space, library, CandidateSettings(n_finish=0, **settings), escalate=False
-    )
-    with_pass = candidates_module.fit_candidates(
-        record, nominal, space, library, CandidateSettings(n_finish=2, **settings), escalate=False
-    )
-    assert without[0].calibration.reduced_chi2 > 1.1  # no single effect explains the record
-    assert [(c.effect, c.calibration.values, c.calibration.chi2) for c in with_pass] == [
-        (c.effect, c.calibration.values, c.calibration.chi2) for c in without
-    ]
-    spent = [w.calibration.n_simulations - o.calibration.n_simulations for w, o in zip(with_pass, without, strict=True)]
-    assert sorted(n > 0 for n in spent) == [False, True, True]  # the two leaders' refits, counted

@@ -186,14 +186,6 @@ class CandidateSettings:
         Candidates fitted at once, on threads with one core each (None: numba's
         thread count, i.e. the cores numba may use; 1 fits them one by one with
         the batch-parallel simulator).
-    n_finish : int
-        When no seeded fit reaches the noise, this many best seeded candidates are fitted again
-        (from their seeds and from their seeded fits) with the difference step
-        ``finish_fd_step``, and a refit that fits to the noise replaces its seeded fit (pass 1a,
-        :mod:`engine.diagnosis.candidates`; 0, the default: none). For seeded fits with a
-        coarser step than ``finish_fd_step``; the default seeded fits have that step already.
-    finish_fd_step : float
-        Finite-difference step of those refits, in unit-box coordinates.
     reseed_from_starts : bool
         When no seeded fit reaches the noise, refit every candidate from the nominal
         calibration's global starts (pass 1b, :func:`refit_from_starts`) before any escalation.
@@ -225,8 +217,6 @@ class CandidateSettings:
     max_polish: int = 6
     n_quantum: int = 4000
     n_jobs: int | None = None
-    n_finish: int = 0
-    finish_fd_step: float = 1e-5
     reseed_from_starts: bool = True
     reseed_seed_fits: int | None = 2
     reseed_stop_at_noise: bool = True

@@ -2,8 +2,7 @@
 
 For every effect of an :class:`~engine.simulation.EffectLibrary` the
 calibration is refitted with the effect's scalar value as one more bounded
-parameter (:func:`engine.diagnosis.candidate.fit_candidate`), in three passes and two between
-the first and the second:
+parameter (:func:`engine.diagnosis.candidate.fit_candidate`), in three passes:
 
 1. **Seeded fits** (every candidate): least squares on the full record from
    the nominal calibration with the effect at its neutral value, and with the best
@@ -13,16 +12,7 @@ the first and the second:
    the trust region off it and the fit creeps (seed-173 case0228, a sensor gain: chi2/n 2.0 after
    30 evaluations at 1e-4, 1.01 after 100; 0.99 in 17-27 at 1e-5; docs/diagnosis.md 8b, *The
    seeded fits' difference step*).
-1a. **The leaders finished with a fine difference step** (an option, off by default:
-   ``CandidateSettings.n_finish`` 0; for seeded fits with a coarser step than ``finish_fd_step``):
-   when no candidate fits to the noise after pass 1, the ``n_finish`` best seeded candidates are
-   fitted again, from their seeds and from where their seeded fits ended, with the step
-   ``finish_fd_step``, and a refit replaces its seeded fit only when it fits to the noise; a refit
-   that does not is dropped, so a record no single effect explains goes on as without this pass.
-   It was the default from 2026-11-27 (bec621a) while the seeded fits differenced over 1e-4, until
-   the fine step for every seeded fit was right on as many of the 75 seed-173 compound records
-   (68 against 66; docs/diagnosis.md 8b, *The compound run of the fine step*).
-1b. **Re-seeded fits** (only when no candidate fits to the noise after pass 1 and 1a): the
+1b. **Re-seeded fits** (only when no candidate fits to the noise after pass 1): the
    candidates, best seeded BIC first, are fitted again from the nominal calibration's global
    starts, each with the best value of a scan of the effect there
    (:func:`engine.diagnosis.candidate.refit_from_starts`), until one fits to the noise
@@ -138,8 +128,6 @@ def fit_candidates(
                 progress((i + 1) / len(seeded), f"fitted {i + 1} of {len(seeded)} candidate effects")
         cands = _order(fitted)
         logger.info("seeded fits of %d candidates: %.1f s", len(cands), time.perf_counter() - t0)
-        if settings.n_finish > 0 and needs_escalation(cands, settings):
-            cands = _finish_leaders(record, nominal, space, library, cands, settings, runner)
         if settings.reseed_from_starts and nominal.starts and needs_escalation(cands, settings):
             cands = _reseed(record, nominal, space, library, cands, settings, runner)
         if escalate:
@@ -190,70 +178,12 @@ def _order(cs: list[Candidate]) -> list[Candidate]:
     return sorted(cs, key=lambda c: c.bic)
 
 
-def _with_work(kept: Candidate, spent: Candidate) -> Candidate:
-    """``kept``, a copy whose fit counts the simulations and seconds of ``spent``'s fit too."""
+def _better(new: Candidate, old: Candidate) -> Candidate:
+    """The fit of lower BIC (``old`` on a tie), a copy that counts the simulations and seconds of both."""
+    kept, spent = (new, old) if new.bic < old.bic else (old, new)
     cal, other = _fitted(kept), _fitted(spent)
     work = replace(cal, n_simulations=cal.n_simulations + other.n_simulations, seconds=cal.seconds + other.seconds)
     return replace(kept, calibration=work)
-
-
-def _better(new: Candidate, old: Candidate) -> Candidate:
-    """The fit of lower BIC (``old`` on a tie), a copy that counts the simulations and seconds of both."""
-    return _with_work(new, old) if new.bic < old.bic else _with_work(old, new)
-
-
-def _finish_leaders(
-    record: Record,
-    nominal: CalibrationResult,
-    space: ModelSpace,
-    library: EffectLibrary,
-    cands: list[Candidate],
-    settings: CandidateSettings,
-    runner: Runner,
-) -> list[Candidate]:
-    """Pass 1a: the ``settings.n_finish`` best fitted candidates (but the speed quantum, fitted by
-    scans) fitted again with the difference step ``settings.finish_fd_step``, from the seeds of
-    their seeded fits and from where those fits ended; a refit replaces its seeded fit only when it
-    fits to the noise (``escalate_above``) with a lower BIC. A refit that does not is dropped: only
-    its simulations and time are counted."""
-    t0 = time.perf_counter()
-    fine = replace(settings.seeded, fd_step=settings.finish_fd_step)
-    leaders = [i for i, c in enumerate(cands) if c.calibration is not None and not is_speed_quantum(library[c.effect])][
-        : settings.n_finish
-    ]
-    fine_settings = replace(settings, seeded=fine)
-    todo = {
-        i: runner.submit(
-            fit_candidate,
-            record,
-            nominal,
-            space,
-            library[cands[i].effect],
-            fine_settings,
-            polish=False,
-            extra_seeds=[_fitted(cands[i]).values],
-        )
-        for i in leaders
-    }
-    out = list(cands)
-    for i, task in todo.items():
-        c = cands[i]
-        try:
-            new = task.result()
-        except CalibrationError as exc:  # the seeded fit stands
-            logger.info("%s could not be refined with the fine step: %s", c.effect, exc)
-            continue
-        at_noise = _fitted(new).reduced_chi2 <= settings.escalate_above
-        # kept only at the noise; dropped otherwise: the seeded fit stands, with the work spent on the refit
-        out[i] = _better(new, c) if at_noise else _with_work(c, new)
-    out = _order(out)
-    logger.info(
-        "leaders finished with the fine step: %.1f s, best %s chi2/n %.4g",
-        time.perf_counter() - t0,
-        out[0].effect,
-        _fitted(out[0]).reduced_chi2 if out[0].calibration is not None else math.nan,
-    )
-    return out
 
 
 def _reseed(
