@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from dataclasses import asdict
 
@@ -297,16 +298,29 @@ def test_clean_twin_keeps_the_noise_and_removes_the_effect():
 
 
 def test_plots_are_written(rotor_case, tmp_path):
-    from engine.diagnosis.plots import plot_overlays, plot_residual_map
+    from engine.diagnosis.plots import plot_gap_budget, plot_overlays, plot_residual_map
 
     rec, res = rotor_case
     for path in (
         plot_residual_map(res, tmp_path / "map.png"),
         plot_residual_map(res, tmp_path / "after.png", after=True),
         plot_overlays(rec, res, tmp_path / "overlay.png"),
+        plot_gap_budget(res, tmp_path / "budget.png"),
     ):
         data = path.read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
+
+
+def test_gap_budget_plot_needs_a_named_effect(rotor_case, tmp_path):
+    """A verdict that names no effect has no budget to draw: a clear error, no file."""
+    from engine.diagnosis.plots import plot_gap_budget
+    from engine.diagnosis.result import Verdict
+
+    _, res = rotor_case
+    bare = dataclasses.replace(res, verdict=Verdict.without_effect("unexplained", 0.9, "no fit"))
+    with pytest.raises(ValueError, match="names no effect"):
+        plot_gap_budget(bare, tmp_path / "budget.png")
+    assert not (tmp_path / "budget.png").exists()
 
 
 @pytest.mark.slow

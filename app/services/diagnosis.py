@@ -9,7 +9,7 @@ from typing import Any
 from engine.diagnosis import DiagnosisResult
 from engine.diagnosis import diagnose as engine_diagnose
 from engine.diagnosis.identification import identification_hook
-from engine.diagnosis.plots import plot_missing_term, plot_overlays, plot_residual_map
+from engine.diagnosis.plots import plot_gap_budget, plot_missing_term, plot_overlays, plot_residual_map
 from engine.diagnosis.space import Bounds
 from engine.records import Record
 from engine.simulation import CATALOGUE, EffectLibrary
@@ -36,8 +36,8 @@ def diagnose(record: Record, effects: Sequence[str] | None = None, bounds: Bound
 
 
 def write_plots(record: Record, result: DiagnosisResult, out_dir: Path) -> list[Path]:
-    """Residual maps (before, and after when an effect is named), record-vs-simulation overlays and, for a gap
-    outside the catalogue, the missing term, as PNG."""
+    """Residual maps (before, and after when an effect is named), record-vs-simulation overlays, the gap
+    budget of the named effects and, for a gap outside the catalogue, the missing term, as PNG."""
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = [
         plot_residual_map(result, out_dir / "residual_map_before.png"),
@@ -45,6 +45,8 @@ def write_plots(record: Record, result: DiagnosisResult, out_dir: Path) -> list[
     ]
     if result.verdict.status == "explained":
         paths.append(plot_residual_map(result, out_dir / "residual_map_after.png", after=True))
+    if result.verdict.effects:
+        paths.append(plot_gap_budget(result, out_dir / "gap_budget.png"))
     if result.locus and result.locus.get("term"):
         paths.append(plot_missing_term(result, out_dir / "missing_term.png"))
     return paths

@@ -1,4 +1,5 @@
-"""PNG plots of a diagnosis: the residual map and record-versus-simulation overlays.
+"""PNG plots of a diagnosis: the residual map, record-versus-simulation overlays, the gap budget and the
+missing term.
 
 Uses matplotlib's object API (``Figure``), not pyplot, so it is safe in a
 server without a display and keeps no global state.
@@ -17,7 +18,7 @@ from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, level_band
 from engine.records import Record
 from engine.records.units import factor
 
-__all__ = ["plot_missing_term", "plot_overlays", "plot_residual_map"]
+__all__ = ["plot_gap_budget", "plot_missing_term", "plot_overlays", "plot_residual_map"]
 
 
 def _level_names(level: int = WAVELET_LEVEL) -> list[str]:
@@ -133,6 +134,84 @@ def plot_overlays(record: Record, result: DiagnosisResult, path: str | Path) -> 
     path = Path(path)
     fig.savefig(path, dpi=100)
     return path
+
+
+def plot_gap_budget(result: DiagnosisResult, path: str | Path) -> Path:
+    """The gap budget of the named effects, and the gap per channel before and after them.
+
+    Left: the nominal model's excess residual energy (beyond noise) as one bar of 100 %, split into
+    each named effect's share (``verdict.effects[i]["share"]``, largest first, labelled with its
+    value, uncertainty and locus) and what is left (``verdict.left``). Right: per channel of the
+    record, the residual RMS over the noise of the calibrated nominal model and of the fit with the
+    effects (log scale; 1 is the noise).
+
+    Raises
+    ------
+    ValueError
+        When the verdict names no effect (``no_gap``, ``weak_gap``, ``unexplained``).
+    """
+    effects = result.verdict.effects
+    if not effects:
+        raise ValueError(f"a {result.verdict.status!r} verdict names no effect, so it has no gap budget")
+    fig = Figure(figsize=(11, 0.9 + 0.55 * max(len(effects) + 1, 5)), layout="constrained")
+    ax, bx = fig.subplots(1, 2, width_ratios=(1.6, 1))
+    names, shares, colours = [], [], []
+    palette = ("tab:red", "tab:orange", "tab:green", "tab:purple")
+    for i, e in enumerate(effects):
+        share = e.get("share")
+        names.append(
+            f"{e['effect']} = {_value_text(e.get('value'), e.get('uncertainty'), e.get('unit'))}"
+            + (f" ({e['locus']})" if e.get("locus") else "")
+        )
+        shares.append(float(share) if share is not None else np.nan)
+        colours.append(palette[i % len(palette)])
+    left = result.verdict.left
+    names.append("left")
+    shares.append(float(left) if left is not None else np.nan)
+    colours.append("0.6")
+    y = np.arange(len(names))
+    ax.barh(y, np.nan_to_num(shares), color=colours)
+    for yi, v in zip(y, shares, strict=True):
+        ax.text(
+            min(np.nan_to_num(v), 1.0) + 0.01, yi, "n/a" if np.isnan(v) else f"{100 * v:.1f} %", va="center", fontsize=8
+        )
+    ax.set_yticks(y, names, fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xlim(0.0, 1.15)
+    ax.set_xlabel("share of the nominal model's excess residual energy [-]")
+    ax.set_title("Gap budget (Shapley split of the energy each effect removes)", fontsize=9)
+    before = result.gap_before.per_channel
+    after = result.gap_after.per_channel if result.gap_after is not None else {}
+    channels = list(before)
+    yc = np.arange(len(channels))
+    rb = [float(before[c]["rms_over_noise"]) for c in channels]
+    ra = [float(after[c]["rms_over_noise"]) if c in after else np.nan for c in channels]
+    bx.barh(yc - 0.2, rb, height=0.4, color="tab:blue", label="calibrated nominal")
+    bx.barh(yc + 0.2, np.nan_to_num(ra), height=0.4, color="tab:red", label="with the effects")
+    bx.axvline(1.0, color="k", lw=0.8, ls=":")
+    bx.set_xscale("log")
+    bx.set_yticks(yc, channels, fontsize=8)
+    bx.invert_yaxis()
+    bx.set_xlabel("residual RMS / noise [-]")
+    bx.legend(fontsize=7, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=2, frameon=False)
+    fig.suptitle(
+        f"Verdict: {result.verdict.status} {' + '.join(e['effect'] for e in effects)}"
+        f" (confidence {result.verdict.confidence:.2f})"
+    )
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def _value_text(value: float | None, uncertainty: float | None, unit: str | None) -> str:
+    """``1.4 +- 0.0001 x``: a fitted value with its uncertainty, three significant digits of the uncertainty."""
+    if value is None:
+        return "?"
+    u = f" {unit}" if unit else ""
+    if uncertainty is None or not np.isfinite(uncertainty) or uncertainty <= 0:
+        return f"{value:.4g}{u}"
+    digits = max(0, -int(np.floor(np.log10(uncertainty))) + 1)
+    return f"{value:.{digits}f} +- {uncertainty:.2g}{u}"
 
 
 def plot_missing_term(result: DiagnosisResult, path: str | Path) -> Path:

@@ -215,7 +215,7 @@ def test_report_page_diagnoses_uploaded_records(start_server: ServerFactory, bro
 
         figures = images_loaded(page, "#figures img")
         names = {f["name"] for f in figures}
-        assert {"residual_map_before", "residual_map_after", "overlays"} <= names, figures
+        assert {"residual_map_before", "residual_map_after", "overlays", "gap_budget"} <= names, figures
         assert all(f["width"] > 100 and f["alt"] for f in figures), figures
 
         candidates = table_rows(page, "#candidates")

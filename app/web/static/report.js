@@ -391,6 +391,10 @@
       "Record and calibrated simulation overlaid per channel, before and after adding the named effects",
       "Record vs simulation, before and after",
     ],
+    gap_budget: [
+      "Gap budget: each named effect's share of the nominal model's excess residual energy and what is left, beside the residual per channel before and after the effects",
+      "The gap budget",
+    ],
     missing_term: [
       "Estimated missing term: the signal the model lacks, at the locus the data point to",
       "The missing term",
