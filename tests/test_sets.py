@@ -793,24 +793,31 @@ def test_a_single_is_refitted_from_a_set_that_fits_with_it_as_its_only_strong_me
     assert verdict.status == "explained" and verdict.effect == "stator_resistance_drift"
 
 
-@pytest.mark.parametrize("triples_explain", [True, False])
-def test_seeded_triples_that_explain_spare_the_escalation_of_the_singles(
-    monkeypatch: pytest.MonkeyPatch, triples_explain: bool
+@pytest.mark.parametrize("explained_by", ["first triples", "first exchange", None])
+def test_seeded_triples_and_their_exchange_that_explain_spare_the_escalation_of_the_singles(
+    monkeypatch: pytest.MonkeyPatch, explained_by: str | None
 ) -> None:
     """Staged search: when no first pair explains, the seeded triples come before the escalation of the
-    singles, which runs only when none of them explains; every set fitted by then is handed on."""
-    searches: list[tuple[int, bool, int, list[frozenset[str]]]] = []
+    singles, then the exchange from the best of them; the escalation runs only when none of these
+    explains; every set fitted by then is handed on."""
+    searches: list[tuple[int, bool, int, int, list[frozenset[str]]]] = []
     escalations: list[int | None] = []
     triple = ("load_inertia", "supply_voltage", "sensor_gain")
+    exchanged = ("load_inertia", "supply_voltage", "sensor_offset")
 
     def fake_search(record, nominal, space, library, cands, cs, ss, previous=(), screens=None):
-        searches.append((ss.max_size, ss.escalate, ss.n_exchange, [frozenset(s.effects) for s in previous]))
+        searches.append(
+            (ss.max_size, ss.escalate, ss.n_exchange, ss.n_extend, [frozenset(s.effects) for s in previous])
+        )
         if len(searches) == 1:  # the first pairs: none fits to the noise; more than n_report of them
             return [
                 pair(("load_inertia", n), 3.0 + i, (10.0, 10.0)) for i, n in enumerate(CATALOGUE) if n != "load_inertia"
             ]
         if len(searches) == 2:  # the seeded triples
-            return [pair(triple, 1.0 if triples_explain else 2.0, (10.0, 10.0, 10.0))]
+            return [pair(triple, 1.0 if explained_by == "first triples" else 2.0, (10.0, 10.0, 10.0))]
+        if len(searches) == 3:  # the exchange from the best triple: the sets so far, and what it found
+            found = pair(exchanged, 1.0 if explained_by == "first exchange" else 2.5, (10.0, 10.0, 10.0))
+            return [*previous, found]
         return []
 
     def fake_escalate(record, nominal, space, library, cands, cs):
@@ -826,14 +833,40 @@ def test_seeded_triples_that_explain_spare_the_escalation_of_the_singles(
 
     n_report = settings.set_search().n_report
     assert searches[0][0] == 2 and searches[1][:3] == (3, False, 0)  # pairs, then seeded triples only
-    assert len(searches[1][3]) == len(CATALOGUE) - 1  # every first pair handed on, not only the reported ones
+    assert len(searches[1][4]) == len(CATALOGUE) - 1  # every first pair handed on, not only the reported ones
     assert len(sets) <= n_report and frozenset(triple) in {frozenset(s.effects) for s in sets}
-    if triples_explain:
-        assert stages == ["early escalation of the best singles", "first pairs", "first triples"]
+    first = ["early escalation of the best singles", "first pairs", "first triples"]
+    if explained_by == "first triples":
+        assert stages == first
         assert len(escalations) == 1 and len(searches) == 2  # the early escalation only
+        return
+    # the exchange: no global search of pairs, no triple built again, every set so far handed on
+    assert searches[2][1:4] == (False, SetSettings().n_exchange, 0) and frozenset(triple) in searches[2][4]
+    assert len(searches[2][4]) == len(CATALOGUE)
+    if explained_by == "first exchange":
+        assert stages == [*first, "first exchange"]
+        assert len(escalations) == 1 and len(searches) == 3
+        assert frozenset(exchanged) in {frozenset(s.effects) for s in sets}
     else:
-        assert stages[-2:] == ["escalation of the singles", "sets of up to three"]
-        assert len(escalations) == 2 and frozenset(triple) in searches[2][3]  # the triple is kept, not refitted
+        assert stages[-3:] == ["first exchange", "escalation of the singles", "sets of up to three"]
+        assert len(escalations) == 2 and frozenset(triple) in searches[3][4]  # the triple is kept, not refitted
+
+
+def test_without_a_triple_so_far_there_is_no_first_exchange(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The first exchange starts from the best first triple: none fitted (``first_triples`` off), none run."""
+    searches: list[int] = []
+
+    def fake_search(record, nominal, space, library, cands, cs, ss, previous=(), screens=None):
+        searches.append(ss.n_extend)
+        return [pair(("load_inertia", "supply_voltage"), 3.0, (10.0, 10.0))] if len(searches) == 1 else []
+
+    monkeypatch.setattr(staged_module, "search_sets", fake_search)
+    monkeypatch.setattr(staged_module, "escalate_candidates", lambda record, nominal, space, library, cands, cs: cands)
+    stages: list[str] = []
+    cands = [single(n, 50.0 + i, 10.0) for i, n in enumerate(("load_inertia", "supply_voltage", "sensor_gain"))]
+    settings = DiagnosisSettings(sets=SetSettings(first_triples=False))
+    staged_module.staged_search(None, fake_cal(100.0, k=3), None, CATALOGUE, cands, settings, stages.append)
+    assert "first exchange" not in stages and stages[-2:] == ["escalation of the singles", "sets of up to three"]
 
 
 def test_a_screen_beside_the_same_fit_is_not_simulated_again_in_a_later_search(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -170,6 +170,16 @@ class SetSettings:
         pair can pay off the escalation of the singles, which took a third of a triple's time
         (docs/diagnosis.md 8b, *Cuts for the time budgets*). When none explains, the search after the
         escalation keeps the best of them as the first pairs are kept.
+    first_exchange : bool
+        With ``before_escalation`` and ``first_triples``, when no first triple explains the record,
+        the exchange (``n_exchange``, up to ``n_exchange_rounds`` rounds, each new triple with the
+        global search) runs from the best first triple before the singles' escalation, which is
+        skipped when it finds a set that explains the record. On the seed-173 triples that went
+        through the whole search, the exchange found the answer from a best triple that the first
+        triples had already shown (docs/diagnosis.md 8b, *The exchange before the escalation*); the
+        escalation of the singles and the second fit of every pair and triple only took it there
+        later. When it explains nothing, the search goes on as without it (the sets it searched are
+        not searched again).
     n_swap : int
         Swap: once the best set fits to the noise, each of its members is replaced by this many of the
         effects the profiled screen ranks best beside the others, each such set fitted from the others'
@@ -215,6 +225,7 @@ class SetSettings:
     n_exchange_rounds: int = 3
     n_swap: int = 2
     first_triples: bool = True
+    first_exchange: bool = True
 
     def escalation(self, candidates: CandidateSettings, early: bool = False) -> CandidateSettings:
         """The candidate settings of the singles' escalation in the staged order (``before_escalation``).

@@ -107,7 +107,7 @@ def staged_search(
     singles (a single effect whose seeded fit stayed in the nominal calibration's basin is most
     often among them, and found in seconds); the first pairs from the seeded singles, the best with
     a global search in their joint space; the first triples (``first_triples``: seeded fits only);
-    the escalation of the singles (``n_escalate_singles``); the search of sets of up to three from
+    the exchange from the best first triple (``first_exchange``); the escalation of the singles (``n_escalate_singles``); the search of sets of up to three from
     the escalated singles. The first triples start from every first pair as fitted; the last
     search keeps the ``n_report`` best sets so far unless the escalation moved a member's single
     fit, and fits the rest again; the decision sees each search's ``n_report`` best.
@@ -149,6 +149,15 @@ def staged_search(
         fitted = _merge_sets(fitted, triples)
         sets = fitted[: ss.n_report]
         stage("first triples")
+    triples_so_far = any(len(s.effects) == 3 for s in fitted)
+    if ss.first_exchange and ss.n_exchange > 0 and triples_so_far and not any(explains(s, settings) for s in sets):
+        # the sets fitted so far are kept as they are (n_extend 0: no triple is built or fitted
+        # again); only the exchange from the best triple, and the finish of the best sets, run
+        exchange_only = replace(everything, escalate=False, n_extend=0)
+        exchanged = search_sets(record, nominal, space, library, cands, cs, exchange_only, fitted, screens)
+        fitted = _merge_sets(fitted, exchanged)
+        sets = fitted[: ss.n_report]
+        stage("first exchange")
     if any(explains(s, settings) for s in sets):
         return cands, sets
     seeded = {c.effect: c.calibration.values for c in cands if c.calibration is not None}
