@@ -178,8 +178,8 @@ class SetSettings:
         through the whole search, the exchange found the answer from a best triple that the first
         triples had already shown (docs/diagnosis.md 8b, *The exchange before the escalation*); the
         escalation of the singles and the second fit of every pair and triple only took it there
-        later. When it explains nothing, the search goes on as without it (the sets it searched are
-        not searched again).
+        later. When it explains nothing, the search goes on as without it (its best sets are handed
+        on as the first triples' are).
     n_swap : int
         Swap: once the best set fits to the noise, each of its members is replaced by this many of the
         effects the profiled screen ranks best beside the others, each such set fitted from the others'
