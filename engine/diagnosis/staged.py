@@ -108,9 +108,10 @@ def staged_search(
     often among them, and found in seconds); the first pairs from the seeded singles, the best with
     a global search in their joint space; the first triples (``first_triples``: seeded fits only);
     the exchange from the best first triple (``first_exchange``); the escalation of the singles
-    (``n_escalate_singles``); the search of sets of up to three from the escalated singles. The first triples start from every first pair as fitted; the last
-    search keeps the ``n_report`` best sets so far unless the escalation moved a member's single
-    fit, and fits the rest again; the decision sees each search's ``n_report`` best.
+    (``n_escalate_singles``); the search of sets of up to three from the escalated singles. The
+    first triples start from every first pair as fitted, the exchange from every set so far; the
+    last search keeps the ``n_report`` best sets so far unless the escalation moved a member's
+    single fit, and fits the rest again; the decision sees each search's ``n_report`` best.
 
     Parameters
     ----------
