@@ -1,0 +1,55 @@
+"""bench/summarise_rows.py: the summary that reproduces the time and accuracy figures of the rows in docs/."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def load() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("summarise_rows", ROOT / "bench" / "summarise_rows.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def write(path: Path, rows: list[dict]) -> Path:
+    path.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    return path
+
+
+def test_a_later_row_of_the_same_case_replaces_the_earlier_one(tmp_path: Path) -> None:
+    mod = load()
+    base = write(
+        tmp_path / "base.jsonl",
+        [{"case": f"c{i}", "kind": "triple", "correct": i != 0, "seconds": 10.0 + i} for i in range(20)]
+        + [{"case": "s0", "kind": "single", "correct": True, "seconds": 12.0}],
+    )
+    lever = write(tmp_path / "lever.jsonl", [{"case": "c0", "kind": "triple", "correct": True, "seconds": 99.0}])
+    rows = mod.read_rows([base, lever])
+    assert len(rows) == 21 and rows["c0"]["seconds"] == 99.0
+    compound = mod.summarise(rows, ("pair", "triple"), 60.0)
+    assert (compound["n"], compound["right"], compound["over_budget"]) == (20, 20, 1)
+    assert compound["median_s"] == pytest.approx(20.5)  # 11..29 and 99
+    single = mod.summarise(rows, ("single",), 10.0)
+    assert (single["n"], single["over_budget"]) == (1, 1)
+    assert mod.summarise(rows, ("held_back",), None) == {"n": 0}
+
+
+@pytest.mark.parametrize(
+    ("line", "message"),
+    [("not json", "not a JSON row"), ('{"case": "c1", "kind": "pair"}', "has no correct, seconds")],
+)
+def test_a_row_it_cannot_read_is_refused_with_its_file_and_line(tmp_path: Path, line: str, message: str) -> None:
+    mod = load()
+    path = tmp_path / "rows.jsonl"
+    path.write_text(json.dumps({"case": "c0", "kind": "pair", "correct": True, "seconds": 1.0}) + "\n" + line + "\n")
+    with pytest.raises(ValueError, match=rf"rows.jsonl:2: .*{message}"):
+        mod.read_rows([path])
