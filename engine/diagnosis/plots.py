@@ -139,9 +139,9 @@ def plot_overlays(record: Record, result: DiagnosisResult, path: str | Path) -> 
 def plot_gap_budget(result: DiagnosisResult, path: str | Path) -> Path:
     """The gap budget of the named effects, and the gap per channel before and after them.
 
-    Left: the nominal model's excess residual energy (beyond noise) as one bar of 100 %, split into
-    each named effect's share (``verdict.effects[i]["share"]``, largest first, labelled with its
-    value, uncertainty and locus) and what is left (``verdict.left``). Right: per channel of the
+    Left: one bar per named effect, its share of the nominal model's excess residual energy (beyond
+    noise; ``verdict.effects[i]["share"]``, largest first, labelled with its value, uncertainty and
+    locus), and one for what is left (``verdict.left``); together they make 1. Right: per channel of the
     record, the residual RMS over the noise of the calibrated nominal model and of the fit with the
     effects (log scale; 1 is the noise).
 
@@ -204,7 +204,7 @@ def plot_gap_budget(result: DiagnosisResult, path: str | Path) -> Path:
 
 
 def _value_text(value: float | None, uncertainty: float | None, unit: str | None) -> str:
-    """``1.4 +- 0.0001 x``: a fitted value with its uncertainty, three significant digits of the uncertainty."""
+    """``1.39980 +- 0.00011 x``: a fitted value to the second significant digit of its uncertainty."""
     if value is None:
         return "?"
     u = f" {unit}" if unit else ""
