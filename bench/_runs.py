@@ -17,6 +17,11 @@ from engine.validation.key import KeyEntry
 from engine.validation.layout import RunLayout
 from engine.validation.run import prepare_cases
 
+#: Groups of issue 10's time budgets and the case kinds in each.
+GROUPS: dict[str, tuple[str, ...]] = {"single": ("single",), "compound": ("pair", "triple")}
+#: Issue 10's 90th-percentile budgets [s], one diagnosis on 2 cores.
+BUDGET_P90_S: dict[str, float] = {"single": 10.0, "compound": 60.0}
+
 
 def add_run_arguments(ap: argparse.ArgumentParser, ids_help: str) -> None:
     """Add ``run``, ``ids``, ``--seed`` and ``--cases`` to a script's parser."""

@@ -33,14 +33,9 @@ import sys
 import time
 from typing import Any
 
-from _runs import add_run_arguments, chosen_entries, run_library
+from _runs import BUDGET_P90_S, GROUPS, add_run_arguments, chosen_entries, run_library
 
 logger = logging.getLogger("bench.case_times")
-
-#: Groups of the budget and the case kinds in each.
-GROUPS: dict[str, tuple[str, ...]] = {"single": ("single",), "compound": ("pair", "triple")}
-#: The issue's 90th-percentile budgets [s], one diagnosis on 2 cores.
-BUDGET_P90_S: dict[str, float] = {"single": 10.0, "compound": 60.0}
 
 
 def _time_cases(layout: Any, library: Any, ids: list[str], threads: int) -> dict[str, float]:

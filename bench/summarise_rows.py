@@ -29,12 +29,9 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-logger = logging.getLogger("bench.summarise_rows")
+from _runs import BUDGET_P90_S, GROUPS
 
-#: Groups of the budget and the case kinds in each.
-GROUPS: dict[str, tuple[str, ...]] = {"single": ("single",), "compound": ("pair", "triple")}
-#: The issue's 90th-percentile budgets [s], one diagnosis on 2 cores.
-BUDGET_P90_S: dict[str, float] = {"single": 10.0, "compound": 60.0}
+logger = logging.getLogger("bench.summarise_rows")
 
 
 def read_rows(paths: Iterable[Path]) -> dict[str, dict[str, Any]]:
