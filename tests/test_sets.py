@@ -564,6 +564,50 @@ def test_a_member_of_the_set_that_explains_is_swapped_for_a_better_one(
         assert set(out[1].effects) == {a, b, c}  # the first set that explained stays, second
 
 
+@pytest.mark.parametrize("n_swap", [0, 2])
+def test_a_swapped_set_that_fits_with_a_neutral_member_is_refitted_without_it(
+    monkeypatch: pytest.MonkeyPatch, n_swap: int
+) -> None:
+    """Seed-191 case0082 (stator resistance drift + contact stiffness): the forward selection's triple
+    of contact stiffness, rotor drift and supply voltage fitted to the noise, all three strong (the
+    rotor and supply pair standing in for the stator drift); the swap put the stator drift in place of
+    either, and those triples fitted better with the rotor drift (or the supply) at 0.9999, weak. The
+    decision names only the best triple of each size, saw a weak member, fell back to the best pair
+    (chi2/n 183) and answered `unexplained`; the true pair was never fitted from a triple's fit.
+    Faked fits: the stator-drift sets fit only when refined from a swap or an elimination."""
+    a, b, c, d, e = (
+        "contact_stiffness",
+        "rotor_resistance_drift",
+        "supply_voltage",
+        "stator_resistance_drift",
+        "sensor_gain",
+    )
+    coarse = {frozenset((a, b)): 2.0, frozenset((a, c)): 2.5, frozenset((a, b, c)): 1.0}
+    refined = {**coarse, frozenset((a, b, c)): 0.99, frozenset((a, b, d)): 0.97, frozenset((a, c, d)): 0.97}
+    refined[frozenset((a, d))] = 0.9705
+    sets_module, cs, fitted = fake_set_fits(
+        monkeypatch,
+        lambda names: coarse.get(frozenset(names), 3.0),
+        lambda names: refined.get(frozenset(names), 3.0),
+    )
+
+    def strengths(record, cal, space, members, noise):
+        names = [m.name for m in members]
+        return {n: 0.5 if n in (b, c) and d in names else 10.0 for n in names}  # neutral beside the stator drift
+
+    monkeypatch.setattr(sets_module, "member_strengths", strengths)
+    singles = [single(n, 20.0 + i, 10.0) for i, n in enumerate((a, b, c, d, e))]
+    settings = SetSettings(n_polish=1, n_swap=n_swap)
+    out = sets_module.search_sets(None, fake_cal(100.0, k=3), None, CATALOGUE, singles, cs, settings)
+    chosen = choose_model(singles, out, DiagnosisSettings())
+    assert isinstance(chosen, CandidateSet)
+    if n_swap:
+        assert set(chosen.effects) == {a, d}
+        assert any(set(g) == {a, d} for g, _ in fitted)  # refitted from a swapped triple's fit
+    else:  # without the swap the stand-in triple is named, as before it
+        assert set(chosen.effects) == {a, b, c}
+
+
 def test_the_exchange_fits_no_two_twins_in_place_of_one_member(monkeypatch: pytest.MonkeyPatch) -> None:
     """A trigger offset and a measurement delay fit alike (seed-123 case0030's log: both were the
     exchange's two additions beside one pair); the second addition is the next effect instead, here

@@ -55,7 +55,9 @@ selection:
    ``n_swap`` effects the profiled screen ranks best beside the others, fitted from the others'
    fit (seeded, refined at the final step): the search stops at the first set that fits, so
    without it an effect the search never tried in a member's place could neither replace that
-   member nor be reported as its near twin (:mod:`engine.diagnosis.ambiguity`).
+   member nor be reported as its near twin (:mod:`engine.diagnosis.ambiguity`). A swapped set
+   that fits to the noise with a weak member (the true pair beside a third effect at its
+   neutral value) is refitted without its weak members, as in step 6.
 
 Evidence is the same BIC as for single effects (``chi2 + k ln n``): every
 added effect must lower chi2 by more than ln(n) (about 9 for five channels) to
@@ -651,13 +653,13 @@ def _search(
             st.strengths = member_strengths(record, cal, space, members, nominal.sigma)  # the floored noise of the fit
             st.shares, st.left = gap_budget(record, cal, space, members, nominal)
 
-    def _swap(best: tuple[str, ...] | None) -> None:
+    def _swap(best: tuple[str, ...] | None) -> list[tuple[str, ...]]:
         """Each member of the best set, once it explains the record, replaced by the ``n_swap`` effects
         the profiled screen ranks best beside the others, fitted from the others' fit (seeded, refined at
         the final step): the search stops at the first set that fits to the noise, and a member may be
         a near twin of an effect it never tried in its place (a rotor drift of a supply change)."""
         if best is None or len(best) < 2 or fits[best].step != cs.seeded.final_step or not fits_noise(best):
-            return
+            return []
         todo: list[tuple[str, ...]] = []
         for m in best:
             sub = tuple(n for n in best if n != m)
@@ -674,40 +676,54 @@ def _search(
                     break
             todo += [group(*sub, n) for n in added if group(*sub, n) not in todo]
         if not todo:
-            return
+            return []
         logger.info("swap: %s for %s, from its fit", ", ".join("+".join(g) for g in todo), "+".join(best))
         fit_all(todo, cs.seeded, polish=True)
-        finish([g for g in todo if g in fits])
+        swapped = [g for g in todo if g in fits]
+        finish(swapped)
         now = min(sets, key=lambda g: sets[g].bic)
         logger.info(
             "swap: best set %s (dBIC %.1f against %s)", "+".join(now), sets[now].bic - sets[best].bic, "+".join(best)
         )
+        return swapped
+
+    def eliminate(groups: list[tuple[str, ...]], weak_only: bool = False) -> None:
+        """Backward elimination: each set that fits to the noise is refitted without its weak members (all
+        at once) or, when every member is strong and not ``weak_only``, without each member in turn, from
+        its own fit (its basin is that of the smaller set too); the decision then prefers the smaller set
+        when it pays."""
+        for g in groups:
+            st = sets[g]
+            if fits[g].reduced_chi2 > ss.escalate_above:
+                continue
+            weak = [n for n, v in st.strengths.items() if not (math.isfinite(v) and v > ss.min_strength)]
+            if weak_only and not weak:
+                continue
+            subs = [tuple(n for n in g if n not in weak)] if weak else [tuple(n for n in g if n != m) for m in g]
+            todo = [
+                sub
+                for sub in subs
+                if len(sub) >= 2
+                and not (
+                    sub in fits and fits[sub].step == cs.seeded.final_step and fits[sub].chi2 <= fits[g].chi2 * 1.01
+                )
+            ]
+            if not todo:
+                continue
+            logger.info(
+                "set %s fits to the noise; refitting %s from its fit", st.name, ", ".join("+".join(t) for t in todo)
+            )
+            fit_all(todo, cs.seeded, polish=True, given={sub: fits[g].values for sub in todo})
+            finish(todo)
 
     finish(sorted(sets, key=lambda g: sets[g].bic)[: ss.n_polish])
-    # backward elimination: a set that fits to the noise is refitted without each of its members in
-    # turn (those with a weak member without all of them at once), from its own fit (its basin is
-    # that of the smaller set too); the decision then prefers the smaller set when it pays
-    for g in sorted(sets, key=lambda g: sets[g].bic)[: ss.n_polish]:
-        st = sets[g]
-        if fits[g].reduced_chi2 > ss.escalate_above:
-            continue
-        weak = [n for n, v in st.strengths.items() if not (math.isfinite(v) and v > ss.min_strength)]
-        subs = [tuple(n for n in g if n not in weak)] if weak else [tuple(n for n in g if n != m) for m in g]
-        todo = [
-            sub
-            for sub in subs
-            if len(sub) >= 2
-            and not (sub in fits and fits[sub].step == cs.seeded.final_step and fits[sub].chi2 <= fits[g].chi2 * 1.01)
-        ]
-        if not todo:
-            continue
-        logger.info(
-            "set %s fits to the noise; refitting %s from its fit", st.name, ", ".join("+".join(t) for t in todo)
-        )
-        fit_all(todo, cs.seeded, polish=True, given={sub: fits[g].values for sub in todo})
-        finish(todo)
+    eliminate(sorted(sets, key=lambda g: sets[g].bic)[: ss.n_polish])
     if ss.n_swap > 0:
-        _swap(sorted(sets, key=lambda g: sets[g].bic)[0] if sets else None)
+        # a swapped set can fit to the noise with a member at its neutral value (a rotor drift of 0.9999
+        # beside the true stator drift): its strong members are then refitted without it, as above, or
+        # the decision, which names only the best set of each size, sees a weak member and no pair
+        # (seed-191 case0082, docs/diagnosis.md 8b, *Elimination after the swap*)
+        eliminate(_swap(sorted(sets, key=lambda g: sets[g].bic)[0] if sets else None), weak_only=True)
     ranked = sorted(sets, key=lambda g: sets[g].bic)[: ss.n_report]
     out = [sets[g] for g in ranked]
     for s in out:
