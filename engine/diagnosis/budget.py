@@ -40,10 +40,10 @@ from engine.simulation import Case, Effect, SolverSettings, run_cases
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["gap_budget", "member_strengths"]
+__all__ = ["case_with", "gap_budget", "member_strengths"]
 
 
-def _case_with(space: ModelSpace, values: Mapping[str, float], effects: Sequence[Effect]) -> Case:
+def case_with(space: ModelSpace, values: Mapping[str, float], effects: Sequence[Effect]) -> Case:
     """The case of ``space``'s plant parameters at ``values`` with only ``effects`` applied."""
     plain = {k: v for k, v in values.items() if k in space.names}
     case = space.case(space.unit(plain))
@@ -72,7 +72,7 @@ def member_strengths(
     if cal.simulation is None:
         return {e.name: math.nan for e in effects}
     sigma = strength_noise(record, cal, noise)
-    cases = [_case_with(space, cal.values, [f for f in effects if f.name != e.name]) for e in effects]
+    cases = [case_with(space, cal.values, [f for f in effects if f.name != e.name]) for e in effects]
     ch, _, status = run_cases(cases, SolverSettings(max_step=cal.step), record.grid)
     out = {}
     for i, e in enumerate(effects):
@@ -133,7 +133,7 @@ def gap_budget(
     if k == 1:
         return {effects[0].name: closed / e0}, left
     subsets = [s for r in range(k + 1) for s in itertools.combinations(range(k), r)]
-    cases = [_case_with(space, cal.values, [effects[i] for i in s]) for s in subsets]
+    cases = [case_with(space, cal.values, [effects[i] for i in s]) for s in subsets]
     chi2 = dict(zip(subsets, _chi2_of_cases(record, cases, cal.sigma, cal.step), strict=True))
     full = chi2[tuple(range(k))]
     # v(T): how much of the chi2 of "no effect" the effects in T remove (at the fit's operating point)
