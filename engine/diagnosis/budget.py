@@ -44,7 +44,28 @@ __all__ = ["case_with", "gap_budget", "member_strengths"]
 
 
 def case_with(space: ModelSpace, values: Mapping[str, float], effects: Sequence[Effect]) -> Case:
-    """The case of ``space``'s plant parameters at ``values`` with only ``effects`` applied."""
+    """The case of ``space``'s plant parameters at ``values`` with only ``effects`` applied.
+
+    Parameters
+    ----------
+    space : ModelSpace
+        The model space whose free plant parameters ``values`` sets (its known conditions stay).
+    values : mapping of str to float
+        A fit's values: every free plant parameter of ``space`` [its unit] and the value of each of
+        ``effects`` [the effect's unit]; other entries are ignored.
+    effects : sequence of Effect
+        The effects to apply, at their values in ``values``.
+
+    Returns
+    -------
+    Case
+        The case to simulate (:func:`engine.simulation.run_cases`).
+
+    Raises
+    ------
+    ParameterError
+        When a value lies outside its parameter's or effect's range.
+    """
     plain = {k: v for k, v in values.items() if k in space.names}
     case = space.case(space.unit(plain))
     for e in effects:
