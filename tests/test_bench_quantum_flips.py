@@ -2,29 +2,20 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
 from types import ModuleType
 
 import pytest
+from bench_scripts import load_bench
 
 from engine.simulation import PlantParameters, simulate
 from engine.simulation.parameters import SolverSettings
 
-ROOT = Path(__file__).resolve().parents[1]
 PLANT = PlantParameters(K=0.007, J1=0.95, c=1.3)
 Q = 0.3
 
 
 def load() -> ModuleType:
-    if str(ROOT / "bench") not in sys.path:  # the script imports its neighbour bench/_runs.py, as when run
-        sys.path.insert(0, str(ROOT / "bench"))
-    spec = importlib.util.spec_from_file_location("quantum_flips", ROOT / "bench" / "quantum_flips.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_bench("quantum_flips")
 
 
 def model(load_inertia: float) -> dict:

@@ -2,25 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 from types import ModuleType
 
 import pytest
-
-ROOT = Path(__file__).resolve().parents[1]
+from bench_scripts import load_bench
 
 
 def load() -> ModuleType:
-    if str(ROOT / "bench") not in sys.path:  # the script imports its neighbour bench/_runs.py, as when run
-        sys.path.insert(0, str(ROOT / "bench"))
-    spec = importlib.util.spec_from_file_location("summarise_rows", ROOT / "bench" / "summarise_rows.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_bench("summarise_rows")
 
 
 def write(path: Path, rows: list[dict]) -> Path:
