@@ -60,7 +60,12 @@ def moved(value: float, step: float, bounds: tuple[float, float]) -> float:
 
 
 def flips(record: Record, model: dict[str, Any], bounds: dict[str, Any] | None) -> dict[str, Any]:
-    """The off-cell samples of ``model``'s rounded omega1 on ``record`` (see the module notes)."""
+    """The off-cell samples of ``model``'s rounded omega1 on ``record`` (see the module notes).
+
+    ``bounds`` are the search box the run's diagnoses used (None: the default box, as in every
+    validation run). Raises ValueError when a stored value lies outside it (the model space would
+    clip it) or a free parameter has no stored value, RuntimeError when a simulation fails.
+    """
     cal = model["calibration"]
     values: dict[str, float] = dict(cal["values"])
     unc: dict[str, float] = cal["uncertainties"]
@@ -68,6 +73,14 @@ def flips(record: Record, model: dict[str, Any], bounds: dict[str, Any] | None) 
     space = default_space(record, bounds)
     effects = [CATALOGUE[n] for n in model["names"] if n != QUANTUM]
     box = {p.name: (p.lo, p.hi) for p in space.params} | {e.name: e.bounds for e in effects}
+    outside = [
+        k for k, (lo, hi) in box.items() if k in values and not lo - 1e-9 * abs(lo) <= values[k] <= hi + 1e-9 * abs(hi)
+    ]
+    if outside:  # the model space would clip them: a run diagnosed with other bounds than the default box
+        raise ValueError(
+            f"stored values of {', '.join(outside)} lie outside the default search box "
+            f"{ {k: box[k] for k in outside} }; pass the run's bounds"
+        )
     free = [k for k in values if k in box and unc.get(k)]
     cases = [case_with(space, values, effects)]
     cases += [case_with(space, {**values, k: moved(values[k], unc[k], box[k])}, effects) for k in free]
@@ -100,6 +113,7 @@ def main() -> None:
     args = ap.parse_args()
     logging.basicConfig(level=logging.WARNING, stream=sys.stderr)
     layout, entries = chosen_entries(ap, args, None)
+    failed = 0
     for entry in entries:
         result = layout.read_result(entry.case_id)
         model = quantum_model(result)
@@ -107,8 +121,15 @@ def main() -> None:
             logger.warning("%s: no reported model holds the speed quantum", entry.case_id)
             continue
         record = layout.read_case(entry.case_id).test_window()[0]
-        row = {"case": entry.case_id, **flips(record, model, None)}
+        try:
+            row = {"case": entry.case_id, **flips(record, model, None)}
+        except (ValueError, RuntimeError) as exc:
+            logger.error("%s: %s", entry.case_id, exc)
+            failed += 1
+            continue
         print(json.dumps(row), flush=True)
+    if failed:
+        sys.exit(f"{failed} of {len(entries)} cases could not be read (above)")
 
 
 if __name__ == "__main__":

@@ -56,3 +56,12 @@ def test_a_result_without_a_quantum_model_gives_none() -> None:
     qf = load()
     result = {"candidates": [{"effect": "load_inertia", "calibration": {"values": {}}}]}
     assert qf.quantum_model(result) is None
+
+
+def test_a_stored_value_outside_the_search_box_is_refused_not_clipped() -> None:
+    qf = load()
+    record = simulate(PLANT, effects={"load_inertia": 1.3, "speed_quantization": Q}).test_window()[0]
+    m = model(1.3)
+    m["calibration"]["values"]["load_inertia"] = 9.0  # beyond the effect's range
+    with pytest.raises(ValueError, match="load_inertia"):
+        qf.flips(record, m, None)

@@ -944,3 +944,18 @@ def test_a_screen_beside_the_same_fit_is_not_simulated_again_in_a_later_search(m
     assert len(screened) == 2  # the same fits: nothing screened again
     search(None)
     assert len(screened) == 4  # without the shared screens, both again
+
+
+def test_a_case_without_a_value_for_a_free_parameter_is_refused_not_centred() -> None:
+    """``budget.case_with`` builds the cases of the gap budget and the strengths from a fit's values; a
+    free parameter without a value would be read as the centre of its search interval."""
+    from engine.diagnosis.budget import case_with
+    from engine.diagnosis.space import default_space
+
+    record = simulate(PlantParameters(K=0.005, J1=0.85, c=1.1)).test_window()[0]
+    record = Record(record.channels, record.sample_interval, record.event_index, conditions={"c1": 0.2})
+    space = default_space(record)
+    with pytest.raises(ValueError, match="J1"):
+        case_with(space, {"K": 0.005, "c": 1.1}, [])
+    case = case_with(space, {"K": 0.005, "J1": 0.85, "c": 1.1}, [])
+    assert math.isclose(case.plant.J1, 0.85, rel_tol=1e-12)

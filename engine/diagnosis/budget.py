@@ -63,9 +63,15 @@ def case_with(space: ModelSpace, values: Mapping[str, float], effects: Sequence[
 
     Raises
     ------
+    ValueError
+        When ``values`` lacks a free parameter of ``space`` (which would otherwise be read as the
+        centre of its search interval).
     ParameterError
-        When a value lies outside its parameter's or effect's range.
+        When a value lies outside its effect's range.
     """
+    missing = [n for n in space.names if n not in values]
+    if missing:
+        raise ValueError(f"no value for the free parameters {', '.join(missing)} of the model space")
     plain = {k: v for k, v in values.items() if k in space.names}
     case = space.case(space.unit(plain))
     for e in effects:
