@@ -264,10 +264,12 @@ def test_small_blind_validation(tmp_path):
 
     ident = score_identification(tmp_path)
     n = ident["n"]
-    assert n["twin"] == n["before"] == n["after"] == sum(r["expected"] == "explained" for r in rep.per_case)
+    assert (
+        n["twin"] == n["before"] == n["after"] == n["oracle"] == sum(r["expected"] == "explained" for r in rep.per_case)
+    )
     assert n["clean"] == sum(r["kind"] == "clean" for r in rep.per_case)
     acc = ident["accuracy"]
-    for split in ("clean", "twin", "before", "after"):
+    for split in ("clean", "twin", "before", "after", "oracle"):
         per_channel = [v for ch, v in acc[split].items() if ch != "mean"]
         assert sorted(acc[split]) == sorted([*CHANNELS, "mean"])
         assert all(v * n[split] == pytest.approx(round(v * n[split])) for v in per_channel)  # k of n records
@@ -279,6 +281,8 @@ def test_small_blind_validation(tmp_path):
     assert acc["clean"] == pytest.approx({"a1": 1.0, "m_el": 1.0, "omega1": 0.0, "a2": 0.0, "v2": 1.0, "mean": 0.6})
     # the paired difference is the difference of the channel means (same cases in both splits)
     assert ident["paired"]["after_minus_twin"] == pytest.approx(100 * (acc["after"]["mean"] - acc["twin"]["mean"]))
+    # both effect records are named right: the diagnosis's share of the loss is its value error's only
+    assert ident["paired"]["after_minus_oracle"] == pytest.approx(100 * (acc["after"]["mean"] - acc["oracle"]["mean"]))
     assert "clean twins" in identification_markdown(ident)
 
 

@@ -81,7 +81,12 @@ def score_identification(
       sampling error between different operating points;
     * ``before``: counting effect cases, nominal patterns;
     * ``after``: the same cases, patterns retrained with the *diagnosed* effect at its
-      fitted value (nominal patterns where the diagnosis named none).
+      fitted value (nominal patterns where the diagnosis named none);
+    * ``oracle``: the same cases, patterns retrained with the *true* effect at its true
+      value (from the answer key): the best any diagnosis could do for the identifier.
+      ``after - oracle`` is the diagnosis's share of the loss against the clean twins,
+      ``oracle - twin`` the identifier's own (the effect makes the width harder to read
+      even when it is known exactly).
 
     Patterns are trained at the *calibrated* c (never the true c), or at the
     nearest paper group with ``at_groups``.
@@ -101,11 +106,14 @@ def score_identification(
     -------
     dict
         ``{"kind", "n": {...}, "accuracy": {split: {channel: fraction, "mean": fraction}},
-        "paired": {"after_minus_twin": points, "stderr": points}}``.
+        "paired": {"after_minus_twin": points, "stderr": points, "after_minus_oracle": points,
+        "after_minus_oracle_stderr": points, "oracle_minus_twin": points, "oracle_minus_twin_stderr": points},
+        "by_effect": {effect: {"n", "after_minus_twin", "oracle_minus_twin"}}}``.
     """
     out = Path(out_dir)
     key = {e["case_id"]: e for e in json.loads((out / "key" / "answer_key.json").read_text())}
-    hits: dict[str, dict[str, list[bool]]] = {"clean": {}, "twin": {}, "before": {}, "after": {}}
+    hits: dict[str, dict[str, list[bool]]] = {"clean": {}, "twin": {}, "before": {}, "after": {}, "oracle": {}}
+    effect_of: list[str] = []  # the true effect of each effect record, in the order of the hits
     ids = [i for i in sorted(key) if key[i]["expected_status"] == "explained" or key[i]["kind"] == "clean"]
     records = {i: Record.from_dict(json.loads((out / "cases" / f"{i}.json").read_text())["record"]) for i in ids}
     effect_ids = [i for i in ids if key[i]["expected_status"] == "explained"]
@@ -125,6 +133,10 @@ def score_identification(
         want = nearest_grid_width(truth["K"])
         if not clean:
             twin = identify_before_after(twins[case_id], None, None, c=c, kind=kind, at_groups=at_groups)
+            oracle = identify_before_after(
+                record, truth["effect"], truth["value"], c=c, kind=kind, at_groups=at_groups
+            )["channels"]
+            effect_of.append(truth["effect"])
         for ch, entry in ident["channels"].items():
             ok_before = bool(np.isclose(entry["before"]["width"], want))
             if clean:
@@ -134,6 +146,7 @@ def score_identification(
                 hits["before"].setdefault(ch, []).append(ok_before)
                 hits["after"].setdefault(ch, []).append(ok_after)
                 hits["twin"].setdefault(ch, []).append(bool(np.isclose(twin["channels"][ch]["before"]["width"], want)))
+                hits["oracle"].setdefault(ch, []).append(bool(np.isclose(oracle[ch]["after"]["width"], want)))
         if progress:
             progress(n_done + 1, len(ids))
     accuracy: dict[str, dict[str, float]] = {}
@@ -144,14 +157,41 @@ def score_identification(
     n = {split: (len(next(iter(by_ch.values()))) if by_ch else 0) for split, by_ch in hits.items()}
     paired: dict[str, float] = {}
     if hits["after"]:
-        # per case: mean over channels of (after - twin); its mean and standard error, in points
+        # per case: mean over channels of (a - b); its mean and standard error, in points
         chans = list(hits["after"])
-        d = np.mean([np.array(hits["after"][ch], float) - np.array(hits["twin"][ch], float) for ch in chans], axis=0)
-        paired = {
-            "after_minus_twin": float(100 * d.mean()),
-            "stderr": float(100 * d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("nan"),
+
+        def _per_case(a: str, b: str) -> np.ndarray:
+            return np.mean([np.array(hits[a][ch], float) - np.array(hits[b][ch], float) for ch in chans], axis=0)
+
+        def _diff(a: str, b: str) -> tuple[float, float]:
+            d = _per_case(a, b)
+            err = float(100 * d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("nan")
+            return float(100 * d.mean()), err
+
+        paired["after_minus_twin"], paired["stderr"] = _diff("after", "twin")
+        paired["after_minus_oracle"], paired["after_minus_oracle_stderr"] = _diff("after", "oracle")
+        paired["oracle_minus_twin"], paired["oracle_minus_twin_stderr"] = _diff("oracle", "twin")
+        # the same paired differences by true effect (points; a reading, no target)
+        names = np.array(effect_of)
+        d_after, d_oracle = _per_case("after", "twin"), _per_case("oracle", "twin")
+        by_effect = {
+            str(e): {
+                "n": int((names == e).sum()),
+                "after_minus_twin": float(100 * d_after[names == e].mean()),
+                "oracle_minus_twin": float(100 * d_oracle[names == e].mean()),
+            }
+            for e in sorted(set(effect_of))
         }
-    return {"kind": kind, "at_groups": at_groups, "n": n, "accuracy": accuracy, "paired": paired}
+    else:
+        by_effect = {}
+    return {
+        "kind": kind,
+        "at_groups": at_groups,
+        "n": n,
+        "accuracy": accuracy,
+        "paired": paired,
+        "by_effect": by_effect,
+    }
 
 
 def identification_markdown(score: dict[str, Any]) -> str:
@@ -164,13 +204,14 @@ def identification_markdown(score: dict[str, Any]) -> str:
         "twin": "effect cases' clean twins (same point and noise, effect removed), nominal patterns",
         "before": "effect cases, nominal patterns",
         "after": "effect cases, patterns retrained with the diagnosed effect",
+        "oracle": "effect cases, patterns retrained with the true effect at its true value",
     }
     rows = (
         "\n".join(
             f"| {label[s]} | {score['n'][s]} | "
             + " | ".join(f"{100 * acc[s].get(ch, float('nan')):.1f} %" for ch in channels)
             + " |"
-            for s in ("clean", "twin", "before", "after")
+            for s in ("clean", "twin", "before", "after", "oracle")
             if s in acc
         )
         + "\n"
@@ -181,4 +222,17 @@ def identification_markdown(score: dict[str, Any]) -> str:
             f"\nAfter the fix minus clean twin, paired per case (mean over channels): "
             f"{p['after_minus_twin']:+.1f} points (standard error {p['stderr']:.1f}).\n"
         )
+    if "after_minus_oracle" in p:
+        rows += (
+            f"Of it, the diagnosis's share (after the fix minus the true effect's patterns): "
+            f"{p['after_minus_oracle']:+.1f} points (standard error {p['after_minus_oracle_stderr']:.1f}); "
+            f"the identifier's (true effect's patterns minus clean twin): {p['oracle_minus_twin']:+.1f} points "
+            f"(standard error {p['oracle_minus_twin_stderr']:.1f}).\n"
+        )
+    by_effect = score.get("by_effect") or {}
+    if by_effect:
+        rows += "\n| true effect | n | after the fix minus clean twin | true effect's patterns minus clean twin |\n"
+        rows += "|---|---|---|---|\n"
+        for e, r in by_effect.items():
+            rows += f"| {e} | {r['n']} | {r['after_minus_twin']:+.1f} | {r['oracle_minus_twin']:+.1f} |\n"
     return head + rows
