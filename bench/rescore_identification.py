@@ -26,7 +26,7 @@ logger = logging.getLogger("bench.rescore_identification")
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Score ``run`` and write the two files to ``--to``; 2 on a run that is not finished."""
+    """Score ``run`` and write the two files to ``--to``; 2 on a run that is not a finished protocol-1 run."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("run", type=Path, help="output directory of a finished protocol-1 run")
     ap.add_argument("--to", type=Path, required=True, help="directory for identification.md and .json")
@@ -44,7 +44,11 @@ def main(argv: list[str] | None = None) -> int:
         if done % 20 == 0 or done == total:
             logger.info("%d of %d records scored", done, total)
 
-    scored = score_identification(args.run, progress=progress)
+    try:
+        scored = score_identification(args.run, progress=progress)
+    except ValueError as exc:
+        logger.error("%s", exc)
+        return 2
     args.to.mkdir(parents=True, exist_ok=True)
     text = identification_markdown(scored)
     (args.to / "identification.md").write_text(text)

@@ -281,7 +281,7 @@ def test_small_blind_validation(tmp_path):
     assert acc["clean"] == pytest.approx({"a1": 1.0, "m_el": 1.0, "omega1": 0.0, "a2": 0.0, "v2": 1.0, "mean": 0.6})
     # the paired difference is the difference of the channel means (same cases in both splits)
     assert ident["paired"]["after_minus_twin"] == pytest.approx(100 * (acc["after"]["mean"] - acc["twin"]["mean"]))
-    # both effect records are named right: the diagnosis's share of the loss is its value error's only
+    # so is the diagnosis's share: after the fix minus the true effect's patterns
     assert ident["paired"]["after_minus_oracle"] == pytest.approx(100 * (acc["after"]["mean"] - acc["oracle"]["mean"]))
     assert "clean twins" in identification_markdown(ident)
 

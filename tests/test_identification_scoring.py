@@ -98,6 +98,11 @@ def test_the_rescoring_script_writes_beside_the_run_never_into_it(tmp_path, monk
     assert "must not be the run itself" in caplog.text and not (run / "identification.md").exists()
     assert script.main([str(tmp_path / "nothing"), "--to", str(tmp_path / "x")]) == 2
     assert "not a finished protocol-1 run" in caplog.text and not (tmp_path / "x").exists()
+    v2 = tmp_path / "v2"
+    _write_run(v2)
+    (v2 / "key" / "answer_key.json").write_text(json.dumps({"protocol": 2, "cases": []}))
+    assert script.main([str(v2), "--to", str(tmp_path / "y")]) == 2
+    assert "not a protocol-1 run" in caplog.text and not (tmp_path / "y").exists()
     assert script.main([str(run), "--to", str(tmp_path / "again")]) == 0
     stored = json.loads((tmp_path / "again" / "identification.json").read_text())
     assert stored["paired"]["after_minus_oracle"] == pytest.approx(-25.0)

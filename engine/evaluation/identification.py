@@ -102,6 +102,11 @@ def score_identification(
     progress : callable, optional
         Called with (records done, records in all) after each record.
 
+    Raises
+    ------
+    ValueError
+        When ``out_dir`` holds a protocol-2 run (its answer key is a document, not a list of cases).
+
     Returns
     -------
     dict
@@ -111,7 +116,13 @@ def score_identification(
         "by_effect": {effect: {"n", "after_minus_twin", "oracle_minus_twin"}}}``.
     """
     out = Path(out_dir)
-    key = {e["case_id"]: e for e in json.loads((out / "key" / "answer_key.json").read_text())}
+    entries = json.loads((out / "key" / "answer_key.json").read_text())
+    if not isinstance(entries, list):  # protocol 2 writes a document with its cases under "cases"
+        raise ValueError(
+            f"{out} is not a protocol-1 run: its answer key is not a list of cases (protocol 2 scores "
+            "no identification)"
+        )
+    key = {e["case_id"]: e for e in entries}
     hits: dict[str, dict[str, list[bool]]] = {"clean": {}, "twin": {}, "before": {}, "after": {}, "oracle": {}}
     effect_of: list[str] = []  # the true effect of each effect record, in the order of the hits
     ids = [i for i in sorted(key) if key[i]["expected_status"] == "explained" or key[i]["kind"] == "clean"]
@@ -156,34 +167,29 @@ def score_identification(
         accuracy[split] = acc
     n = {split: (len(next(iter(by_ch.values()))) if by_ch else 0) for split, by_ch in hits.items()}
     paired: dict[str, float] = {}
+    by_effect: dict[str, dict[str, float]] = {}
     if hits["after"]:
-        # per case: mean over channels of (a - b); its mean and standard error, in points
+        # per case: mean over channels of (a - b); their mean and standard error, in points
         chans = list(hits["after"])
-
-        def _per_case(a: str, b: str) -> np.ndarray:
-            return np.mean([np.array(hits[a][ch], float) - np.array(hits[b][ch], float) for ch in chans], axis=0)
-
-        def _diff(a: str, b: str) -> tuple[float, float]:
-            d = _per_case(a, b)
+        per_case = {
+            (a, b): np.mean([np.array(hits[a][ch], float) - np.array(hits[b][ch], float) for ch in chans], axis=0)
+            for a, b in (("after", "twin"), ("after", "oracle"), ("oracle", "twin"))
+        }
+        for (a, b), d in per_case.items():
+            name = f"{a}_minus_{b}"
+            paired[name] = float(100 * d.mean())
             err = float(100 * d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("nan")
-            return float(100 * d.mean()), err
-
-        paired["after_minus_twin"], paired["stderr"] = _diff("after", "twin")
-        paired["after_minus_oracle"], paired["after_minus_oracle_stderr"] = _diff("after", "oracle")
-        paired["oracle_minus_twin"], paired["oracle_minus_twin_stderr"] = _diff("oracle", "twin")
+            paired["stderr" if name == "after_minus_twin" else f"{name}_stderr"] = err
         # the same paired differences by true effect (points; a reading, no target)
         names = np.array(effect_of)
-        d_after, d_oracle = _per_case("after", "twin"), _per_case("oracle", "twin")
         by_effect = {
             str(e): {
                 "n": int((names == e).sum()),
-                "after_minus_twin": float(100 * d_after[names == e].mean()),
-                "oracle_minus_twin": float(100 * d_oracle[names == e].mean()),
+                "after_minus_twin": float(100 * per_case["after", "twin"][names == e].mean()),
+                "oracle_minus_twin": float(100 * per_case["oracle", "twin"][names == e].mean()),
             }
             for e in sorted(set(effect_of))
         }
-    else:
-        by_effect = {}
     return {
         "kind": kind,
         "at_groups": at_groups,
