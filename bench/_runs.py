@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 from engine.simulation import CATALOGUE, EffectLibrary
 from engine.validation.blind import library_of_run
@@ -62,3 +63,23 @@ def run_library(ap: argparse.ArgumentParser, layout: RunLayout) -> EffectLibrary
         return library_of_run(layout, CATALOGUE)
     except FileNotFoundError as e:
         ap.error(str(e.args[0]))
+
+
+def updated(settings: Any, changes: dict[str, Any]) -> Any:
+    """``settings`` (a dataclass) with ``changes``; a dict given for a dataclass field updates that field.
+
+    Raises TypeError, naming the known fields, for a name that is not a field of ``settings``."""
+    from dataclasses import fields as fields_of
+    from dataclasses import is_dataclass, replace
+
+    known = {f.name for f in fields_of(settings)}
+    unknown = sorted(set(changes) - known)
+    if unknown:
+        raise TypeError(
+            f"{type(settings).__name__} has no field {', '.join(unknown)} (fields: {', '.join(sorted(known))})"
+        )
+    fields = {}
+    for name, value in changes.items():
+        old = getattr(settings, name)
+        fields[name] = updated(old, value) if is_dataclass(old) and isinstance(value, dict) else value
+    return replace(settings, **fields)

@@ -9,7 +9,13 @@ the median and 90th percentile per group (single; compound = pair and triple) wi
 order-statistic 95 % intervals of :func:`engine.validation.stats.quantile_interval`.
 
 Baseline, in the same process: ``--baseline-threads 1`` diagnoses the same cases again with one
-thread and prints the ratio of the times (per group, of the medians and the 90th percentiles).
+thread and prints the ratio of the times (per group, of the medians and the 90th percentiles);
+``--baseline-sets JSON`` instead diagnoses them again with other :class:`SetSettings` fields, e.g.
+the order before the early escalation came before pass 1b (docs/diagnosis.md 8b)::
+
+    python bench/case_times.py out/validation-v2-seed223 --seed 223 --cases 300 --per-kind 75 \\
+        --kinds single --baseline-sets '{"escalate_before_reseed": false}'
+
 Also printed: the run's own recorded times of the same cases (another process and machine load;
 for reference only).
 
@@ -33,13 +39,14 @@ import sys
 import time
 from typing import Any
 
-from _runs import BUDGET_P90_S, GROUPS, add_run_arguments, chosen_entries, run_library
+from _runs import BUDGET_P90_S, GROUPS, add_run_arguments, chosen_entries, run_library, updated
 
 logger = logging.getLogger("bench.case_times")
 
 
-def _time_cases(layout: Any, library: Any, ids: list[str], threads: int) -> dict[str, float]:
-    """Wall seconds of the diagnosis of each case with ``threads`` numba threads and the run's library."""
+def _time_cases(layout: Any, library: Any, ids: list[str], threads: int, settings: Any = None) -> dict[str, float]:
+    """Wall seconds of the diagnosis of each case with ``threads`` numba threads, the run's library
+    and ``settings`` (a ``DiagnosisSettings``; None: the default)."""
     import numba
 
     from engine.diagnosis import diagnose
@@ -49,7 +56,7 @@ def _time_cases(layout: Any, library: Any, ids: list[str], threads: int) -> dict
     for i, cid in enumerate(ids):
         rec = layout.read_case(cid)
         t0 = time.perf_counter()
-        diagnose(rec, library)
+        diagnose(rec, library, settings=settings)
         out[cid] = time.perf_counter() - t0
         logger.info(
             "%d/%d %s, %d threads: %.1f s (load %.2f)", i + 1, len(ids), cid, threads, out[cid], os.getloadavg()[0]
@@ -70,11 +77,30 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--kinds", default="single,pair,triple", help="kinds timed, comma-separated")
     ap.add_argument("--threads", type=int, default=0, help="numba threads (default: every core)")
     ap.add_argument("--baseline-threads", type=int, default=0, help="also time the same cases with this many threads")
+    ap.add_argument(
+        "--baseline-sets",
+        default="",
+        help="also time the same cases with these SetSettings fields (JSON, same threads), "
+        "e.g. '{\"escalate_before_reseed\": false}'",
+    )
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s %(message)s", stream=sys.stderr)
     logger.setLevel(logging.INFO)
     if args.per_kind < 1:
         ap.error("--per-kind must be at least 1")
+    if args.baseline_threads and args.baseline_sets:
+        ap.error("give --baseline-threads or --baseline-sets, not both")
+    baseline_settings = None
+    if args.baseline_sets:
+        from dataclasses import replace
+
+        from engine.diagnosis.diagnose import DiagnosisSettings
+
+        ds = DiagnosisSettings()
+        try:
+            baseline_settings = replace(ds, sets=updated(ds.sets, json.loads(args.baseline_sets)))
+        except (TypeError, ValueError) as exc:
+            ap.error(f"--baseline-sets: {exc}")
     import numba
 
     threads = args.threads or numba.get_num_threads()
@@ -93,7 +119,12 @@ def main(argv: list[str] | None = None) -> int:
     simulate_batch([Case(PlantParameters())] * 2)  # JIT (cached) before the first timing
     library = run_library(ap, layout)
     times = _time_cases(layout, library, ids, threads)
-    base = _time_cases(layout, library, ids, args.baseline_threads) if args.baseline_threads else {}
+    base: dict[str, float] = {}
+    if args.baseline_threads:
+        base = _time_cases(layout, library, ids, args.baseline_threads)
+    elif baseline_settings is not None:
+        base = _time_cases(layout, library, ids, threads, baseline_settings)
+    baseline_name = f"{args.baseline_threads}_threads" if args.baseline_threads else "sets"
     recorded = {c: float(layout.read_result(c)["seconds"]) for c in ids if c in layout.done()}
     for c in ids:
         row = {"case": c, "kind": kind_of[c], "seconds": round(times[c], 2), "threads": threads}
@@ -112,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
         s["n"] = len(g_ids)
         if base:
             b = _summary([base[c] for c in g_ids])
-            s[f"baseline_{args.baseline_threads}_threads"] = b
+            s[f"baseline_{baseline_name}"] = b
             s["ratio_median"] = s["median"]["value"] / b["median"]["value"]
             s["ratio_p90"] = s["p90"]["value"] / b["p90"]["value"]
         rec = [recorded[c] for c in g_ids if c in recorded]

@@ -36,20 +36,8 @@ import json
 import logging
 import sys
 import time
-from typing import Any
 
-from _runs import add_run_arguments, chosen_entries, run_library
-
-
-def _updated(settings: Any, changes: dict[str, Any]) -> Any:
-    """``settings`` (a dataclass) with ``changes``; a dict given for a dataclass field updates that field."""
-    from dataclasses import is_dataclass, replace
-
-    fields = {}
-    for name, value in changes.items():
-        old = getattr(settings, name)
-        fields[name] = _updated(old, value) if is_dataclass(old) and isinstance(value, dict) else value
-    return replace(settings, **fields)
+from _runs import add_run_arguments, chosen_entries, run_library, updated
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -72,11 +60,11 @@ def main(argv: list[str] | None = None) -> int:
 
     ds = DiagnosisSettings()
     try:
-        settings = replace(ds, sets=_updated(ds.sets, json.loads(args.sets)))
+        settings = replace(ds, sets=updated(ds.sets, json.loads(args.sets)))
     except (TypeError, ValueError) as e:
         ap.error(f"--sets: {e}")
     try:
-        settings = replace(settings, candidates=_updated(ds.candidates, json.loads(args.candidates)))
+        settings = replace(settings, candidates=updated(ds.candidates, json.loads(args.candidates)))
     except (TypeError, ValueError) as e:
         ap.error(f"--candidates: {e}")
     if bool(args.ids) == bool(args.kind):

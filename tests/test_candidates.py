@@ -123,6 +123,42 @@ def test_the_candidates_are_refitted_from_the_starts_only_when_no_seeded_fit_rea
         assert cands[0].effect == "sensor_gain"
 
 
+def test_pass_1b_left_to_the_caller_runs_only_when_asked_and_keeps_an_escalated_fit_marked(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``fit_candidates(..., reseed=False)`` refits nothing from the starts; :func:`reseed_candidates`
+    then does, and a candidate escalated in between stays marked escalated when its refit is better."""
+    from dataclasses import replace as dc_replace
+
+    names = ["load_inertia", "sensor_gain"]
+    library = EffectLibrary([CATALOGUE[n] for n in names])
+    refitted: list[str] = []
+
+    def fake_fit(record, nominal, space, effect, settings, polish=True, global_search=False, extra_seeds=()):
+        return _candidate(effect.name, {"load_inertia": 8.0, "sensor_gain": 5.0}[effect.name])
+
+    def fake_refit(record, nominal, space, effect, settings, previous=None):
+        refitted.append(effect.name)
+        return _candidate(effect.name, 1.0 if effect.name == "sensor_gain" else 50.0)
+
+    monkeypatch.setattr(candidates_module, "fit_candidate", fake_fit)
+    monkeypatch.setattr(candidates_module, "refit_from_starts", fake_refit)
+    settings = CandidateSettings(n_escalate=0, n_jobs=1)
+    nominal = _fake_cal(20.0, [{"K": 0.01, "J1": 0.7, "c": 1.5}])
+    cands = candidates_module.fit_candidates(None, nominal, None, library, settings, escalate=False, reseed=False)
+    assert refitted == [] and cands[0].effect == "sensor_gain"
+    cands = [dc_replace(c, escalated=c.effect == "sensor_gain") for c in cands]  # as the early escalation leaves it
+    out = candidates_module.reseed_candidates(None, nominal, None, library, cands, settings)
+    assert refitted == ["sensor_gain"]  # ranked first, it fits to the noise: the rest keep their fits
+    assert out[0].effect == "sensor_gain" and out[0].calibration.reduced_chi2 == 1.0 and out[0].escalated
+    assert cands[0].calibration.reduced_chi2 == 5.0  # the caller's candidates stay as given
+    refitted.clear()
+    at_noise = [_candidate("load_inertia", 1.0) if c.effect == "load_inertia" else c for c in cands]
+    out = candidates_module.reseed_candidates(None, nominal, None, library, at_noise, settings)
+    assert out[0].effect == "load_inertia"
+    assert refitted == []  # one fits to the noise already: no pass 1b
+
+
 @pytest.mark.parametrize("n_jobs", [1, 2])
 @pytest.mark.parametrize("stop", [True, False])
 def test_the_refits_from_the_starts_stop_at_the_first_that_fits_to_the_noise(

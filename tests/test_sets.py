@@ -341,7 +341,7 @@ def test_a_refined_pair_just_above_the_threshold_goes_on_to_the_triples(
     sets_module = importlib.import_module("engine.diagnosis.sets")
     fitted: list[tuple[tuple[str, ...], bool]] = []
 
-    def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0):
+    def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0, flip_tolerance=True):
         names = tuple(m.name for m in members)
         fitted.append((names, polish))
         cal = fake_cal(refined_chi2 if polish else 1.3, k=3 + len(names))
@@ -407,7 +407,7 @@ def test_the_set_search_tries_a_quantum_the_lattice_shows_even_when_the_screen_r
     rec = Record({"omega1": noisy(rec, 40.0, 10)["omega1"]}, rec.sample_interval, rec.event_index)
     fitted: list[tuple[str, ...]] = []
 
-    def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0):
+    def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0, flip_tolerance=True):
         names = tuple(m.name for m in members)
         fitted.append(names)
         cal = fake_cal(3.0, k=3 + len(names))
@@ -447,7 +447,7 @@ def fake_set_fits(monkeypatch: pytest.MonkeyPatch, chi2n_of, refined_of=None, po
     cs = CandidateSettings()
     fitted: list[tuple[tuple[str, ...], bool]] = []
 
-    def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0):
+    def fake_fit(record, space, members, settings, noise, seeds, polish, scan=None, n_quantum=0, flip_tolerance=True):
         names = tuple(m.name for m in members)
         fitted.append((names, settings.n_global > 0))  # the escalated fits have the global search
         if polish and polished is not None:
@@ -760,14 +760,17 @@ def test_a_shift_fitted_at_the_edge_of_the_switch_off_jump_is_refitted_from_the_
     assert across_switch_off(default_space(rec), default_space(rec).unit({"K": 0.005, "J1": 0.85, "c": 1.1}), rec) == []
 
 
-@pytest.mark.parametrize("reseed", [True, False], ids=["1b", "escalation"])
-def test_a_single_effect_out_of_the_seeded_basin_is_found_before_any_pair(reseed: bool) -> None:
+@pytest.mark.parametrize(
+    ("reseed", "escalate_first"), [(True, False), (False, True), (True, True)], ids=["1b", "escalation", "both"]
+)
+def test_a_single_effect_out_of_the_seeded_basin_is_found_before_any_pair(reseed: bool, escalate_first: bool) -> None:
     """The operating point of development case s105/case0007 (stator resistance drift 0.798 at
     K = 5.56 mm, J1 = 0.657 kg m^2, c = 0.592; 45 dB): no seeded single fit with the former coarse
     difference step (1e-4) reaches the noise (they start from the nominal calibration's basin).
-    The refits from the nominal calibration's starts (pass 1b) reach the drift without any
+    The refits from the nominal calibration's starts (pass 1b, run first) reach the drift without any
     escalation; without them, the drift, among the best seeded singles, fits to the noise once
-    escalated, and escalating the best few before the first pairs names it without searching any set."""
+    escalated, and escalating the best few before the first pairs names it without searching any set.
+    With both in the default order (the early escalation first), pass 1b does not run."""
     from dataclasses import replace
 
     from engine.diagnosis.candidate import SEEDED_FITS, CandidateSettings
@@ -776,15 +779,18 @@ def test_a_single_effect_out_of_the_seeded_basin_is_found_before_any_pair(reseed
     rec = noisy(simulate(plant, effects={"stator_resistance_drift": 0.798}), 45.0, seed=0)
     coarse = replace(SEEDED_FITS, fd_step=1e-4)
     cs = replace(CandidateSettings(), seeded=coarse, reseed_from_starts=reseed)
-    res = diagnose(rec, settings=DiagnosisSettings(candidates=cs))
+    ss = SetSettings(escalate_before_reseed=escalate_first)
+    res = diagnose(rec, settings=DiagnosisSettings(candidates=cs, sets=ss))
     assert res.verdict.status == "explained" and res.verdict.effect == "stator_resistance_drift"
     assert res.verdict.value == pytest.approx(0.798, rel=0.01)
     assert not res.sets  # no set was searched
     escalated = [c.effect for c in res.candidates if c.escalated]
-    if reseed:
-        assert escalated == []
+    stages = [s["stage"] for s in res.stages]
+    if not escalate_first:
+        assert escalated == [] and "early escalation of the best singles" not in stages
     else:
         assert "stator_resistance_drift" in escalated and len(escalated) <= SetSettings().n_escalate_first
+        assert "re-seeded singles" not in stages
 
 
 def test_the_singles_escalations_take_the_smaller_of_their_cap_and_the_candidates_own() -> None:
@@ -959,3 +965,57 @@ def test_a_case_without_a_value_for_a_free_parameter_is_refused_not_centred() ->
         case_with(space, {"K": 0.005, "c": 1.1}, [])
     case = case_with(space, {"K": 0.005, "J1": 0.85, "c": 1.1}, [])
     assert math.isclose(case.plant.J1, 0.85, rel_tol=1e-12)
+
+
+@pytest.mark.parametrize("early_explains", [True, False], ids=["early escalation explains", "pass 1b after it"])
+def test_pass_1b_runs_only_when_the_early_escalation_explains_nothing_and_new_leaders_are_escalated_after_it(
+    monkeypatch: pytest.MonkeyPatch, early_explains: bool
+) -> None:
+    """``SetSettings.escalate_before_reseed``: the two best seeded singles are escalated first; pass 1b
+    (the refits from the nominal calibration's starts) runs only when neither reaches the noise, and the
+    best two after it that were not escalated yet are escalated then."""
+    from dataclasses import replace
+
+    escalated: list[list[str]] = []
+    reseeded: list[int] = []
+
+    def fake_escalate(record, nominal, space, library, cands, cs):
+        todo = [c.effect for c in cands[: cs.n_escalate] if not c.escalated]
+        escalated.append(todo)
+        out = []
+        for c in cands:
+            if c.effect in todo:
+                at_noise = early_explains and c.effect == "supply_voltage"
+                c = replace(single(c.effect, 1.0 if at_noise else 40.0, 10.0), escalated=True)
+            out.append(c)
+        return sorted(out, key=lambda c: c.bic)
+
+    def fake_reseed(record, nominal, space, library, cands, cs):
+        reseeded.append(len(cands))
+        # pass 1b brings the sensor gain up to second place
+        out = [single("sensor_gain", 30.0, 10.0) if c.effect == "sensor_gain" else c for c in cands]
+        return sorted(out, key=lambda c: c.bic)
+
+    def fake_search(record, nominal, space, library, cands, cs, ss, previous=(), screens=None):
+        return []
+
+    monkeypatch.setattr(staged_module, "escalate_candidates", fake_escalate)
+    monkeypatch.setattr(staged_module, "reseed_candidates", fake_reseed)
+    monkeypatch.setattr(staged_module, "search_sets", fake_search)
+    nominal = fake_cal(100.0, k=3)
+    nominal.starts = [{"p0": 0.5}]
+    names = ("load_inertia", "supply_voltage", "contact_damping", "sensor_gain")
+    cands = [single(n, 50.0 + i, 10.0) for i, n in enumerate(names)]
+    stages: list[str] = []
+    staged_module.staged_search(None, nominal, None, CATALOGUE, cands, DiagnosisSettings(), stages.append)
+    assert escalated[0] == ["load_inertia", "supply_voltage"]
+    if early_explains:
+        assert reseeded == [] and stages == ["early escalation of the best singles"]
+    else:
+        assert reseeded == [len(names)]
+        assert escalated[1] == ["sensor_gain"]  # the new second; the first was escalated already
+        assert stages[:3] == [
+            "early escalation of the best singles",
+            "re-seeded singles",
+            "early escalation of the best re-seeded singles",
+        ]

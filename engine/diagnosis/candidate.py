@@ -205,6 +205,11 @@ class CandidateSettings:
         Pass 1b collects its refits in ranking order (best seeded BIC first) and stops at the
         first that fits to the noise (``escalate_above``), as the escalation does: the rest keep
         their seeded fits (cancelled even when running). False refits every candidate.
+    flip_tolerance : bool
+        The chi-square of a fit holding the speed quantum, on a record that shows a lattice,
+        counts a sample across a cell edge that the fit cannot place at the record's level
+        (:mod:`engine.diagnosis.cell_edges`; single candidates and sets alike). False: the plain
+        rounding, as before 2026-11-27.
     """
 
     seeded: CalibrationSettings = SEEDED_FITS
@@ -221,6 +226,7 @@ class CandidateSettings:
     reseed_seed_fits: int | None = 2
     reseed_stop_at_noise: bool = True
     seed_fits: int | None = None
+    flip_tolerance: bool = True
 
     def jobs(self) -> int:
         """Resolved ``n_jobs`` (at least 1)."""
@@ -383,7 +389,9 @@ def fit_candidate(
         return Candidate(effect.name, None, None, effect.unit, None, math.inf, note=why, locus=effect.locus)
     if is_speed_quantum(effect):
         first = settings.escalated if global_search else settings.seeded
-        cal = fit_quantisation(record, nominal, space, effect, settings.n_quantum, first, settings.seeded)
+        cal = fit_quantisation(
+            record, nominal, space, effect, settings.n_quantum, first, settings.seeded, settings.flip_tolerance
+        )
         return Candidate.from_fit(effect, cal, nominal)
     espace = space.with_effect(effect)
     cs = settings.escalated if global_search else replace(settings.seeded, n_seed_fits=settings.seed_fits)

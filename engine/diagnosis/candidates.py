@@ -17,7 +17,10 @@ parameter (:func:`engine.diagnosis.candidate.fit_candidate`), in three passes:
    starts, each with the best value of a scan of the effect there
    (:func:`engine.diagnosis.candidate.refit_from_starts`), until one fits to the noise
    (``CandidateSettings.reseed_stop_at_noise``): a strong missing effect can drag the nominal
-   fit out of the basin its early-window starts were in, and every seeded fit with it.
+   fit out of the basin its early-window starts were in, and every seeded fit with it. The
+   diagnosis's staged search runs it later (:func:`reseed_candidates`), only when the early
+   escalation of the best two seeded candidates did not reach the noise either
+   (:attr:`engine.diagnosis.sets.SetSettings.escalate_before_reseed`).
 2. **Escalation** (only when no candidate fits to the noise after pass 1b):
    the candidates, best seeded BIC first, get the full global search (256
    Sobol points on the early window, continuation over 10, 20, 40, 80, 200 ms)
@@ -66,7 +69,7 @@ from engine.simulation import CATALOGUE, EffectLibrary, serial_kernel
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["escalate_candidates", "fit_candidates", "needs_escalation"]
+__all__ = ["escalate_candidates", "fit_candidates", "needs_escalation", "reseed_candidates"]
 
 
 def _fitted(c: Candidate) -> CalibrationResult:
@@ -84,6 +87,7 @@ def fit_candidates(
     settings: CandidateSettings | None = None,
     escalate: bool = True,
     progress: Callable[[float, str], None] | None = None,
+    reseed: bool = True,
 ) -> list[Candidate]:
     """Fit every effect of a library and rank them by BIC (best first).
 
@@ -105,6 +109,10 @@ def fit_candidates(
         tries sets of effects from the seeded fits).
     progress : callable, optional
         ``progress(fraction, stage)`` as the seeded fits come in (fraction of them done).
+    reseed : bool
+        Run pass 1b (with ``settings.reseed_from_starts``) when no seeded fit reaches the noise;
+        with False the caller may run it later with :func:`reseed_candidates` (the staged search
+        first escalates the best seeded singles, :attr:`engine.diagnosis.sets.SetSettings.escalate_before_reseed`).
 
     Returns
     -------
@@ -128,7 +136,7 @@ def fit_candidates(
                 progress((i + 1) / len(seeded), f"fitted {i + 1} of {len(seeded)} candidate effects")
         cands = _order(fitted)
         logger.info("seeded fits of %d candidates: %.1f s", len(cands), time.perf_counter() - t0)
-        if settings.reseed_from_starts and nominal.starts and needs_escalation(cands, settings):
+        if reseed and settings.reseed_from_starts and nominal.starts and needs_escalation(cands, settings):
             cands = _reseed(record, nominal, space, library, cands, settings, runner)
         if escalate:
             cands = _escalate(record, nominal, space, library, cands, settings, runner)
@@ -171,6 +179,45 @@ def escalate_candidates(
     with single_threaded_blas(), runner:
         t0 = time.perf_counter()
         out = _escalate(record, nominal, space, library, _order(list(cands)), settings, runner)
+        return _finish(record, nominal, space, library, out, settings, runner, t0)
+
+
+def reseed_candidates(
+    record: Record,
+    nominal: CalibrationResult,
+    space: ModelSpace,
+    library: EffectLibrary,
+    cands: list[Candidate],
+    settings: CandidateSettings | None = None,
+) -> list[Candidate]:
+    """Pass 1b (and pass 3) for candidates fitted with ``fit_candidates(..., reseed=False)``.
+
+    Runs only when ``settings.reseed_from_starts``, the nominal calibration has global starts and
+    no candidate fits to the noise; otherwise the candidates come back ranked as given.
+
+    Parameters
+    ----------
+    record, nominal, space, library
+        As given to :func:`fit_candidates`.
+    cands : list of Candidate
+        Its result, perhaps escalated since (not modified).
+    settings : CandidateSettings, optional
+        Search settings (default ``CandidateSettings()``).
+
+    Returns
+    -------
+    list of Candidate
+        Ranked again, with the refits from the starts that improved on the fits given (refined
+        at the final step when among the front runners).
+    """
+    settings = CandidateSettings() if settings is None else settings
+    cands = _order(list(cands))
+    if not (settings.reseed_from_starts and nominal.starts and needs_escalation(cands, settings)):
+        return cands
+    runner = Runner(settings.jobs(), thread_context=serial_kernel, thread_name_prefix="candidate")
+    with single_threaded_blas(), runner:
+        t0 = time.perf_counter()
+        out = _reseed(record, nominal, space, library, cands, settings, runner)
         return _finish(record, nominal, space, library, out, settings, runner, t0)
 
 
@@ -222,7 +269,7 @@ def _reseed(
         except CalibrationError as exc:  # the seeded fit stands
             logger.info("%s could not be refitted from the nominal starts: %s", c.effect, exc)
             continue
-        out[i] = _better(new, c)
+        out[i] = replace(_better(new, c), escalated=c.escalated)  # an escalated fit is not escalated again
         if settings.reseed_stop_at_noise and _fitted(out[i]).reduced_chi2 <= settings.escalate_above:
             stopped_by = c.effect
             logger.info("re-seeded fits: %s (rank %d) fits to the noise, the rest are not refitted", c.effect, i + 1)

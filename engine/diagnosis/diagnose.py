@@ -260,6 +260,7 @@ def _diagnose(
         cs,
         escalate=not staged,
         progress=lambda f, what: progress(0.15 + 0.35 * f, what),
+        reseed=not (staged and set_settings.escalate_before_reseed),
     )
     stage("single candidates" if staged else "single candidates, escalation included")
     if use_sets and not explains_single(cands, settings):

@@ -85,6 +85,7 @@ from scipy.special import log_ndtr, ndtr
 
 from engine.constants import CHANNELS
 from engine.diagnosis.calibration import CalibrationError, CalibrationResult, CalibrationSettings, calibrate
+from engine.diagnosis.cell_edges import edge_spread, tolerant_levels
 from engine.diagnosis.noise import NoiseModel
 from engine.diagnosis.space import ModelSpace
 from engine.records import Record
@@ -320,17 +321,33 @@ def _simulation(cal: CalibrationResult) -> np.ndarray:
     return cal.simulation
 
 
-def _rounded_chi2(record: Record, sim: np.ndarray, q: float, sigma: Mapping[str, float]) -> dict[str, float]:
+def _rounded_chi2(
+    record: Record, sim: np.ndarray, q: float, sigma: Mapping[str, float], levels: np.ndarray | None = None
+) -> dict[str, float]:
     """Per channel, the chi2 [-] of simulated channels ``sim`` (unrounded) with omega1 rounded to ``q``
-    (none for q = 0), as every fit's is reported: whitened per wavelet level when the noise is coloured."""
+    (none for q = 0), as every fit's is reported: whitened per wavelet level when the noise is coloured.
+    ``levels``: omega1's rounding levels when given (:func:`engine.diagnosis.cell_edges.tolerant_levels`)."""
     weights = NoiseModel.of(sigma)
     out = {}
     for n in record.channels:
         x = sim[CHANNELS.index(n)]
         if n == "omega1" and q > 0.0:
-            x = q * np.round(x / q)
+            x = q * (np.round(x / q) if levels is None else levels)
         out[n] = float(weights.chi2(n, np.asarray(record[n]) - x))
     return out
+
+
+def _edge_levels(
+    record: Record, cal: CalibrationResult, space: ModelSpace, noise: Mapping[str, float], q: float, sigma_q: float
+) -> np.ndarray | None:
+    """omega1's rounding levels of a quantum fit with the flip tolerance (:mod:`engine.diagnosis.cell_edges`),
+    or None (plain rounding) when the fit's gradient cannot be simulated."""
+    try:
+        x, spread = edge_spread(record, space, cal.values, noise, q, sigma_q, cal.step)
+    except CalibrationError as exc:
+        logger.info("no flip tolerance for this quantum fit: %s", exc)
+        return None
+    return tolerant_levels(x, np.asarray(record["omega1"]), q, spread)
 
 
 def fit_quantisation(
@@ -341,6 +358,7 @@ def fit_quantisation(
     n_quantum: int,
     first: CalibrationSettings,
     refit: CalibrationSettings,
+    flip_tolerance: bool = True,
 ) -> CalibrationResult:
     """Fit a speed quantum by dense scans around refits of the calibration (see the module notes).
 
@@ -363,6 +381,10 @@ def fit_quantisation(
         Values of each dense scan.
     first, refit : CalibrationSettings
         Settings of the first round's refit and of the second's.
+    flip_tolerance : bool
+        Where the record shows a lattice, report the chi-square with the samples across an edge
+        that the fit cannot place at the record's level (:mod:`engine.diagnosis.cell_edges`);
+        False: the plain rounding.
 
     Returns
     -------
@@ -417,20 +439,26 @@ def fit_quantisation(
         omega = _simulation(cal)[j]
     q = np.unique(np.concatenate([q, [q_best]]))  # the scan about the kept q, for its uncertainty
     c2 = quantum_scan(omega, data, sig, q)
-    # report the fit with the record's own noise and the rounded omega1
-    cal.noise, cal.sigma = dict(nominal.noise), dict(nominal.sigma)
-    simulation = _simulation(cal).copy()
-    # the chi-square of every other fit: whitened per wavelet level when the noise is coloured
-    cal.chi2_per_channel = _rounded_chi2(record, simulation, q_best, nominal.sigma)
-    cal.chi2 = float(sum(cal.chi2_per_channel.values()))
-    simulation[j] = q_best * np.round(omega / q_best) if q_best > 0 else omega
-    cal.simulation = simulation
-    if cal.case is not None:
-        cal.case = Case(cal.case.plant, cal.case.sensors.replace(speed_quantum=q_best))
     inside = q[c2 <= c2.min() + 1.0]
     i = int(np.argmin(c2))
     step = float(np.max(np.diff(q[max(i - 1, 0) : i + 2])))  # the scan's resolution at its best point
     unc = max(float(inside.max() - inside.min()) / 2.0, step)
+    # where the record shows a lattice, a sample across an edge the fit cannot place counts at the
+    # record's level (the flip tolerance, engine.diagnosis.cell_edges)
+    levels = None
+    if flip_tolerance and lattice is not None and q_best > 0.0:
+        levels = _edge_levels(record, cal, space, nominal.noise, q_best, unc)
+    # report the fit with the record's own noise and the rounded omega1
+    cal.noise, cal.sigma = dict(nominal.noise), dict(nominal.sigma)
+    simulation = _simulation(cal).copy()
+    # the chi-square of every other fit: whitened per wavelet level when the noise is coloured
+    cal.chi2_per_channel = _rounded_chi2(record, simulation, q_best, nominal.sigma, levels)
+    cal.chi2 = float(sum(cal.chi2_per_channel.values()))
+    if q_best > 0:
+        simulation[j] = q_best * (np.round(omega / q_best) if levels is None else levels)
+    cal.simulation = simulation
+    if cal.case is not None:
+        cal.case = Case(cal.case.plant, cal.case.sensors.replace(speed_quantum=q_best))
     cal.values = {**cal.values, effect.name: q_best}
     cal.uncertainties = {**cal.uncertainties, effect.name: unc}
     cal.effect = effect.name

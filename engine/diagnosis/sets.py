@@ -193,6 +193,16 @@ class SetSettings:
         single effect whose seeded fit stayed in the nominal calibration's wrong basin is most
         often among the first few (docs/diagnosis.md 8b, *Early escalation*), and its global
         search costs a few seconds where the pairs it would otherwise wait for cost tens. 0: none.
+    escalate_before_reseed : bool
+        With ``before_escalation``, the early escalation of the ``n_escalate_first`` best seeded singles
+        runs before pass 1b of the single candidates (their refits from the nominal calibration's
+        starts, :func:`engine.diagnosis.candidates.reseed_candidates`), which then runs only when
+        neither fits to the noise, followed by the early escalation of the best two after it that
+        were not escalated yet. Pass 1b refits all sixteen singles (about 4.5 s on 2 cores) and on
+        the seed-223 singles over the time budget most often reached no noise, after which the
+        early escalation of the best seeded single found the effect in about a second
+        (docs/diagnosis.md 8b, *Early escalation before pass 1b*). False: pass 1b first, inside
+        :func:`~engine.diagnosis.candidates.fit_candidates`.
     n_escalate_singles : int or None
         With ``before_escalation``, the single candidates of this many best seeded BICs (those escalated
         early included) get the global search once the first pairs explain nothing (None: every
@@ -222,6 +232,7 @@ class SetSettings:
     before_escalation: bool = True
     n_exchange: int = 2
     n_escalate_first: int = 2
+    escalate_before_reseed: bool = True
     n_escalate_singles: int | None = None
     n_seed_fits: int | None = 2
     n_exchange_rounds: int = 3
@@ -318,18 +329,20 @@ def _fit_set(
     polish: bool,
     scan: tuple[Mapping[str, float], str, int] | None = None,
     n_quantum: int = 4000,
+    flip_tolerance: bool = True,
 ) -> CalibrationResult | None:
     """Joint fit of a set, or None when nothing of it can be simulated.
 
     ``scan``: ``(base, name, n)``, add the seed of an ``n``-value scan of member ``name`` at
     the smaller set's fit ``base`` (:func:`_scan_seed`). A set holding the speed quantum is
-    fitted as :func:`_fit_set_with_quantum` says (``n_quantum`` values per dense scan).
+    fitted as :func:`_fit_set_with_quantum` says (``n_quantum`` values per dense scan,
+    ``flip_tolerance`` as :attr:`engine.diagnosis.candidate.CandidateSettings.flip_tolerance`).
     """
     from engine.diagnosis.calibration import CalibrationError
 
     quantum = next((e for e in members if is_speed_quantum(e)), None)
     if quantum is not None:
-        return _fit_set_with_quantum(record, space, members, quantum, settings, noise, seeds, n_quantum)
+        return _fit_set_with_quantum(record, space, members, quantum, settings, noise, seeds, n_quantum, flip_tolerance)
     gspace = space.with_effects(members)
     if scan is not None:
         base, name, n = scan
@@ -350,6 +363,7 @@ def _fit_set_with_quantum(
     noise: Mapping[str, float],
     seeds: Sequence[Mapping[str, float]],
     n_quantum: int,
+    flip_tolerance: bool = True,
 ) -> CalibrationResult | None:
     """Joint fit of a set that holds the speed quantum, or None when it cannot be fitted.
 
@@ -373,7 +387,7 @@ def _fit_set_with_quantum(
         start = calibrate(record, ospace, settings, noise=noise, seeds=oseeds, polish=False)
         # the start had the global search, if any: the refits around it are local
         local = replace(settings, n_global=0)
-        return fit_quantisation(record, start, ospace, quantum, n_quantum, local, local)
+        return fit_quantisation(record, start, ospace, quantum, n_quantum, local, local, flip_tolerance)
     except CalibrationError as exc:
         logger.info("set %s could not be fitted: %s", "+".join(e.name for e in members), exc)
         return None
@@ -489,7 +503,17 @@ def _search(
                         new = next(n for n in g if n not in sub)
                         scan = ({**fits[sub].values, new: effects[new].neutral}, new, cs.n_scan)
             tasks[g] = runner.submit(
-                _fit_set, record, space, members, seeding, nominal.noise, seeds, polish, scan, cs.n_quantum
+                _fit_set,
+                record,
+                space,
+                members,
+                seeding,
+                nominal.noise,
+                seeds,
+                polish,
+                scan,
+                cs.n_quantum,
+                cs.flip_tolerance,
             )
         for g, task in tasks.items():
             cal = task.result()

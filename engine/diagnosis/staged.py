@@ -12,7 +12,7 @@ from dataclasses import replace
 from engine.diagnosis.calibration import CalibrationResult, calibrate
 from engine.diagnosis.candidate import Candidate, effect_strength
 from engine.diagnosis.candidate_set import CandidateSet
-from engine.diagnosis.candidates import escalate_candidates, needs_escalation
+from engine.diagnosis.candidates import escalate_candidates, needs_escalation, reseed_candidates
 from engine.diagnosis.decision import explains, explains_single, fits_noise
 from engine.diagnosis.sets import ScreenCache, search_sets
 from engine.diagnosis.settings import DiagnosisSettings
@@ -105,7 +105,10 @@ def staged_search(
 
     In order, each stage only while nothing explains the record: the early escalation of the best
     singles (a single effect whose seeded fit stayed in the nominal calibration's basin is most
-    often among them, and found in seconds); the first pairs from the seeded singles, the best with
+    often among them, and found in seconds); with ``escalate_before_reseed``, pass 1b of the
+    singles (their refits from the nominal calibration's starts, which ``cands`` then must not
+    have had: ``fit_candidates(..., reseed=False)``) and the early escalation of the best two
+    after it that were not escalated yet; the first pairs from the seeded singles, the best with
     a global search in their joint space; the first triples (``first_triples``: seeded fits only);
     the exchange from the best first triple (``first_exchange``); the escalation of the singles
     (``n_escalate_singles``); the search of sets of up to three from the escalated singles. The
@@ -118,7 +121,8 @@ def staged_search(
     record, nominal, space, library
         As in :func:`~engine.diagnosis.diagnose.diagnose` (``record`` is the test window).
     cands : list of Candidate
-        The seeded single candidates (``fit_candidates(..., escalate=False)``).
+        The seeded single candidates (``fit_candidates(..., escalate=False)``; with
+        ``reseed=False`` too when ``SetSettings.escalate_before_reseed``).
     settings : DiagnosisSettings
         The diagnosis's settings.
     stage : callable
@@ -137,6 +141,13 @@ def staged_search(
     if ss.n_escalate_first > 0 and needs_escalation(cands, cs):
         cands = escalate_candidates(record, nominal, space, library, cands, ss.escalation(cs, early=True))
         stage("early escalation of the best singles")
+    if ss.escalate_before_reseed and cs.reseed_from_starts and nominal.starts and needs_escalation(cands, cs):
+        cands = reseed_candidates(record, nominal, space, library, cands, cs)
+        stage("re-seeded singles")
+        new = [c for c in cands[: ss.n_escalate_first] if c.calibration is not None and not c.escalated]
+        if new and needs_escalation(cands, cs):  # the best after pass 1b that were not escalated yet
+            cands = escalate_candidates(record, nominal, space, library, cands, ss.escalation(cs, early=True))
+            stage("early escalation of the best re-seeded singles")
     if explains_single(cands, settings):
         return cands, sets
     everything = replace(ss, n_report=None)  # every set fitted, for the later stages
