@@ -175,11 +175,7 @@ def escalate_candidates(
         the final step when among the front runners).
     """
     settings = CandidateSettings() if settings is None else settings
-    runner = Runner(settings.jobs(), thread_context=serial_kernel, thread_name_prefix="candidate")
-    with single_threaded_blas(), runner:
-        t0 = time.perf_counter()
-        out = _escalate(record, nominal, space, library, _order(list(cands)), settings, runner)
-        return _finish(record, nominal, space, library, out, settings, runner, t0)
+    return _later_pass(_escalate, record, nominal, space, library, cands, settings)
 
 
 def reseed_candidates(
@@ -211,13 +207,25 @@ def reseed_candidates(
         at the final step when among the front runners).
     """
     settings = CandidateSettings() if settings is None else settings
-    cands = _order(list(cands))
     if not (settings.reseed_from_starts and nominal.starts and needs_escalation(cands, settings)):
-        return cands
+        return _order(list(cands))
+    return _later_pass(_reseed, record, nominal, space, library, cands, settings)
+
+
+def _later_pass(
+    run: Callable[..., list[Candidate]],
+    record: Record,
+    nominal: CalibrationResult,
+    space: ModelSpace,
+    library: EffectLibrary,
+    cands: list[Candidate],
+    settings: CandidateSettings,
+) -> list[Candidate]:
+    """``run`` (:func:`_escalate` or :func:`_reseed`) on a copy of ``cands`` in ranking order, then pass 3."""
     runner = Runner(settings.jobs(), thread_context=serial_kernel, thread_name_prefix="candidate")
     with single_threaded_blas(), runner:
         t0 = time.perf_counter()
-        out = _reseed(record, nominal, space, library, cands, settings, runner)
+        out = run(record, nominal, space, library, _order(list(cands)), settings, runner)
         return _finish(record, nominal, space, library, out, settings, runner, t0)
 
 
