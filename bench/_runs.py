@@ -72,6 +72,8 @@ def updated(settings: Any, changes: dict[str, Any]) -> Any:
     from dataclasses import fields as fields_of
     from dataclasses import is_dataclass, replace
 
+    if not isinstance(changes, dict):
+        raise TypeError(f"give the {type(settings).__name__} fields as a JSON object, not {changes!r}")
     known = {f.name for f in fields_of(settings)}
     unknown = sorted(set(changes) - known)
     if unknown:

@@ -10,7 +10,8 @@ as the run before it with those records' new rows on top::
         $T/seeded-fd-1e-5-compound-rest.jsonl $T/first-exchange-compound.jsonl
 
 For each group (single; compound = pair and triple; then each kind present): the records right
-with the Wilson 95 % interval (:func:`engine.validation.stats.wilson_interval`), the median and the
+(the case kind's main criterion: for a pair or triple, exactly the true set) and, for pairs and
+triples whose rows hold their answer, every true effect named, each with the Wilson 95 % interval (:func:`engine.validation.stats.wilson_interval`), the median and the
 90th percentile of the seconds with their order-statistic 95 % intervals
 (:func:`engine.validation.stats.quantile_interval`), and how many exceed the group's budget
 (one diagnosis on 2 cores: 10 s for a single, 60 s for a compound). The rows say on what machine
@@ -59,6 +60,27 @@ def read_rows(paths: Iterable[Path]) -> dict[str, dict[str, Any]]:
     return rows
 
 
+def all_true_named(row: Mapping[str, Any]) -> bool | None:
+    """Whether an explained row names every effect of its ``truth`` (twins count, as the scorer's
+    "every true effect named" counts them: :meth:`engine.validation.score.Answer.names_effect`);
+    None for a row without ``truth``, ``status``, ``effects`` or ``alternatives``."""
+    from engine.validation.score import Answer
+
+    if not all(k in row for k in ("truth", "status", "effects", "alternatives")):
+        return None
+    answer = Answer(
+        status=str(row["status"]),
+        effects=tuple((str(e), None) for e in row["effects"]),
+        locus=row.get("locus"),
+        seconds=None,
+        rms_before=None,
+        rms_after=None,
+        alternatives=tuple(tuple(a) for a in row["alternatives"]),
+        near_twins=tuple(tuple(a) for a in row.get("near_twins", [])),
+    )
+    return answer.status == "explained" and all(answer.names_effect(str(n)) for n in row["truth"])
+
+
 def summarise(rows: Mapping[str, Mapping[str, Any]], kinds: tuple[str, ...], budget: float | None) -> dict[str, Any]:
     """Rate right and the time quantiles of the rows of the given kinds (None when there are none)."""
     from engine.validation.stats import quantile_interval, wilson_interval
@@ -75,6 +97,11 @@ def summarise(rows: Mapping[str, Mapping[str, Any]], kinds: tuple[str, ...], bud
         est = quantile_interval(seconds, q)
         out[f"{name}_s"] = est.value
         out[f"{name}_interval_s"] = [est.low, est.high]
+    named = [all_true_named(r) for r in chosen]
+    if all(x is not None for x in named) and any(r["kind"] in ("pair", "triple") for r in chosen):
+        k_all = sum(bool(x) for x in named)
+        out["all_true_named"] = k_all
+        out["all_true_named_interval"] = list(wilson_interval(k_all, n))
     if budget is not None:
         out["budget_p90_s"] = budget
         out["over_budget"] = sum(s > budget for s in seconds)
@@ -106,6 +133,9 @@ def main(argv: list[str] | None = None) -> int:
         if not s["n"]:
             continue
         over = f"  over {s['budget_p90_s']:.0f} s: {s['over_budget']}" if "budget_p90_s" in s else ""
+        if "all_true_named" in s:
+            pct = [100 * v for v in s["all_true_named_interval"]]
+            over += f"  every true effect named {s['all_true_named']}/{s['n']} {_interval(pct)}"
         logger.info(
             "%-9s n=%3d  right %d/%d = %.1f %% %s  median %.1f s %s  p90 %.1f s %s%s",
             name,

@@ -16,8 +16,10 @@ def test_settings_are_updated_field_by_field_and_a_dict_updates_a_nested_datacla
     assert new.sets.escalate_before_reseed is False and new.locate is False
     assert new.sets.n_escalate_first == ds.sets.n_escalate_first  # the rest of the nested settings stay
     assert ds.sets.escalate_before_reseed is True  # the original is not changed
-    with pytest.raises(TypeError):
+    with pytest.raises(TypeError, match="no field no_such_field"):
         runs.updated(ds, {"no_such_field": 1})
+    with pytest.raises(TypeError, match="JSON object"):
+        runs.updated(ds, [1])
 
 
 def test_case_times_refuses_two_baselines_and_settings_it_does_not_know(tmp_path, capsys) -> None:

@@ -47,3 +47,18 @@ def test_a_row_it_cannot_read_is_refused_with_its_file_and_line(tmp_path: Path, 
     path.write_text(json.dumps({"case": "c0", "kind": "pair", "correct": True, "seconds": 1.0}) + "\n" + line + "\n")
     with pytest.raises(ValueError, match=rf"rows.jsonl:2: .*{message}"):
         mod.read_rows([path])
+
+
+def test_every_true_effect_named_counts_a_set_that_holds_the_truth_and_twins_as_the_scorer_does() -> None:
+    rows = load_bench("summarise_rows")
+    base = {"kind": "pair", "truth": ["load_inertia", "measurement_delay"], "correct": False, "seconds": 1.0}
+    more = {
+        **base,
+        "status": "explained",
+        "effects": ["load_inertia", "trigger_offset", "sensor_gain"],
+        "alternatives": [[], ["measurement_delay"], []],
+    }
+    assert rows.all_true_named(more) is True  # a twin named for the delay, one effect more
+    assert rows.all_true_named({**more, "alternatives": [[], [], []]}) is False
+    assert rows.all_true_named({**more, "status": "unexplained"}) is False
+    assert rows.all_true_named(base) is None  # no answer in the row: not counted

@@ -69,7 +69,14 @@ from engine.simulation import CATALOGUE, EffectLibrary, serial_kernel
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["escalate_candidates", "fit_candidates", "needs_escalation", "reseed_candidates"]
+__all__ = [
+    "escalate_candidates",
+    "fit_candidates",
+    "needs_escalation",
+    "needs_reseed",
+    "reseed_candidates",
+    "to_escalate",
+]
 
 
 def _fitted(c: Candidate) -> CalibrationResult:
@@ -136,7 +143,7 @@ def fit_candidates(
                 progress((i + 1) / len(seeded), f"fitted {i + 1} of {len(seeded)} candidate effects")
         cands = _order(fitted)
         logger.info("seeded fits of %d candidates: %.1f s", len(cands), time.perf_counter() - t0)
-        if reseed and settings.reseed_from_starts and nominal.starts and needs_escalation(cands, settings):
+        if reseed and needs_reseed(nominal, cands, settings):
             cands = _reseed(record, nominal, space, library, cands, settings, runner)
         if escalate:
             cands = _escalate(record, nominal, space, library, cands, settings, runner)
@@ -147,6 +154,19 @@ def needs_escalation(cands: list[Candidate], settings: CandidateSettings) -> boo
     """Whether no fitted candidate reaches the noise (search-step chi2/n above ``escalate_above``)."""
     fitted = [c for c in cands if c.calibration is not None]
     return bool(fitted) and min(_fitted(c).reduced_chi2 for c in fitted) > settings.escalate_above
+
+
+def needs_reseed(nominal: CalibrationResult, cands: list[Candidate], settings: CandidateSettings) -> bool:
+    """Whether pass 1b is due: it is on, the nominal calibration has global starts, and no fitted
+    candidate reaches the noise."""
+    return settings.reseed_from_starts and bool(nominal.starts) and needs_escalation(cands, settings)
+
+
+def to_escalate(cands: list[Candidate], settings: CandidateSettings) -> list[int]:
+    """Indices of the candidates, in the given (ranking) order, that an escalation with ``settings``
+    would give the global search: fitted, not escalated yet, among the first ``n_escalate``."""
+    n_esc = len(cands) if settings.n_escalate is None else settings.n_escalate
+    return [i for i, c in enumerate(cands[:n_esc]) if c.calibration is not None and not c.escalated]
 
 
 def escalate_candidates(
@@ -207,7 +227,7 @@ def reseed_candidates(
         at the final step when among the front runners).
     """
     settings = CandidateSettings() if settings is None else settings
-    if not (settings.reseed_from_starts and nominal.starts and needs_escalation(cands, settings)):
+    if not needs_reseed(nominal, cands, settings):
         return _order(list(cands))
     return _later_pass(_reseed, record, nominal, space, library, cands, settings)
 
@@ -321,7 +341,7 @@ def _escalate(
             extra_seeds=[_fitted(cands[i]).values],
         )
 
-    idx = [i for i, c in enumerate(cands[:n_esc]) if c.calibration is not None and not c.escalated]
+    idx = to_escalate(cands, settings)
     tasks: dict[int, Task[Candidate] | Deferred[Candidate]] = {}
     for k, i in enumerate(idx):
         if k == 1:  # the best seeded candidate ran alone (on every core); the rest run side by side

@@ -40,7 +40,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from engine.constants import CHANNELS
-from engine.diagnosis.calibration import CalibrationError, unit_covariance
+from engine.diagnosis.calibration import CalibrationError, CalibrationSettings, unit_covariance
 from engine.diagnosis.noise import noise_weights
 from engine.diagnosis.objective import Objective
 from engine.diagnosis.space import ModelSpace
@@ -53,8 +53,6 @@ logger = logging.getLogger(__name__)
 
 #: A flip is tolerated when its cell edge lies within this many spreads of ``x / q`` [-].
 EDGE_TOLERANCE_SIGMAS: float = 2.0
-#: Central-difference step of the gradient and covariance [unit box].
-EDGE_FD_STEP: float = 1e-4
 
 
 def edge_spread(
@@ -65,6 +63,7 @@ def edge_spread(
     q: float,
     sigma_q: float,
     step: float,
+    fd_step: float = CalibrationSettings.fd_step_uncertainty,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The model's unrounded omega1 and the spread of ``x / q`` at each sample (see the module notes).
 
@@ -85,6 +84,9 @@ def edge_spread(
         Its uncertainty [rad/s], >= 0.
     step : float
         The fit's integrator step [s].
+    fd_step : float
+        Central-difference step of the gradient and covariance [unit box]; by default that of every
+        fit's uncertainties (:attr:`CalibrationSettings.fd_step_uncertainty`).
 
     Returns
     -------
@@ -116,9 +118,9 @@ def edge_spread(
     x = sims[0, j]
     var = np.zeros(n)
     if space.dim > 0:
-        J = obj.jacobian(u, n, solver, EDGE_FD_STEP, central=True)
+        J = obj.jacobian(u, n, solver, fd_step, central=True)
         cov = unit_covariance(J)
-        lo, hi = np.maximum(u - EDGE_FD_STEP, 0.0), np.minimum(u + EDGE_FD_STEP, 1.0)
+        lo, hi = np.maximum(u - fd_step, 0.0), np.minimum(u + fd_step, 1.0)
         d = space.dim
         U = np.vstack([u[None, :] + np.diag(hi - u), u[None, :] + np.diag(lo - u)])
         pm, ok_pm = obj.simulate(U, solver)  # the jacobian's own simulations, from the cache

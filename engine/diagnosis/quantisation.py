@@ -338,12 +338,19 @@ def _rounded_chi2(
 
 
 def _edge_levels(
-    record: Record, cal: CalibrationResult, space: ModelSpace, noise: Mapping[str, float], q: float, sigma_q: float
+    record: Record,
+    cal: CalibrationResult,
+    space: ModelSpace,
+    noise: Mapping[str, float],
+    q: float,
+    sigma_q: float,
+    settings: CalibrationSettings,
 ) -> np.ndarray | None:
     """omega1's rounding levels of a quantum fit with the flip tolerance (:mod:`engine.diagnosis.cell_edges`),
-    or None (plain rounding) when the fit's gradient cannot be simulated."""
+    or None (plain rounding) when the fit's gradient cannot be simulated. ``settings``: the fit's,
+    whose difference step of the uncertainties the spread uses."""
     try:
-        x, spread = edge_spread(record, space, cal.values, noise, q, sigma_q, cal.step)
+        x, spread = edge_spread(record, space, cal.values, noise, q, sigma_q, cal.step, settings.fd_step_uncertainty)
     except CalibrationError as exc:
         logger.info("no flip tolerance for this quantum fit: %s", exc)
         return None
@@ -447,7 +454,7 @@ def fit_quantisation(
     # record's level (the flip tolerance, engine.diagnosis.cell_edges)
     levels = None
     if flip_tolerance and lattice is not None and q_best > 0.0:
-        levels = _edge_levels(record, cal, space, nominal.noise, q_best, unc)
+        levels = _edge_levels(record, cal, space, nominal.noise, q_best, unc, refit)
     # report the fit with the record's own noise and the rounded omega1
     cal.noise, cal.sigma = dict(nominal.noise), dict(nominal.sigma)
     simulation = _simulation(cal).copy()

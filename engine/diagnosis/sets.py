@@ -198,10 +198,10 @@ class SetSettings:
         runs before pass 1b of the single candidates (their refits from the nominal calibration's
         starts, :func:`engine.diagnosis.candidates.reseed_candidates`), which then runs only when
         neither fits to the noise, followed by the early escalation of the best two after it that
-        were not escalated yet. Pass 1b refits all sixteen singles (about 4.5 s on 2 cores) and on
-        the seed-223 singles over the time budget most often reached no noise, after which the
-        early escalation of the best seeded single found the effect in about a second
-        (docs/diagnosis.md 8b, *Early escalation before pass 1b*). False: pass 1b first, inside
+        were not escalated yet. Pass 1b refits all sixteen singles: on two seed-223 singles over the
+        time budget (case0145, case0044) it took 4.5 and 4.4 s on 2 cores and reached no noise,
+        after which the early escalation found the effect in about a second (docs/diagnosis.md 8b,
+        *Early escalation before pass 1b*). False: pass 1b first, inside
         :func:`~engine.diagnosis.candidates.fit_candidates`.
     n_escalate_singles : int or None
         With ``before_escalation``, the single candidates of this many best seeded BICs (those escalated

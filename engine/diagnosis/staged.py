@@ -12,7 +12,13 @@ from dataclasses import replace
 from engine.diagnosis.calibration import CalibrationResult, calibrate
 from engine.diagnosis.candidate import Candidate, effect_strength
 from engine.diagnosis.candidate_set import CandidateSet
-from engine.diagnosis.candidates import escalate_candidates, needs_escalation, reseed_candidates
+from engine.diagnosis.candidates import (
+    escalate_candidates,
+    needs_escalation,
+    needs_reseed,
+    reseed_candidates,
+    to_escalate,
+)
 from engine.diagnosis.decision import explains, explains_single, fits_noise
 from engine.diagnosis.sets import ScreenCache, search_sets
 from engine.diagnosis.settings import DiagnosisSettings
@@ -141,12 +147,13 @@ def staged_search(
     if ss.n_escalate_first > 0 and needs_escalation(cands, cs):
         cands = escalate_candidates(record, nominal, space, library, cands, ss.escalation(cs, early=True))
         stage("early escalation of the best singles")
-    if ss.escalate_before_reseed and cs.reseed_from_starts and nominal.starts and needs_escalation(cands, cs):
+    if ss.escalate_before_reseed and needs_reseed(nominal, cands, cs):
         cands = reseed_candidates(record, nominal, space, library, cands, cs)
         stage("re-seeded singles")
-        new = [c for c in cands[: ss.n_escalate_first] if c.calibration is not None and not c.escalated]
-        if new and needs_escalation(cands, cs):  # the best after pass 1b that were not escalated yet
-            cands = escalate_candidates(record, nominal, space, library, cands, ss.escalation(cs, early=True))
+        early = ss.escalation(cs, early=True)
+        if to_escalate(cands, early) and needs_escalation(cands, cs):
+            # the best after pass 1b that were not escalated yet
+            cands = escalate_candidates(record, nominal, space, library, cands, early)
             stage("early escalation of the best re-seeded singles")
     if explains_single(cands, settings):
         return cands, sets
