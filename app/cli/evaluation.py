@@ -151,11 +151,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
     p = sub.add_parser(
         "validate",
-        help="blind validation of the gap diagnosis (protocol 2, the open world; resumable)",
+        help="blind validation of the gap diagnosis (protocol 2, the open world; both protocols resumable)",
         description="Blind validation of the gap diagnosis. Protocol 2 (default; docs/validation-v2.md): every "
         "case gets the whole catalogue; single, pair, triple, held-back and clean cases across the plausible "
         "box, white or coloured noise, some with a drive's own sensors only. Run again on the same --out with "
-        "the same settings to resume an interrupted run. Protocol 1: the issue-4 protocol (README).",
+        "the same settings to resume an interrupted run (either protocol). Protocol 1: the issue-4 protocol (README).",
     )
     p.add_argument(
         "--protocol", type=int, choices=sorted(VALIDATE_DEFAULTS), default=2, help="validation protocol (default 2)"

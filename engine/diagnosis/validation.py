@@ -31,7 +31,10 @@ Protocol (issue 4)
    diagnosis may use) to ``<out>/cases/`` and the answer key to
    ``<out>/key/answer_key.json``. :func:`diagnose_cases` reads only
    ``cases/`` and writes ``results/``; :func:`score` reads the key only after
-   every diagnosis is done.
+   every diagnosis is done. The run is resumable (since 2026-11-27): ``<out>/run.json``
+   (:data:`MANIFEST`) says what drew the cases, and every case, key and result file is written
+   atomically, so :func:`run_validation` called again with the same settings keeps what an
+   interrupted run wrote and diagnoses the rest.
 
 Expected answers: ``explained`` with the right effect, or one that is the same
 physics (:data:`SAME_PHYSICS`) (counting ``effect`` cases), ``unexplained`` (counting ``left_out`` cases), ``no_gap`` (clean and
@@ -51,18 +54,20 @@ only the library of a left-out time shift and the scoring of a twin answer diffe
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import math
 import time
 from collections import Counter, defaultdict
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from engine.atomic import write_json_atomic, write_text_atomic
 from engine.constants import OPERATING_RANGE
 from engine.diagnosis.diagnose import DiagnosisSettings, diagnose
 from engine.diagnosis.space import LOG_SCALED_EFFECTS
@@ -79,6 +84,7 @@ __all__ = [
     "ValidationReport",
     "diagnose_cases",
     "generate_cases",
+    "prepare_run",
     "run_validation",
     "same_physics_names",
     "score",
@@ -99,6 +105,10 @@ STRENGTH_THRESHOLD = 3.0
 SAME_PHYSICS: tuple[frozenset[str], ...] = (frozenset({"measurement_delay", "trigger_offset"}),)
 #: Default mix of case kinds.
 DEFAULT_FRACTIONS = {"effect": 0.6, "left_out": 0.2, "clean": 0.2}
+#: The run's manifest in its directory: protocol, seed, number of cases, mix, the fingerprint of
+#: what draws the cases; written once every case and the key are (``complete``), so a run
+#: interrupted later is resumed with the same settings (:func:`run_validation`).
+MANIFEST = "run.json"
 
 
 @dataclass(frozen=True)
@@ -258,9 +268,9 @@ def write_cases(cases: Sequence[BlindCase], key: Sequence[AnswerEntry], out_dir:
     (out / "cases").mkdir(parents=True, exist_ok=True)
     (out / "key").mkdir(parents=True, exist_ok=True)
     for c in cases:
-        (out / "cases" / f"{c.case_id}.json").write_text(json.dumps(c.to_dict()))
+        write_json_atomic(out / "cases" / f"{c.case_id}.json", c.to_dict())
     key_path = out / "key" / "answer_key.json"
-    key_path.write_text(json.dumps([asdict(k) for k in key], indent=1))
+    write_json_atomic(key_path, [asdict(k) for k in key], indent=1)
     return key_path
 
 
@@ -289,10 +299,13 @@ def diagnose_cases(
     workers: int | None = 0,
     settings: DiagnosisSettings | None = None,
     scheduler: str | None = None,
+    diagnose_fn: Callable[[BlindCase, DiagnosisSettings], dict[str, Any]] | None = None,
 ) -> Path:
-    """Diagnose every case in ``out_dir/cases`` (never reading the key); results to ``out_dir/results``.
+    """Diagnose every case in ``out_dir/cases`` that has no result yet (never reading the key).
 
-    The cases are read and the results written by this process; the diagnoses run on Dask
+    The cases are read and the results written by this process, each result atomically (a
+    temporary file renamed over it), so a result file is a whole diagnosis and marks its case
+    done: an interrupted call is resumed by calling it again. The diagnoses run on Dask
     (:mod:`engine.distributed`).
 
     Parameters
@@ -306,22 +319,34 @@ def diagnose_cases(
         Diagnosis settings (default ``DiagnosisSettings()``).
     scheduler : str, optional
         Address of an existing Dask scheduler (default ``$BACKLASH_DASK_SCHEDULER``, else a local cluster).
+    diagnose_fn : callable, optional
+        One case's result from the case and the settings (default: the diagnosis; tests pass a
+        cheap stand-in, module-level so that the workers can import it).
+
+    Returns
+    -------
+    Path
+        ``out_dir/results``.
     """
     from engine.distributed import dask_client, map_cases
 
     settings = DiagnosisSettings() if settings is None else settings
+    fn = _diagnose_case if diagnose_fn is None else diagnose_fn
     out = Path(out_dir)
     results = out / "results"
     results.mkdir(parents=True, exist_ok=True)
-    cases = {p.stem: BlindCase.from_dict(json.loads(p.read_text())) for p in sorted((out / "cases").glob("*.json"))}
-
-    def write(case: BlindCase, result: dict[str, Any]) -> None:
-        (results / f"{case.case_id}.json").write_text(json.dumps(result))
-
+    paths = sorted((out / "cases").glob("*.json"))
+    done = {p.stem for p in results.glob("*.json")}
+    cases = {p.stem: BlindCase.from_dict(json.loads(p.read_text())) for p in paths if p.stem not in done}
+    n_done = len(paths) - len(cases)
+    if n_done:
+        logger.info("resuming: %d of %d cases already diagnosed, %d to go", n_done, len(paths), len(cases))
+    if not cases:
+        return results
     with dask_client(scheduler, workers) as client:
         inputs = {k: (c, settings) for k, c in cases.items()}
-        for key, result in map_cases(client, _diagnose_case, inputs, "case"):
-            write(cases[key], result)
+        for key, result in map_cases(client, fn, inputs, "case", n_done, len(paths)):
+            write_json_atomic(results / f"{key}.json", result)
     return results
 
 
@@ -516,6 +541,60 @@ def score(out_dir: str | Path, library: EffectLibrary = CATALOGUE) -> Validation
     )
 
 
+def _manifest(n_cases: int, seed: int, fractions: dict[str, float] | None) -> dict[str, Any]:
+    """The manifest of a run: what draws its cases, and their fingerprint (the catalogue included)."""
+    mix = dict(DEFAULT_FRACTIONS if fractions is None else fractions)
+    spec = {"protocol": 1, "n_cases": n_cases, "seed": seed, "fractions": mix, "library": list(CATALOGUE)}
+    fingerprint = hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:16]
+    return {"protocol": 1, "seed": seed, "n_cases": n_cases, "fractions": mix, "fingerprint": fingerprint}
+
+
+def prepare_run(out_dir: str | Path, n_cases: int, seed: int, fractions: dict[str, float] | None = None) -> bool:
+    """Whether the cases of a protocol-1 run must be drawn now in ``out_dir``, else that it holds this run.
+
+    Parameters
+    ----------
+    out_dir : path
+        The run's directory.
+    n_cases, seed, fractions
+        As :func:`run_validation`.
+
+    Returns
+    -------
+    bool
+        True when the directory holds no run yet (the manifest is written, ``complete`` false, and
+        the caller draws the cases), or this run's cases were not all written (drawn again: the same
+        seed draws the same cases); False when it holds this run's cases, kept.
+
+    Raises
+    ------
+    FileExistsError
+        The directory holds another run: other settings, protocol 2, or cases or results without
+        a manifest (a protocol-1 run of before 2026-11-27, or foreign files).
+    """
+    out = Path(out_dir)
+    mine = _manifest(n_cases, seed, fractions)
+    path = out / MANIFEST
+    if path.is_file():
+        held = json.loads(path.read_text())
+        if held.get("fingerprint") != mine["fingerprint"]:
+            raise FileExistsError(
+                f"{out} holds another validation run (protocol {held.get('protocol')}, seed {held.get('seed')}, "
+                f"{held.get('n_cases')} cases); to resume it give the same settings, else choose a new output directory"
+            )
+        if held.get("complete"):
+            logger.info("keeping the %d cases of %s (seed %d)", n_cases, out, seed)
+            return False
+    elif any((out / "cases").glob("*.json")) or any((out / "results").glob("*.json")):
+        raise FileExistsError(
+            f"{out} already holds a validation run (cases/ or results/) without a manifest ({MANIFEST}); choose a "
+            f"new output directory or delete it: mixing two runs' cases would corrupt the scores"
+        )
+    out.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(path, {**mine, "complete": False}, indent=1)
+    return True
+
+
 def run_validation(
     n_cases: int,
     seed: int,
@@ -524,8 +603,13 @@ def run_validation(
     settings: DiagnosisSettings | None = None,
     fractions: dict[str, float] | None = None,
     scheduler: str | None = None,
+    diagnose_fn: Callable[[BlindCase, DiagnosisSettings], dict[str, Any]] | None = None,
 ) -> ValidationReport:
     """Generate, diagnose blind, then score; writes ``report.json`` and ``report.md`` in ``out_dir``.
+
+    Resumable: called again with the same ``n_cases``, ``seed`` and ``fractions`` on the directory
+    of an interrupted run, it keeps the cases and the diagnoses already written and diagnoses the
+    rest (:func:`prepare_run`).
 
     Parameters
     ----------
@@ -544,26 +628,27 @@ def run_validation(
         Mix of case kinds (see :func:`generate_cases`).
     scheduler : str, optional
         An existing Dask scheduler (default ``$BACKLASH_DASK_SCHEDULER``, else a local cluster).
+    diagnose_fn : callable, optional
+        As :func:`diagnose_cases` (tests only).
 
     Raises
     ------
     FileExistsError
-        When ``out_dir`` already holds cases or results of a run (nothing is overwritten).
+        When ``out_dir`` holds another run (other settings, protocol 2, or files without a
+        protocol-1 manifest); nothing is overwritten.
     """
     out = Path(out_dir)
-    if any((out / "cases").glob("*.json")) or any((out / "results").glob("*.json")):
-        raise FileExistsError(
-            f"{out} already holds a validation run (cases/ or results/); choose a new output directory or delete "
-            f"it: mixing two runs' cases would corrupt the scores"
-        )
-    cases, key = generate_cases(n_cases, seed, fractions=fractions)
-    write_cases(cases, key, out)
-    del key  # the diagnosis never sees it
-    diagnose_cases(out, workers, settings, scheduler)
+    if prepare_run(out, n_cases, seed, fractions):
+        cases, key = generate_cases(n_cases, seed, fractions=fractions)
+        write_cases(cases, key, out)
+        del key  # the diagnosis never sees it
+        write_json_atomic(out / MANIFEST, {**_manifest(n_cases, seed, fractions), "complete": True}, indent=1)
+    diagnose_cases(out, workers, settings, scheduler, diagnose_fn)
     report = score(out)
-    (out / "report.json").write_text(json.dumps(report.to_dict(), indent=1))
-    (out / "report.md").write_text(
+    write_text_atomic(out / "report.json", json.dumps(report.to_dict(), indent=1))  # as before: a figure over no case may be NaN, which write_json_atomic refuses
+    write_text_atomic(
+        out / "report.md",
         f"# Blind validation: {n_cases} cases, seed {seed}\n\n{report.table()}\n\n## Confusion matrix\n\n"
-        f"{report.confusion_table()}\n"
+        f"{report.confusion_table()}\n",
     )
     return report

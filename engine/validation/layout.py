@@ -8,49 +8,23 @@
     <out>/results/<case_id>.json  the diagnosis of each case (its existence marks the case done)
     <out>/report.json, report.md  the scores
 
-Every file is written atomically (a temporary file renamed over the target), so an
-interrupted run never leaves a half-written case, key or result behind.
+Every file is written atomically (:mod:`engine.atomic`: a temporary file renamed over the
+target), so an interrupted run never leaves a half-written case, key or result behind.
 """
 
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from engine.atomic import write_json_atomic
 from engine.records import Record
 from engine.validation.key import KeyEntry
 
-__all__ = ["RunLayout", "write_json_atomic", "write_text_atomic"]
-
-
-def write_text_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same directory, renamed over it.
-
-    Parameters
-    ----------
-    path : Path
-        Target file; its directory must exist.
-    text : str
-        The content.
-    """
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def write_json_atomic(path: Path, data: Any, indent: int | None = None) -> None:
-    """Write ``data`` as JSON (NaN and infinities refused) to ``path`` atomically (:func:`write_text_atomic`)."""
-    write_text_atomic(path, json.dumps(data, indent=indent, allow_nan=False))
+__all__ = ["RunLayout"]
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,8 @@ import datetime as _dt
 import json
 from typing import Any
 
-from engine.validation.layout import RunLayout, write_text_atomic
+from engine.atomic import write_text_atomic
+from engine.validation.layout import RunLayout
 from engine.validation.protocol import CASE_KINDS
 from engine.validation.score import STATUSES, Metric, Scores
 

@@ -1,0 +1,41 @@
+"""Files written whole or not at all: a temporary file in the same directory, renamed over the target.
+
+A reader (or a run resumed after an interruption) then sees either the old file or the new one,
+never a half-written one: the validation runs of both protocols count a result file as a finished
+diagnosis (:mod:`engine.validation.layout`, :mod:`engine.diagnosis.validation`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+__all__ = ["write_json_atomic", "write_text_atomic"]
+
+
+def write_text_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file in the same directory, renamed over it.
+
+    Parameters
+    ----------
+    path : Path
+        Target file; its directory must exist.
+    text : str
+        The content.
+    """
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_json_atomic(path: Path, data: Any, indent: int | None = None) -> None:
+    """Write ``data`` as JSON (NaN and infinities refused) to ``path`` atomically (:func:`write_text_atomic`)."""
+    write_text_atomic(path, json.dumps(data, indent=indent, allow_nan=False))
