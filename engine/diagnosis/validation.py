@@ -645,7 +645,8 @@ def run_validation(
         write_json_atomic(out / MANIFEST, {**_manifest(n_cases, seed, fractions), "complete": True}, indent=1)
     diagnose_cases(out, workers, settings, scheduler, diagnose_fn)
     report = score(out)
-    write_text_atomic(out / "report.json", json.dumps(report.to_dict(), indent=1))  # as before: a figure over no case may be NaN, which write_json_atomic refuses
+    # json.dumps as before: a figure over no case may be NaN, which write_json_atomic refuses
+    write_text_atomic(out / "report.json", json.dumps(report.to_dict(), indent=1))
     write_text_atomic(
         out / "report.md",
         f"# Blind validation: {n_cases} cases, seed {seed}\n\n{report.table()}\n\n## Confusion matrix\n\n"
