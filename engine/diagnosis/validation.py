@@ -32,7 +32,7 @@ Protocol (issue 4)
    ``<out>/key/answer_key.json``. :func:`diagnose_cases` reads only
    ``cases/`` and writes ``results/``; :func:`score` reads the key only after
    every diagnosis is done. The run is resumable (since 2026-11-27): ``<out>/run.json``
-   (:data:`MANIFEST`) says what drew the cases, and every case, key and result file is written
+   (:data:`engine.run_manifest.MANIFEST`) says what drew the cases, and every case, key and result file is written
    atomically, so :func:`run_validation` called again with the same settings keeps what an
    interrupted run wrote and diagnoses the rest.
 
@@ -54,7 +54,6 @@ only the library of a left-out time shift and the scoring of a twin answer diffe
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import math
@@ -72,6 +71,7 @@ from engine.constants import OPERATING_RANGE
 from engine.diagnosis.diagnose import DiagnosisSettings, diagnose
 from engine.diagnosis.space import LOG_SCALED_EFFECTS
 from engine.records import Record
+from engine.run_manifest import MANIFEST, fingerprint, must_draw_cases
 from engine.simulation import CATALOGUE, Case, EffectLibrary, PlantParameters, simulate_batch
 from engine.simulation.noise import noise_std
 
@@ -105,10 +105,6 @@ STRENGTH_THRESHOLD = 3.0
 SAME_PHYSICS: tuple[frozenset[str], ...] = (frozenset({"measurement_delay", "trigger_offset"}),)
 #: Default mix of case kinds.
 DEFAULT_FRACTIONS = {"effect": 0.6, "left_out": 0.2, "clean": 0.2}
-#: The run's manifest in its directory: protocol, seed, number of cases, mix, the fingerprint of
-#: what draws the cases; written once every case and the key are (``complete``), so a run
-#: interrupted later is resumed with the same settings (:func:`run_validation`).
-MANIFEST = "run.json"
 
 
 @dataclass(frozen=True)
@@ -545,8 +541,7 @@ def _manifest(n_cases: int, seed: int, fractions: dict[str, float] | None) -> di
     """The manifest of a run: what draws its cases, and their fingerprint (the catalogue included)."""
     mix = dict(DEFAULT_FRACTIONS if fractions is None else fractions)
     spec = {"protocol": 1, "n_cases": n_cases, "seed": seed, "fractions": mix, "library": list(CATALOGUE)}
-    fingerprint = hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:16]
-    return {"protocol": 1, "seed": seed, "n_cases": n_cases, "fractions": mix, "fingerprint": fingerprint}
+    return {"protocol": 1, "seed": seed, "n_cases": n_cases, "fractions": mix, "fingerprint": fingerprint(spec)}
 
 
 def prepare_run(out_dir: str | Path, n_cases: int, seed: int, fractions: dict[str, float] | None = None) -> bool:
@@ -575,21 +570,10 @@ def prepare_run(out_dir: str | Path, n_cases: int, seed: int, fractions: dict[st
     out = Path(out_dir)
     mine = _manifest(n_cases, seed, fractions)
     path = out / MANIFEST
-    if path.is_file():
-        held = json.loads(path.read_text())
-        if held.get("fingerprint") != mine["fingerprint"]:
-            raise FileExistsError(
-                f"{out} holds another validation run (protocol {held.get('protocol')}, seed {held.get('seed')}, "
-                f"{held.get('n_cases')} cases); to resume it give the same settings, else choose a new output directory"
-            )
-        if held.get("complete"):
-            logger.info("keeping the %d cases of %s (seed %d)", n_cases, out, seed)
-            return False
-    elif any((out / "cases").glob("*.json")) or any((out / "results").glob("*.json")):
-        raise FileExistsError(
-            f"{out} already holds a validation run (cases/ or results/) without a manifest ({MANIFEST}); choose a "
-            f"new output directory or delete it: mixing two runs' cases would corrupt the scores"
-        )
+    held = json.loads(path.read_text()) if path.is_file() else None
+    has_files = any((out / "cases").glob("*.json")) or any((out / "results").glob("*.json"))
+    if not must_draw_cases(out, held, mine["fingerprint"], has_files):
+        return False
     out.mkdir(parents=True, exist_ok=True)
     write_json_atomic(path, {**mine, "complete": False}, indent=1)
     return True

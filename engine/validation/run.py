@@ -12,14 +12,14 @@
 
 from __future__ import annotations
 
-import hashlib
-import json
 import logging
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from engine.diagnosis.diagnose import DiagnosisSettings
+from engine.run_manifest import fingerprint as run_fingerprint
+from engine.run_manifest import must_draw_cases
 from engine.simulation import CATALOGUE, HELD_BACK, EffectLibrary
 from engine.validation.blind import DiagnoseFn, diagnose_cases, library_of_run
 from engine.validation.cases import case_counts, generate_cases
@@ -57,7 +57,7 @@ def _fingerprint(
         "catalogue": [(e.name, e.field, e.bounds) for e in catalogue.values()],
         "held_back": [(e.name, e.field, e.bounds) for e in held_back.values()],
     }
-    return hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:16]
+    return run_fingerprint(spec)
 
 
 def prepare_cases(
@@ -86,26 +86,13 @@ def prepare_cases(
     Raises
     ------
     FileExistsError
-        The directory holds another run (other settings, protocol 1, or results without cases).
+        The directory holds another run (other settings, protocol 1), or cases or results without a manifest.
     """
     counts = case_counts(n_cases, mix)
     fingerprint = _fingerprint(n_cases, seed, counts, catalogue, held_back, absorption)
-    manifest = layout.read_manifest()
-    if manifest is not None:
-        if manifest.get("fingerprint") != fingerprint:
-            raise FileExistsError(
-                f"{layout.root} holds another validation run (protocol {manifest.get('protocol')}, seed "
-                f"{manifest.get('seed')}, {manifest.get('n_cases')} cases); to resume it give the same settings, "
-                f"else choose a new output directory"
-            )
-        if manifest.get("complete"):
-            logger.info("keeping the %d cases of %s (seed %d)", n_cases, layout.root, seed)
-            return False
-    elif layout.done() or any(layout.cases.glob("*.json")):
-        raise FileExistsError(
-            f"{layout.root} already holds a validation run (cases or results) without a protocol-2 manifest "
-            f"(run.json): a protocol-1 run or foreign files; choose a new output directory"
-        )
+    has_files = bool(layout.done()) or any(layout.cases.glob("*.json"))
+    if not must_draw_cases(layout.root, layout.read_manifest(), fingerprint, has_files):
+        return False
     header = {
         "protocol": PROTOCOL_VERSION,
         "rules": _rules(absorption),
