@@ -16,8 +16,22 @@ from typing import Any
 __all__ = ["write_json_atomic", "write_text_atomic"]
 
 
+def _file_mode() -> int:
+    """The mode ``open(path, "w")`` gives a new file: 0o666 less the process's umask."""
+    umask = os.umask(0)  # read it the only way POSIX allows, and put it back
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+#: Mode of the files written here (``tempfile.mkstemp`` makes 0o600, readable by the owner only).
+_FILE_MODE = _file_mode()
+
+
 def write_text_atomic(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file in the same directory, renamed over it.
+
+    The content reaches the disk (``fsync``) before the rename, and the file gets the mode a plain
+    ``open(path, "w")`` would give it.
 
     Parameters
     ----------
@@ -30,6 +44,9 @@ def write_text_atomic(path: Path, text: str) -> None:
     try:
         with os.fdopen(fd, "w") as f:
             f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, _FILE_MODE)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -16,9 +16,9 @@ import logging
 from pathlib import Path
 from typing import Any
 
+from engine.atomic import write_json_atomic
 from engine.diagnosis.batch import SUMMARY_COLUMNS, diagnose_one, summary_row
 from engine.plants import DEFAULT_PLANT, get_plant
-from engine.validation.layout import write_json_atomic
 
 __all__ = ["RECORD_SUFFIXES", "find_records", "run_batch"]
 
