@@ -22,6 +22,7 @@ from typing import Any
 
 from engine.atomic import write_json_atomic
 from engine.records import Record
+from engine.run_manifest import MANIFEST
 from engine.validation.key import KeyEntry
 
 __all__ = ["RunLayout"]
@@ -41,7 +42,7 @@ class RunLayout:
 
     @property
     def manifest(self) -> Path:
-        return self.root / "run.json"
+        return self.root / MANIFEST
 
     @property
     def cases(self) -> Path:
