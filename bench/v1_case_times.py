@@ -14,6 +14,9 @@ Example (left-out records of the seed-227 run, about 15 min on 2 idle cores)::
 
     python bench/v1_case_times.py out/validation-v1-seed227 --expected unexplained --n 12
 
+``--run-times`` diagnoses nothing: it prints the run's own times (two at once) by expected answer,
+the number of cases, the median, the maximum and how many exceed ``--budget``.
+
 The run's cases are development data once it is scored; the times do not depend on the answers,
 but they do on what else the machine runs (the load average is printed).
 """
@@ -34,8 +37,6 @@ from engine.diagnosis.diagnose import DiagnosisSettings
 from engine.diagnosis.validation import BlindCase, _diagnose_case
 from engine.validation.stats import quantile_interval
 
-logger = logging.getLogger("bench.v1_case_times")
-
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -43,12 +44,28 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--expected", default="unexplained", choices=("explained", "unexplained", "no_gap"))
     ap.add_argument("--n", type=int, default=12, help="cases, the first in id order")
     ap.add_argument("--budget", type=float, default=30.0, help="seconds (issue 4: 30)")
+    ap.add_argument(
+        "--run-times", action="store_true", help="only summarise the run's own (throughput) times by expected answer"
+    )
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, stream=sys.stderr)
     report = args.run / "report.json"
     if not report.is_file():
         ap.error(f"{report} is missing: score the run first (backlash validate --protocol 1 ...)")
-    rows = sorted(json.loads(report.read_text())["per_case"], key=lambda r: r["case_id"])
+    doc = json.loads(report.read_text())
+    if doc.get("protocol", 1) != 1 or not all("expected" in r for r in doc.get("per_case") or [{}]):
+        ap.error(
+            f"{report} is not a protocol-1 report (per-case rows with the expected answer); for protocol 2 use bench/rediagnose.py"
+        )
+    rows = sorted(doc["per_case"], key=lambda r: r["case_id"])
+    if args.run_times:
+        for expected in ("no_gap", "explained", "unexplained"):
+            secs = np.asarray([r["seconds"] for r in rows if r["expected"] == expected], dtype=float)
+            if secs.size:
+                line = {"expected": expected, "n": int(secs.size), "median": round(float(np.median(secs)), 1)}
+                line |= {"max": round(float(secs.max()), 1), f"over_{args.budget:g}_s": int(np.sum(secs > args.budget))}
+                print(json.dumps(line), flush=True)
+        return 0
     chosen = [r for r in rows if r["expected"] == args.expected][: args.n]
     if not chosen:
         ap.error(f"the run holds no case whose expected answer is {args.expected}")

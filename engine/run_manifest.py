@@ -17,12 +17,43 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-__all__ = ["MANIFEST", "fingerprint", "must_draw_cases"]
+__all__ = ["MANIFEST", "fingerprint", "must_draw_cases", "read_manifest"]
 
 logger = logging.getLogger(__name__)
 
 MANIFEST = "run.json"
 """Name of the manifest in a run's directory."""
+
+
+def read_manifest(root: Path) -> dict[str, Any] | None:
+    """The manifest of the run in ``root``, or None when there is none.
+
+    Parameters
+    ----------
+    root : Path
+        The run's directory.
+
+    Returns
+    -------
+    dict or None
+        The manifest as written (its ``complete`` flag says whether every case is).
+
+    Raises
+    ------
+    FileExistsError
+        ``root/run.json`` exists but is not a JSON object (foreign or damaged): the directory is not
+        taken for a run of ours, nor for an empty one.
+    """
+    path = root / MANIFEST
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise FileExistsError(f"{path} is not a run manifest ({exc}); choose a new output directory") from exc
+    if not isinstance(data, dict):
+        raise FileExistsError(f"{path} is not a run manifest (not a JSON object); choose a new output directory")
+    return data
 
 
 def fingerprint(spec: Mapping[str, Any]) -> str:

@@ -69,3 +69,21 @@ def test_v1_case_times_takes_the_first_cases_of_the_kind_in_id_order(tmp_path, c
     summary = lines[-1]
     assert len(seen) == 3 and summary["n"] == 3 and summary["expected"] == "unexplained"
     assert summary["over_1e+09_s"] == 0 and summary["median"][0] is not None
+
+
+def test_v1_case_times_refuses_a_protocol_2_report(tmp_path, capsys) -> None:
+    v1 = load_bench("v1_case_times")
+    (tmp_path / "report.json").write_text(json.dumps({"protocol": 2, "cases": []}))
+    with pytest.raises(SystemExit) as exc:
+        v1.main([str(tmp_path)])
+    assert exc.value.code == 2 and "not a protocol-1 report" in capsys.readouterr().err
+
+
+def test_v1_case_times_run_times_summarise_the_report_without_diagnosing(tmp_path, capsys, monkeypatch) -> None:
+    v1 = load_bench("v1_case_times")
+    rows = [{"case_id": f"case{i:04d}", "expected": "explained", "seconds": s} for i, s in enumerate((5.0, 40.0, 7.0))]
+    (tmp_path / "report.json").write_text(json.dumps({"per_case": rows}))
+    monkeypatch.setattr(v1, "_diagnose_case", lambda case, settings: pytest.fail("nothing is diagnosed"))
+    assert v1.main([str(tmp_path), "--run-times"]) == 0
+    (line,) = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert line == {"expected": "explained", "n": 3, "median": 7.0, "max": 40.0, "over_30_s": 1}

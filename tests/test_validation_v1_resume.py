@@ -90,3 +90,18 @@ def test_a_directory_without_a_manifest_is_refused(tmp_path: Path) -> None:
         v1.run_validation(2, 5, out, fractions=MIX, diagnose_fn=fake_diagnosis)
     assert sorted(p.name for p in out.rglob("*")) == ["case0000.json", "results"]
     assert CALLS == []
+
+
+@pytest.mark.parametrize("content", ["{not json", "[1, 2]", "\udcff"])
+def test_a_damaged_manifest_is_refused_by_either_protocol_and_left_as_it_was(tmp_path: Path, content: str) -> None:
+    """A run.json that is not a JSON object is neither taken for a run of ours nor overwritten."""
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "run.json").write_bytes(content.encode("utf-8", "surrogateescape"))
+    before = (out / "run.json").read_bytes()
+    with pytest.raises(FileExistsError, match="is not a run manifest"):
+        v1.run_validation(2, 5, out, fractions=MIX, diagnose_fn=fake_diagnosis)
+    with pytest.raises(FileExistsError, match="is not a run manifest"):
+        run_v2(2, 5, out)
+    assert (out / "run.json").read_bytes() == before and [p.name for p in out.iterdir()] == ["run.json"]
+    assert CALLS == []

@@ -71,7 +71,7 @@ from engine.constants import OPERATING_RANGE
 from engine.diagnosis.diagnose import DiagnosisSettings, diagnose
 from engine.diagnosis.space import LOG_SCALED_EFFECTS
 from engine.records import Record
-from engine.run_manifest import MANIFEST, fingerprint, must_draw_cases
+from engine.run_manifest import MANIFEST, fingerprint, must_draw_cases, read_manifest
 from engine.simulation import CATALOGUE, Case, EffectLibrary, PlantParameters, simulate_batch
 from engine.simulation.noise import noise_std
 
@@ -569,13 +569,11 @@ def prepare_run(out_dir: str | Path, n_cases: int, seed: int, fractions: dict[st
     """
     out = Path(out_dir)
     mine = _manifest(n_cases, seed, fractions)
-    path = out / MANIFEST
-    held = json.loads(path.read_text()) if path.is_file() else None
     has_files = any((out / "cases").glob("*.json")) or any((out / "results").glob("*.json"))
-    if not must_draw_cases(out, held, mine["fingerprint"], has_files):
+    if not must_draw_cases(out, read_manifest(out), mine["fingerprint"], has_files):
         return False
     out.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(path, {**mine, "complete": False}, indent=1)
+    write_json_atomic(out / MANIFEST, {**mine, "complete": False}, indent=1)
     return True
 
 

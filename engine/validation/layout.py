@@ -22,7 +22,7 @@ from typing import Any
 
 from engine.atomic import write_json_atomic
 from engine.records import Record
-from engine.run_manifest import MANIFEST
+from engine.run_manifest import MANIFEST, read_manifest
 from engine.validation.key import KeyEntry
 
 __all__ = ["RunLayout"]
@@ -94,11 +94,8 @@ class RunLayout:
 
     # -- reading ------------------------------------------------------------------------
     def read_manifest(self) -> dict[str, Any] | None:
-        """The manifest, or None when the cases are not (completely) written yet."""
-        if not self.manifest.is_file():
-            return None
-        data: dict[str, Any] = json.loads(self.manifest.read_text())
-        return data
+        """The manifest (:func:`engine.run_manifest.read_manifest`), or None before the generator wrote it."""
+        return read_manifest(self.root)
 
     def case_ids(self) -> list[str]:
         """Ids of the cases in ``cases/``, sorted."""

@@ -1,4 +1,5 @@
-"""Interval estimates of the validation's scores: Wilson intervals of rates, order-statistic intervals of quantiles."""
+"""Interval estimates of the validation's scores: Wilson intervals of rates, order-statistic intervals of quantiles,
+the inverse-variance pool of independent estimates."""
 
 from __future__ import annotations
 
@@ -7,13 +8,15 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import binom, norm
+from scipy.stats import binom, chi2, norm
 
 __all__ = [
     "MedianEstimate",
+    "PooledEstimate",
     "QuantileEstimate",
     "Rate",
     "median_interval",
+    "pooled_estimate",
     "quantile_interval",
     "rate",
     "wilson_interval",
@@ -276,6 +279,75 @@ def quantile_interval(values: Sequence[float], q: float, confidence: float = CON
     if bounds is None:
         return QuantileEstimate(q, x.size, value, None, None, None)
     return QuantileEstimate(q, x.size, value, *bounds)
+
+
+@dataclass(frozen=True)
+class PooledEstimate:
+    """Independent estimates of one quantity pooled by inverse variance, with the test of their agreement.
+
+    Attributes
+    ----------
+    value : float
+        Weighted mean, weights ``1 / stderr**2``.
+    stderr : float
+        Its standard error, ``sum(weights) ** -0.5``.
+    low, high : float
+        The normal interval ``value -+ z * stderr`` at the confidence asked for.
+    chi2 : float
+        Cochran's Q: ``sum(weights * (values - value) ** 2)``.
+    dof : int
+        Its degrees of freedom, one less than the estimates.
+    p_value : float
+        Probability of a Q this large when every estimate has the same mean (chi-square with
+        ``dof`` degrees of freedom); a small one says the pool mixes different quantities.
+    """
+
+    value: float
+    stderr: float
+    low: float
+    high: float
+    chi2: float
+    dof: int
+    p_value: float
+
+
+def pooled_estimate(
+    values: Sequence[float], stderrs: Sequence[float], confidence: float = CONFIDENCE
+) -> PooledEstimate:
+    """Inverse-variance (fixed-effect) pool of independent estimates with normal errors.
+
+    Parameters
+    ----------
+    values : sequence of float
+        The estimates (e.g. one paired difference per validation run, in points).
+    stderrs : sequence of float
+        Their standard errors, same units, each finite and positive.
+    confidence : float
+        Level of the interval.
+
+    Returns
+    -------
+    PooledEstimate
+
+    Raises
+    ------
+    ValueError
+        Fewer than two estimates, sequences of different lengths, or a standard error that is not
+        finite and positive (an estimate without an error cannot be weighted).
+    """
+    v = np.asarray(values, dtype=float)
+    s = np.asarray(stderrs, dtype=float)
+    if v.ndim != 1 or v.shape != s.shape or v.size < 2:
+        raise ValueError(f"give two or more estimates with one standard error each, got {v.size} and {s.size}")
+    if not (np.isfinite(v).all() and np.isfinite(s).all() and (s > 0).all()):
+        raise ValueError("every estimate must be finite and every standard error finite and positive")
+    w = 1.0 / s**2
+    mean = float(np.sum(w * v) / np.sum(w))
+    se = float(np.sum(w) ** -0.5)
+    z = float(norm.ppf(0.5 + confidence / 2.0))
+    q = float(np.sum(w * (v - mean) ** 2))
+    dof = int(v.size - 1)
+    return PooledEstimate(mean, se, mean - z * se, mean + z * se, q, dof, float(chi2.sf(q, dof)))
 
 
 def _round4(x: float | None) -> float | None:
