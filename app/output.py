@@ -24,6 +24,35 @@ def info(text: str) -> None:
     sys.stderr.flush()
 
 
+def warning(text: str) -> None:
+    """A warning about the answer on stderr: something to check before acting on it."""
+    info(f"backlash: warning: {text}")
+
+
+def summary(answer: dict[str, Any]) -> None:
+    """The lines of a diagnosis answer a person reads first, on stderr: the verdict, the width, the warnings."""
+    verdict = answer.get("verdict") or {}
+    status = verdict.get("status") or answer.get("status")
+    named = ", ".join(str(e.get("effect")) for e in verdict.get("effects") or () if isinstance(e, dict))
+    line = f"verdict: {status}" + (f" ({named})" if named else "")
+    if verdict.get("locus") and not named:
+        line += f", locus {verdict['locus']}"
+    if isinstance(verdict.get("confidence"), int | float):
+        line += f", confidence {100 * verdict['confidence']:.0f} %"
+    info(line)
+    width = answer.get("width")
+    if isinstance(width, dict):
+        if width.get("identifiable") and width.get("K") is not None:
+            lo, hi = width.get("interval_95") or (None, None)
+            span = f", 95 % interval {1e3 * lo:.4f}-{1e3 * hi:.4f} mm" if lo is not None and hi is not None else ""
+            info(f"backlash width: {1e3 * width['K']:.4f} mm{span} (from {width.get('from')})")
+        else:
+            info(f"backlash width: not identifiable ({width.get('reason')})")
+    for w in answer.get("warnings") or ():
+        if isinstance(w, dict):
+            warning(str(w.get("message")))
+
+
 def error(text: str) -> None:
     """An error message on stderr."""
     info(f"backlash: error: {text}")

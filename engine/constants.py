@@ -164,3 +164,5 @@ CHANNEL_WAVELETS: Final[dict[str, str]] = {
 }
 #: Wavelet decomposition level (paper: 10 for every channel).
 WAVELET_LEVEL: Final[int] = 10
+#: Two-sided 95 % quantile of the standard normal distribution (a 95 % interval is +- Z95 sigma).
+Z95: Final[float] = 1.959963984540054

@@ -28,7 +28,9 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         "typically 5-60 s on 2 cores)"
     )
     result = diagnosis.run(record, args.effects, bounds or None)
-    output.write_json(result.to_dict())
+    answer = result.to_dict()
+    output.write_json(answer)
+    output.summary(answer)
     if args.plots:
         for path in diagnosis.write_plots(record, result, args.plots):
             output.info(f"wrote {path}")
@@ -49,7 +51,9 @@ def _diagnose_plant(args: argparse.Namespace) -> int:
         "about a minute on 2 cores)"
     )
     result = plant_diagnosis.run(records, args.hold_calibration)
-    output.write_json(result.to_dict())
+    answer = result.to_dict()
+    output.write_json(answer)
+    output.summary(answer)
     if args.plots:
         for path in plant_diagnosis.write_plots(result, args.plots):
             output.info(f"wrote {path}")

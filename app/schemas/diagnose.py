@@ -140,6 +140,17 @@ class DiagnosisAnswer(BaseModel):
     calibration: dict[str, Any] = Field(description="The calibrated parameters with their uncertainties.")
     record: dict[str, Any] | str | None = Field(default=None, description="How the record was read.")
     status: str | None = Field(default=None, description="The plants' verdict status.")
+    width: dict[str, Any] | None = Field(
+        default=None,
+        description="The backlash width of the model the answer ends with: K [m], sigma_K [m], interval_95 "
+        "[m, m], from (nominal, the named effect or set, or the best fit when unexplained), identifiable and "
+        "the reason when not.",
+    )
+    warnings: list[dict[str, Any]] = Field(
+        default_factory=list,
+        description="What makes the record doubtful for the plant ({code, message, channel}): check these "
+        "before acting on the answer.",
+    )
 
 
 class DiagnosisAccepted(BaseModel):

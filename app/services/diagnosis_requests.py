@@ -200,11 +200,9 @@ def compute(
             if figures and progress is not None:
                 progress(1.0, "drawing the figures")
             paths = diagnosis.write_plots(parsed.record, result, out_dir) if figures else []
-            cal = answer.get("calibration") or {}
-            width = (cal.get("values") or {}).get("K")
-            sigma = (cal.get("uncertainties") or {}).get("K")
-            if "K" in (cal.get("fixed") or {}):
-                width = sigma = None  # given by the record's conditions, not measured
+            shown = answer.get("width") or {}  # the width of the model the answer ends with
+            width = shown.get("K") if shown.get("identifiable") else None
+            sigma = shown.get("sigma_K") if shown.get("identifiable") else None
         else:
             records = PlantRecords(get_plant(parsed.plant), parsed.record, parsed.calibrate_on)
             plant_result = plant_diagnosis.run(records, parsed.hold)

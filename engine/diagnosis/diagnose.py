@@ -96,6 +96,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import replace
 from typing import Any
 
+from engine.diagnosis.ambiguity import Model
 from engine.diagnosis.calibration import CalibrationResult, calibrate
 from engine.diagnosis.candidate_set import CandidateSet
 from engine.diagnosis.candidates import fit_candidates
@@ -117,6 +118,7 @@ from engine.diagnosis.settings import NOMINAL_CALIBRATION as NOMINAL_CALIBRATION
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.diagnosis.space import Bounds, ModelSpace, default_space
 from engine.diagnosis.staged import singles_of_sets, staged_search
+from engine.diagnosis.width import answer_calibration, answer_width
 from engine.parallel import single_threaded_blas
 from engine.records import Record
 from engine.simulation import CATALOGUE, EffectLibrary
@@ -282,6 +284,10 @@ def _diagnose(
     verdict = decide(nominal, cands, settings, sets)
     model = choose_model(cands, sets, settings)  # the model the verdict names, when explained
     verdict = with_alternatives(verdict, library, model_near_twins(verdict, model, [*cands, *sets], settings, library))
+    models: list[Model] = [*cands, *sets]
+    final, source = answer_calibration(verdict.status, nominal, model, models)
+    fitted = [nominal, *(m.calibration for m in models if m.calibration is not None)]
+    width = answer_width(record, final, source, space, fitted, settings.min_delta_bic)
     stage("decision")
 
     after = None
@@ -290,13 +296,12 @@ def _diagnose(
     cells_after: list[Cell] = []
     locus: dict[str, Any] | None = None
     if verdict.status == "explained":
-        best_cal = model.calibration if model is not None else None
-        if model is None or best_cal is None:  # an explained verdict names a fitted model
+        if model is None:  # an explained verdict names a fitted model (answer_calibration checked its fit)
             raise RuntimeError(f"the named effect {verdict.effect} has no fit")
-        after = best_cal.simulated_record(whole)
-        gap_after = gap_of(best_cal)
+        after = final.simulated_record(whole)
+        gap_after = gap_of(final)
         shrinkage = model.shrinkage
-        cells_after = localise(record, best_cal.simulated_record(record), nominal.sigma, DEFAULT_WINDOWS_MS)
+        cells_after = localise(record, final.simulated_record(record), nominal.sigma, DEFAULT_WINDOWS_MS)
         stage("gap after the fix")
     elif verdict.status in ("unexplained", "weak_gap") and settings.locate:
         verdict, locus = _locate(record, nominal, verdict, space)
@@ -319,6 +324,8 @@ def _diagnose(
         locus=locus,
         shrinkage=shrinkage,
         stages=stages,
+        answer_calibration=final,
+        width=width,
     )
     if identify is not None:
         progress(0.9, "identifying the width before and after")

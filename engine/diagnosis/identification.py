@@ -128,7 +128,8 @@ def identification_hook(kind: str = DEFAULT_KIND) -> IdentificationHook:
 
     def hook(record: Record, result: DiagnosisResult) -> dict[str, Any]:
         v = result.verdict
-        c = result.calibration.values.get("c", result.calibration.fixed.get("c", C_NOMINAL))
+        final = result.final  # the c group of the model the answer ends with
+        c = final.values.get("c", final.fixed.get("c", C_NOMINAL))
         named = {row["effect"]: row["value"] for row in v.effects if row.get("value") is not None}
         return identify_before_after(record, v.effect, v.value, c, kind, effects=named or None)
 

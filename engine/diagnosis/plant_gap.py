@@ -51,6 +51,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import butter, correlate, sosfiltfilt
 
+from engine.constants import Z95
 from engine.plants.base import CalibratedParameter, Plant, free_parameters
 
 __all__ = [
@@ -105,6 +106,8 @@ MAX_NFEV: int = 60
 #: Window constant of the integrated autocorrelation time (:func:`integrated_time`; Sokal's c, 5 for
 #: a residual whose correlation decays roughly exponentially).
 SOKAL_WINDOW: float = 5.0
+#: The catalogue effect that is a play: its fitted value is the width an answer shows (the BRFD's).
+WIDTH_EFFECT: str = "backlash"
 
 
 @dataclass(frozen=True)
@@ -238,6 +241,33 @@ class PlantGapReport:
             return "unexplained"
         return "explained" if self.named.share >= EXPLAINED_SHARE else "partly_explained"
 
+    def width(self, plant: Plant, effect: str = WIDTH_EFFECT) -> dict[str, Any]:
+        """The backlash width of the answer (the shape of :class:`engine.diagnosis.width.AnswerWidth`).
+
+        From the model the answer ends with: the named set's fit when it names the play ``effect``;
+        otherwise not identifiable, with the reason (the plant's catalogue has no play, or the
+        answer's model holds none).
+        """
+        out: dict[str, Any] = {"K": None, "sigma_K": None, "interval_95": None, "identifiable": False}
+        if effect not in plant.catalogue:
+            return {**out, "from": "nominal", "reason": f"the {plant.name} model has no backlash width"}
+        if self.named is None or effect not in self.named.effects:
+            return {
+                **out,
+                "from": "nominal" if self.named is None else "+".join(self.named.effects),
+                "reason": "the answer's model names no play: the record shows no width to measure",
+            }
+        K = float(self.named.fit.values[effect])
+        sigma = _finite(self.named.fit.uncertainty.get(effect))
+        return {
+            "K": K,
+            "sigma_K": sigma,
+            "interval_95": [K - Z95 * sigma, K + Z95 * sigma] if sigma is not None else None,
+            "from": "+".join(self.named.effects),
+            "identifiable": sigma is not None,
+            "reason": None if sigma is not None else "the fit gives no finite uncertainty for the play",
+        }
+
     def to_dict(self, plant: Plant) -> dict[str, Any]:
         """JSON-ready form (the CLI's and the API's response); values in the units the plant declares."""
         cat = plant.catalogue
@@ -259,6 +289,8 @@ class PlantGapReport:
             "plant": self.plant,
             "record": self.record,
             "status": self.status,
+            "width": self.width(plant),
+            "warnings": [],
             "verdict": {
                 "effects": effects,
                 "effect": effects[0]["effect"] if effects else None,

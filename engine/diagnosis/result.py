@@ -13,6 +13,7 @@ from engine.diagnosis.candidate_set import CandidateSet
 from engine.diagnosis.gap import Gap
 from engine.diagnosis.localisation import Cell
 from engine.diagnosis.space import ALIGNMENT
+from engine.diagnosis.width import AnswerWidth
 from engine.records import Record, WindowUse
 
 __all__ = ["STATUSES", "DiagnosisResult", "Verdict"]
@@ -131,6 +132,17 @@ class DiagnosisResult:
         term's time series on the record's grid), JSON-ready.
     shrinkage : float or None
         Excess energy before over after the named effects' fit.
+    answer_calibration : CalibrationResult or None
+        The fit of the model the answer ends with (:func:`engine.diagnosis.width.answer_calibration`:
+        the named effect's or set's when explained, the best fit when unexplained, else the nominal
+        one); the width, the event instant and the identification's c group come from it. None
+        means the nominal calibration.
+    width : AnswerWidth or None
+        The backlash width of the answer, from that model, with its 95 % interval
+        (:mod:`engine.diagnosis.width`).
+    warnings : list of dict
+        What makes the record doubtful for this plant (``{"code", "message", "channel"}``,
+        :mod:`engine.diagnosis.plausibility`); empty when nothing is.
     stages : list of dict
         Where the time went: ``{"stage", "seconds"}`` per stage of the work, in order (the nominal
         calibration, the single candidates, the early escalation, the first pairs, the first
@@ -158,6 +170,14 @@ class DiagnosisResult:
     locus: dict[str, Any] | None = None
     shrinkage: float | None = None
     stages: list[dict[str, Any]] = field(default_factory=list)
+    answer_calibration: CalibrationResult | None = None
+    width: AnswerWidth | None = None
+    warnings: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def final(self) -> CalibrationResult:
+        """The calibration of the model the answer ends with (the nominal one when none is set)."""
+        return self.answer_calibration if self.answer_calibration is not None else self.calibration
 
     def record_summary(self) -> dict[str, Any] | None:
         """How the record was read: its grid, units, the samples analysed and where the event is.
@@ -176,7 +196,7 @@ class DiagnosisResult:
         if loc is None:
             event.update({"time": rec.event_index * ts, "sigma": 0.0})
         else:
-            cal = self.calibration
+            cal = self.final  # the event instant of the model the answer ends with
             offset = cal.values.get(ALIGNMENT)
             sigma = cal.uncertainties.get(ALIGNMENT)
             event.update(loc.to_dict())
@@ -223,7 +243,10 @@ class DiagnosisResult:
     def to_dict(self, include_records: bool = True) -> dict[str, Any]:
         """JSON-ready result in the shape of issue 4."""
         out = {
+            "width": self.width.to_dict() if self.width is not None else None,
+            "warnings": [dict(w) for w in self.warnings],
             "calibration": self.calibration.to_dict(),
+            "answer_calibration": self.final.to_dict(),
             "cells": [c.to_dict() for c in self.cells[: self.n_cells]],
             "record": self.record_summary(),
             "candidates": self._ranked_candidates(),

@@ -32,6 +32,12 @@ def test_diagnose_names_a_hidden_effect(client: httpx.Client) -> None:
     for key in ("before", "after"):
         Record.from_dict(body["records"][key])  # both are valid records
     assert set(body["identification"]["channels"]) == set(record.channels)
+    # the width shown is the named model's, with an interval that covers the truth (issue 50)
+    width = body["width"]
+    assert width["from"] == "load_inertia" and width["identifiable"]
+    assert width["K"] == body["answer_calibration"]["values"]["K"]
+    assert width["interval_95"][0] <= 0.006 <= width["interval_95"][1]
+    assert body["warnings"] == []
 
 
 def test_diagnose_validates_its_input_first(client: httpx.Client, sim_record: dict[str, Any]) -> None:

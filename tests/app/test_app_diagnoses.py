@@ -70,6 +70,9 @@ def test_a_diagnosis_job_is_stored_with_its_record_figures_and_asset(client: htt
         "unexplained",
     )
     assert d["K"] is not None and d["K_sigma"] > 0 and abs(d["K"] - 0.005) < 5e-4  # the width the calibration found
+    width = d["result"]["width"]  # the stored width is the answer's, from the model the answer ends with
+    assert (d["K"], d["K_sigma"]) == (width["K"], width["sigma_K"])
+    assert width["K"] == d["result"]["answer_calibration"]["values"]["K"]
     assert {"residual_map_before", "overlays"} <= set(d["figures"])
     for name in d["figures"]:
         fig = client.get(f"{accepted['diagnosis_url']}/figures/{name}")
@@ -85,6 +88,7 @@ def test_a_diagnosis_job_is_stored_with_its_record_figures_and_asset(client: htt
     assert body.json() == {"record": record, "effects": EFFECTS}  # the body exactly as sent
     history = client.get("/v1/assets/press-7/history").json()["points"]
     assert [(p["kind"], p["id"]) for p in history] == [("diagnosis", accepted["diagnosis_id"])]
+    assert history[0]["K"] == width["K"]
 
     assert client.delete(accepted["diagnosis_url"]).status_code == 204
     assert client.get(accepted["diagnosis_url"]).status_code == 404

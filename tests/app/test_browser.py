@@ -210,6 +210,12 @@ def test_report_page_diagnoses_uploaded_records(start_server: ServerFactory, bro
         assert found and float(found[1]) == pytest.approx(0.02, rel=0.02), verdict
         assert "100 % of the gap" in verdict and "at the motor shaft" in verdict, verdict
         assert "× the noise RMS with the nominal model" in verdict, verdict
+        # the width shown is the named model's, with its 95 % interval, which covers the truth (issue 50)
+        shown = re.search(
+            r"Backlash width: ([0-9.]+) mm, 95 % interval ([0-9.]+)–([0-9.]+) mm \(from the model with motor coulomb friction\)",
+            verdict,
+        )
+        assert shown and float(shown[2]) <= 5.5 <= float(shown[3]), verdict
         gap = table_rows(page, "#gap-table")
         assert [r[0] for r in gap] == ["before", "after"], gap
 

@@ -468,11 +468,38 @@
       );
       out.push(`Relative error before → after: ${parts.join(", ")}.`);
     }
-    if (d.K !== null && d.K !== undefined) {
+    const w = r.width;
+    if (w) {
+      out.push(widthSentence(w));
+    } else if (d.K !== null && d.K !== undefined) {
       out.push(`Backlash width: ${mm(d.K, 4)}${d.K_sigma ? ` ± ${mm(d.K_sigma, 2)}` : ""} mm.`);
     }
     if (v.confidence !== undefined && v.confidence !== null) out.push(`Confidence: ${pct(v.confidence)}.`);
     return { status, headline: HEADLINES[status] || words(status) || "Verdict", sentences: out, reason: v.reason };
+  }
+
+  // The width of the model the answer ends with: the value, its 95 % interval and which model, or why there is none.
+  function widthSentence(w) {
+    const best = String(w.from || "").startsWith("best fit: ");
+    const named = best ? String(w.from).slice("best fit: ".length) : w.from;
+    const source =
+      named === "nominal"
+        ? best ? "the nominal model, the best fit" : "the nominal model"
+        : `${best ? "the best-fitting model, " : "the model with "}${words(named).replace(/\+/g, " + ")}`;
+    if (!w.identifiable || w.K === null || w.K === undefined) {
+      return `Backlash width: not identifiable${w.reason ? ` (${w.reason})` : ""}.`;
+    }
+    const range = w.interval_95 ? `, 95 % interval ${mm(w.interval_95[0], 4)}–${mm(w.interval_95[1], 4)} mm` : "";
+    return `Backlash width: ${mm(w.K, 4)} mm${range} (from ${source}).`;
+  }
+
+  // What makes the record doubtful for the plant, each with what to check.
+  function renderWarnings(d, box) {
+    const warnings = (d.result || {}).warnings || [];
+    if (!warnings.length) return;
+    const list = el("ul", "", { class: "warnings", id: "verdict-warnings" });
+    for (const w of warnings) list.appendChild(el("li", `Check: ${w.message}`));
+    box.appendChild(list);
   }
 
   function renderVerdict(d) {
@@ -484,6 +511,7 @@
     const text = el("p", sentences.join(" "), { id: "verdict-text" });
     box.appendChild(text);
     if (reason) box.appendChild(el("p", `Why: ${reason}.`, { class: "reason" }));
+    renderWarnings(d, box);
   }
 
   // Channels as columns, before and after as rows.

@@ -1,0 +1,47 @@
+"""Coverage of the width a diagnosis shows: is the truth inside its 95 % interval? (issue 50, item 2)
+
+``python bench/width_coverage.py RUN_DIR [--json OUT.json]``: RUN_DIR is a protocol-2 run directory
+with its answer key (``out/validation-v2-seedN``), or a committed run (``docs/validation/v2-seedN``,
+the truth read from its report, rounded to 1 um). Prints the markdown table of
+:func:`engine.validation.width_coverage.coverage_markdown`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from dataclasses import asdict
+from pathlib import Path
+
+from engine.validation.width_coverage import coverage, coverage_markdown, truths_from_committed, truths_from_layout
+
+logger = logging.getLogger(__name__)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("run", type=Path, help="a protocol-2 run directory, or a committed run in docs/validation")
+    parser.add_argument("--json", type=Path, help="also write the rows as JSON here")
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    if (args.run / "key" / "answer_key.json").is_file():
+        truths = truths_from_layout(args.run)
+        source = f"on the {len(truths)} diagnosed cases of {args.run} (truth from its answer key)"
+    elif (args.run / "results.tar.xz").is_file() and (args.run / "report.json").is_file():
+        truths = truths_from_committed(args.run)
+        source = f"on the {len(truths)} cases of the committed run {args.run} (truth from its report, to 1 um)"
+    else:
+        logger.error("%s holds neither an answer key nor report.json with results.tar.xz", args.run)
+        return 2
+    rows = coverage(truths)
+    sys.stdout.write(coverage_markdown(rows, source))
+    if args.json:
+        payload = {"source": source, "rows": [{**asdict(r), "wilson_95": list(r.interval)} for r in rows]}
+        args.json.write_text(json.dumps(payload, indent=1, allow_nan=False) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,263 @@
+"""The backlash width a diagnosis answers with: from the model the answer ends with, with an honest interval.
+
+A diagnosis fits several models of one record (the nominal calibration, every candidate effect,
+sets of effects). The width the user sees must come from the model the verdict ends with, not
+from the nominal fit the verdict may have rejected (issue 50): with an unmodelled load inertia
+the nominal fit drags K to absorb it (5.954 mm for a true 5.5 mm) while the named effect's fit
+has 5.5002 mm.
+
+Which model (``from``)
+----------------------
+- ``no_gap`` and ``weak_gap``: the nominal calibration (no effect is named);
+- ``explained``: the fit of the named effect or set (:func:`engine.diagnosis.decision.choose_model`);
+- ``unexplained``: the model that fits the record best (lowest BIC of every model fitted); its
+  interval is widened for the model error below, and the width is reported as not identifiable
+  when that interval says little.
+
+Interval
+--------
+The calibration's Gauss-Newton standard deviation assumes white residuals at the noise level
+(it is already scaled by ``chi2/dof`` when that exceeds one). Two corrections make it honest
+off the ideal record:
+
+1. **Correlated residuals.** A residual that is model error, not noise, is correlated in time:
+   ``n`` samples then carry about ``n / tau`` independent ones, with ``tau`` the integrated
+   autocorrelation time of the whitened residual (:func:`residual_correlation_time`, Sokal's
+   automatic window). The variance is scaled by ``tau`` (the linearised form of the profile rule
+   of :mod:`engine.identification.plant_width`: cost within ``chi2_1(0.95) s2 tau``). For a fit to
+   the noise the whitened residual is white and ``tau`` is about 1.
+2. **The choice of model.** Models the evidence cannot tell apart (BIC within
+   ``min_delta_bic`` of the answer's model) may put K elsewhere; their BIC-weighted squared
+   distance from the answer's K is added to the variance (a model-averaging variance about the
+   answer's K, so that the point estimate stays the answer's model's own).
+
+``interval_95`` is ``K +- 1.96 sigma_K``. Intervals from this rule are measured for coverage on
+blind records (README, "The width after a diagnosis").
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from engine.constants import Z95
+from engine.diagnosis.ambiguity import Model
+from engine.diagnosis.calibration import CalibrationResult
+from engine.diagnosis.candidate import Candidate
+from engine.diagnosis.noise import NoiseModel
+from engine.diagnosis.plant_gap import integrated_time
+from engine.diagnosis.space import ModelSpace
+from engine.records import Record
+
+__all__ = [
+    "MAX_RELATIVE_HALF_WIDTH",
+    "AnswerWidth",
+    "answer_calibration",
+    "answer_width",
+    "residual_correlation_time",
+]
+
+#: Largest half-width of the 95 % interval, as a fraction of the searched K range, for the width to
+#: be reported as identifiable. A quarter of the range (the plausible box spans 1-12 mm, so about
+#: +-2.8 mm) is already no longer a measurement of wear: past it the answer says "not identifiable"
+#: and gives the reason, rather than a number a maintenance team would act on.
+MAX_RELATIVE_HALF_WIDTH: float = 0.25
+
+
+@dataclass(frozen=True)
+class AnswerWidth:
+    """The backlash width of a diagnosis answer.
+
+    Attributes
+    ----------
+    K : float or None
+        Width [m] of the answer's model (None when the record's conditions give it).
+    sigma_K : float or None
+        One standard deviation [m], corrected for correlated residuals and the choice of model.
+    interval_95 : tuple of float or None
+        ``(low, high)`` [m], ``K +- 1.96 sigma_K``.
+    source : str
+        Which model: ``"nominal"``, the named effect, the set's name (``"a+b"``), ``"best fit"``
+        (unexplained: the model with the lowest BIC) with its name, or ``"conditions"``.
+    identifiable : bool
+        Whether the record determines the width (False when given by the conditions, when the
+        interval is not finite or its half-width exceeds :data:`MAX_RELATIVE_HALF_WIDTH` of the
+        searched range).
+    reason : str or None
+        Why not, when not identifiable.
+    sigma_fit : float or None
+        The fit's own (Gauss-Newton) standard deviation [m], before the corrections.
+    tau : float
+        Integrated autocorrelation time of the answer model's whitened residual [samples].
+    model_spread : float
+        Square root of the model-choice variance [m].
+    """
+
+    K: float | None
+    sigma_K: float | None
+    interval_95: tuple[float, float] | None
+    source: str
+    identifiable: bool
+    reason: str | None = None
+    sigma_fit: float | None = None
+    tau: float = 1.0
+    model_spread: float = 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready copy (``from`` for :attr:`source`)."""
+        return {
+            "K": self.K,
+            "sigma_K": self.sigma_K,
+            "interval_95": list(self.interval_95) if self.interval_95 is not None else None,
+            "from": self.source,
+            "identifiable": self.identifiable,
+            "reason": self.reason,
+            "sigma_fit": self.sigma_fit,
+            "tau": self.tau,
+            "model_spread": self.model_spread,
+        }
+
+
+def residual_correlation_time(record: Record, calibration: CalibrationResult) -> float:
+    """Integrated autocorrelation time [samples] of the calibration's whitened residual.
+
+    Per channel, the residual record - simulation is whitened by the calibration's noise model (in
+    time for white noise; per wavelet level for coloured noise, each level's coefficients in time
+    order), and :func:`engine.diagnosis.plant_gap.integrated_time` is taken per sequence; the
+    result is their average weighted by squared norm (the sequences that carry the misfit count
+    most). About 1 for a fit to the noise.
+
+    Parameters
+    ----------
+    record : Record
+        The record calibrated on (its test window, the grid of ``calibration``).
+    calibration : CalibrationResult
+        A fit holding its simulation on that grid.
+    """
+    sim = calibration.simulated_record(record)
+    noise = NoiseModel.of(calibration.sigma)
+    pieces: list[np.ndarray] = []
+    for name, x in record.channels.items():
+        ch = noise.channel(name)
+        z = ch.normalise(np.asarray(x, dtype=float) - np.asarray(sim.channels[name], dtype=float))
+        if ch.white:
+            pieces.append(z)
+            continue
+        sizes = [s for s, u in zip(ch.sizes(len(x))[::-1], ch.used[::-1], strict=True) if u]  # A_L, D_L, ..., D1
+        pieces += [p for p in np.split(z, np.cumsum(sizes)[:-1]) if p.size >= 4]
+    weights = np.array([float(p @ p) for p in pieces])
+    if not pieces or weights.sum() <= 0.0:
+        return 1.0
+    taus = np.array([integrated_time(p) for p in pieces])
+    return float(max(1.0, weights @ taus / weights.sum()))
+
+
+def answer_calibration(
+    status: str, nominal: CalibrationResult, model: Model | None, models: Sequence[Model]
+) -> tuple[CalibrationResult, str]:
+    """The calibration the answer ends with, and its name (see the module docstring).
+
+    Parameters
+    ----------
+    status : str
+        The verdict's status.
+    nominal : CalibrationResult
+        The nominal calibration.
+    model : Candidate or CandidateSet or None
+        The model an ``explained`` verdict names.
+    models : sequence of Candidate or CandidateSet
+        Every model fitted (for ``unexplained``: the best of them and the nominal one).
+    """
+    if status == "explained":
+        if model is None or model.calibration is None:
+            raise RuntimeError("an explained verdict names a fitted model")
+        return model.calibration, _name(model)
+    if status == "unexplained":
+        best: tuple[float, CalibrationResult, str] = (nominal.bic, nominal, "nominal")
+        for m in models:
+            if m.calibration is not None and m.calibration.bic < best[0]:
+                best = (m.calibration.bic, m.calibration, _name(m))
+        return best[1], f"best fit: {best[2]}"
+    return nominal, "nominal"
+
+
+def _name(m: Model) -> str:
+    """The effect's name, or the set's (``"a+b"``)."""
+    return m.effect if isinstance(m, Candidate) else m.name
+
+
+def answer_width(
+    record: Record,
+    calibration: CalibrationResult,
+    source: str,
+    space: ModelSpace,
+    alternatives: Sequence[CalibrationResult] = (),
+    min_delta_bic: float = 10.0,
+) -> AnswerWidth:
+    """The width of an answer: ``calibration``'s K with the interval of the module docstring.
+
+    Parameters
+    ----------
+    record : Record
+        The record's test window (the grid every calibration was fitted on).
+    calibration : CalibrationResult
+        The answer's model (:func:`answer_calibration`).
+    source : str
+        Its name, for ``from``.
+    space : ModelSpace
+        The nominal search space (its K range judges identifiability).
+    alternatives : sequence of CalibrationResult
+        Other fitted models; those within ``min_delta_bic`` of ``calibration``'s BIC widen the interval.
+    min_delta_bic : float
+        The evidence threshold of the diagnosis.
+    """
+    if "K" not in calibration.values:
+        given = calibration.fixed.get("K")
+        return AnswerWidth(
+            K=given,
+            sigma_K=None,
+            interval_95=None,
+            source="conditions",
+            identifiable=False,
+            reason="the record's conditions give K; the diagnosis did not measure it",
+        )
+    K = float(calibration.values["K"])
+    sigma_fit = float(calibration.uncertainties.get("K", math.nan))
+    tau = residual_correlation_time(record, calibration)
+    var = sigma_fit**2 * tau
+    spread2 = 0.0
+    near = [a for a in alternatives if a is not calibration and "K" in a.values]
+    near = [a for a in near if abs(a.bic - calibration.bic) < min_delta_bic]
+    if near:
+        bics = np.array([calibration.bic, *(a.bic for a in near)])
+        w = np.exp(-0.5 * (bics - bics.min()))
+        w /= w.sum()
+        Ks = np.array([K, *(float(a.values["K"]) for a in near)])
+        spread2 = float(w @ (Ks - K) ** 2)
+    var += spread2
+    sigma = math.sqrt(var) if math.isfinite(var) else math.nan
+    k_range = next((p.hi - p.lo for p in space.params if p.name == "K"), math.nan)
+    interval = (K - Z95 * sigma, K + Z95 * sigma) if math.isfinite(sigma) else None
+    reason = None
+    if interval is None:
+        reason = "the fit gives no finite uncertainty for K (the record does not constrain it)"
+    elif math.isfinite(k_range) and Z95 * sigma > MAX_RELATIVE_HALF_WIDTH * k_range:
+        reason = (
+            f"the 95 % interval (+-{Z95 * sigma * 1e3:.2g} mm) spans more than "
+            f"{MAX_RELATIVE_HALF_WIDTH:.0%} of the searched range: the model's misfit leaves K undetermined"
+        )
+    return AnswerWidth(
+        K=K,
+        sigma_K=sigma if math.isfinite(sigma) else None,
+        interval_95=interval,
+        source=source,
+        identifiable=reason is None,
+        reason=reason,
+        sigma_fit=sigma_fit if math.isfinite(sigma_fit) else None,
+        tau=tau,
+        model_spread=math.sqrt(spread2),
+    )

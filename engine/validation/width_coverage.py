@@ -1,0 +1,212 @@
+"""How often the width a diagnosis shows covers the truth: the coverage of its 95 % interval on a blind run.
+
+For every case of a protocol-2 run (:mod:`engine.validation.layout`) with a result, the true K
+(the answer key) is compared with two intervals:
+
+- ``answer``: the answer's own ``width.interval_95`` (:mod:`engine.diagnosis.width`), the width the
+  service shows since issue 50; a width reported as not identifiable is counted apart (it makes no
+  claim to cover anything) and a result written before issue 50 has none;
+- ``nominal``: the nominal calibration's K +- 1.96 sigma, the width the service showed before
+  issue 50 (for comparison on the same records).
+
+Coverage is the fraction of intervals that hold the truth, with a Wilson 95 % interval, in total and
+by verdict status and by the case's kind. A committed run without its answer key (the key is not
+committed) can be read through its report's rows instead, whose ``K_mm`` is rounded to 1 um: an
+interval then counts as covering when it meets the rounding interval of the printed truth (said in
+the output).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import tarfile
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from engine.constants import Z95
+from engine.validation.layout import RunLayout
+from engine.validation.stats import wilson_interval
+
+__all__ = ["CoverageRow", "Truth", "coverage", "coverage_markdown", "truths_from_committed", "truths_from_layout"]
+
+#: Half the rounding step of a report's ``K_mm`` (printed to 1 um) [m].
+REPORT_ROUNDING: float = 0.5e-6
+
+
+@dataclass(frozen=True)
+class Truth:
+    """The true width of one case and what the diagnosis answered.
+
+    Attributes
+    ----------
+    case_id, kind : str
+        The case and its kind (clean, single, pair, triple, held_back).
+    K : float
+        True width [m].
+    tolerance : float
+        Half-width of the truth's own rounding [m] (0 with the answer key).
+    status : str
+        The verdict's status.
+    width : dict or None
+        The answer's ``width`` (None before issue 50).
+    nominal : tuple of float or None
+        The nominal calibration's (K, sigma_K) [m], when K was fitted.
+    """
+
+    case_id: str
+    kind: str
+    K: float
+    tolerance: float
+    status: str
+    width: Mapping[str, Any] | None
+    nominal: tuple[float, float] | None
+
+
+@dataclass(frozen=True)
+class CoverageRow:
+    """Coverage of one interval rule over one group of cases."""
+
+    rule: str
+    group: str
+    n: int
+    covered: int
+    not_identifiable: int
+    median_half_width_um: float
+
+    @property
+    def fraction(self) -> float:
+        return self.covered / self.n if self.n else math.nan
+
+    @property
+    def interval(self) -> tuple[float, float]:
+        return wilson_interval(self.covered, self.n) if self.n else (math.nan, math.nan)
+
+
+def _nominal(result: Mapping[str, Any]) -> tuple[float, float] | None:
+    cal = result.get("calibration") or {}
+    K = (cal.get("values") or {}).get("K")
+    sd = (cal.get("uncertainties") or {}).get("K")
+    if K is None or sd is None or not math.isfinite(sd):
+        return None
+    return float(K), float(sd)
+
+
+def truths_from_layout(root: Path) -> list[Truth]:
+    """The cases of a run directory with a result, their truth from its answer key."""
+    layout = RunLayout(root)
+    _, entries = layout.read_key()
+    done = layout.done()
+    out = []
+    for e in entries:
+        if e.case_id not in done:
+            continue
+        res = layout.read_result(e.case_id)
+        out.append(Truth(e.case_id, e.kind, e.K, 0.0, res["verdict"]["status"], res.get("width"), _nominal(res)))
+    return out
+
+
+def truths_from_committed(root: Path) -> list[Truth]:
+    """The cases of a committed run (``report.json`` and ``results.tar.xz``), the truth from the report's rows."""
+    report = json.loads((root / "report.json").read_text())
+    cols = report["cases"]["columns"]
+    rows = {r[cols.index("case")]: dict(zip(cols, r, strict=True)) for r in report["cases"]["rows"]}
+    out = []
+    with tarfile.open(root / "results.tar.xz") as tar:
+        for member in tar.getmembers():
+            if not member.isfile() or not member.name.endswith(".json"):
+                continue
+            f = tar.extractfile(member)
+            if f is None:
+                continue
+            res = json.load(io.TextIOWrapper(f, encoding="utf-8"))
+            row = rows.get(Path(member.name).stem)
+            if row is None:
+                continue
+            out.append(
+                Truth(
+                    row["case"],
+                    row["kind"],
+                    float(row["K_mm"]) * 1e-3,
+                    REPORT_ROUNDING,
+                    res["verdict"]["status"],
+                    res.get("width"),
+                    _nominal(res),
+                )
+            )
+    return sorted(out, key=lambda t: t.case_id)
+
+
+def _covers(lo: float, hi: float, t: Truth) -> bool:
+    return lo - t.tolerance <= t.K <= hi + t.tolerance
+
+
+def _answer(t: Truth) -> tuple[str, float | None]:
+    """``("covered" | "missed" | "not_identifiable" | "absent", half-width)`` of the answer's interval."""
+    w = t.width
+    if w is None:
+        return "absent", None
+    if not w.get("identifiable") or not w.get("interval_95"):
+        return "not_identifiable", None
+    lo, hi = (float(x) for x in w["interval_95"])
+    return ("covered" if _covers(lo, hi, t) else "missed"), (hi - lo) / 2
+
+
+def _nominal_check(t: Truth) -> tuple[str, float | None]:
+    if t.nominal is None:
+        return "not_identifiable", None
+    K, sd = t.nominal
+    return ("covered" if _covers(K - Z95 * sd, K + Z95 * sd, t) else "missed"), Z95 * sd
+
+
+def _row(rule: str, group: str, checks: Iterable[tuple[str, float | None]]) -> CoverageRow:
+    checks = list(checks)
+    scored = [(c, h) for c, h in checks if c in ("covered", "missed")]
+    halves = sorted(h for _, h in scored if h is not None)
+    median = halves[len(halves) // 2] * 1e6 if halves else math.nan
+    return CoverageRow(
+        rule,
+        group,
+        len(scored),
+        sum(c == "covered" for c, _ in scored),
+        sum(c == "not_identifiable" for c, _ in checks),
+        median,
+    )
+
+
+def coverage(truths: list[Truth]) -> list[CoverageRow]:
+    """Coverage rows: per rule (``answer``, ``nominal``), in total, by verdict status and by kind."""
+    rows = []
+    for rule, check in (("answer", _answer), ("nominal", _nominal_check)):
+        if rule == "answer" and all(t.width is None for t in truths):
+            continue
+        groups: dict[str, list[Truth]] = {"all": truths}
+        for t in truths:
+            groups.setdefault(f"status {t.status}", []).append(t)
+        for t in truths:
+            groups.setdefault(f"kind {t.kind}", []).append(t)
+        for name, members in groups.items():
+            rows.append(_row(rule, name, (check(t) for t in members)))
+    return rows
+
+
+def coverage_markdown(rows: list[CoverageRow], source: str) -> str:
+    """The rows as a markdown table, with what they were evaluated on."""
+    head = (
+        f"Truth inside the stated 95 % interval, {source}. `answer`: the answer's `width` (issue 50); "
+        "`nominal`: the nominal calibration's K +- 1.96 sigma (what was shown before).\n\n"
+        "| rule | group | n | covered | coverage [Wilson 95 %] | not identifiable | median half-width [um] |\n"
+        "|---|---|---|---|---|---|---|\n"
+    )
+    lines = []
+    for r in rows:
+        lo, hi = r.interval
+        frac = f"{100 * r.fraction:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}]" if r.n else "–"
+        lines.append(
+            f"| {r.rule} | {r.group} | {r.n} | {r.covered} | {frac} | {r.not_identifiable} | "
+            f"{r.median_half_width_um:.3g} |"
+        )
+    return head + "\n".join(lines) + "\n"
