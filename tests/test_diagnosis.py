@@ -12,6 +12,7 @@ from scipy.special import expit
 
 from engine.constants import CHANNELS
 from engine.diagnosis import diagnose
+from engine.diagnosis.confidence import calibrated_confidence
 from engine.diagnosis.diagnose import DiagnosisSettings, decide, fit_statistic
 from engine.diagnosis.validation import (
     STRENGTH_THRESHOLD,
@@ -67,14 +68,16 @@ def test_result_is_json_ready_in_the_shape_of_issue_4(rotor_case):
     d = json.loads(json.dumps(res.to_dict()))
     assert {"calibration", "cells", "candidates", "verdict", "records", "gap"} <= set(d)
     assert set(d["verdict"]) >= {"status", "effect", "value", "confidence"}
-    # explained: the confidence is the documented product (adequacy of the fit x posterior weight x strength)
+    # explained: the score is the documented product (adequacy of the fit x posterior weight x strength),
+    # the confidence its calibrated probability (engine.diagnosis.confidence)
     best, s = res.candidates[0], DiagnosisSettings()
     total, worst = fit_statistic(best.calibration)
     adequacy = expit(
         min((s.max_reduced_chi2 - total) / s.chi2_scatter, (s.max_channel_chi2 - worst) / (2 * s.chi2_scatter))
     )
     sure = expit((best.strength - s.min_strength) / s.strength_scatter)
-    assert d["verdict"]["confidence"] == pytest.approx(adequacy * best.weight * sure, rel=1e-12)
+    assert d["verdict"]["score"] == pytest.approx(adequacy * best.weight * sure, rel=1e-12)
+    assert d["verdict"]["confidence"] == pytest.approx(calibrated_confidence("explained", d["verdict"]["score"]))
     before = Record.from_dict(d["records"]["before"])
     after = Record.from_dict(d["records"]["after"])
     assert set(before.channels) == set(CHANNELS)
@@ -443,4 +446,6 @@ def test_decision_rule_uses_the_three_noise_rms_rule_in_every_branch(
     best = Candidate("supply_voltage", 0.999, 1e-4, "x", best_cal, best_cal.bic, strength=strength, weight=1.0)
     v = decide(nominal, [best], DiagnosisSettings())
     assert v.status == expected, v.reason
-    assert v.confidence == pytest.approx(confidence, rel=1e-12, abs=1e-15)
+    # the decision's score; the stated confidence is its calibrated probability (engine.diagnosis.confidence)
+    assert v.score == pytest.approx(confidence, rel=1e-12, abs=1e-15)
+    assert v.confidence == pytest.approx(calibrated_confidence(expected, confidence), rel=1e-12)

@@ -1,7 +1,12 @@
 """The decision on the fitted models of a diagnosis: whether a fit reaches the noise
 (:func:`fit_statistic`), which model the verdict names (:func:`choose_model`), the verdict
 (:func:`decide`), the posterior weights over every model fitted, and the named effects' exact and
-near twins. The rules are described in :mod:`engine.diagnosis.diagnose`."""
+near twins. The rules are described in :mod:`engine.diagnosis.diagnose`.
+
+The verdict's ``score`` is the decision's 0..1 score (a logistic of the deciding statistic's
+distance from its threshold, times the BIC weight when explained); its ``confidence`` is that
+score recalibrated to the probability that such a verdict is right
+(:func:`engine.diagnosis.confidence.calibrated_confidence`)."""
 
 from __future__ import annotations
 
@@ -16,6 +21,7 @@ from engine.diagnosis.ambiguity import Model, NearTwin, near_twins
 from engine.diagnosis.calibration import CalibrationResult
 from engine.diagnosis.candidate import Candidate, posterior_weights
 from engine.diagnosis.candidate_set import CandidateSet
+from engine.diagnosis.confidence import calibrated_confidence
 from engine.diagnosis.gap import closed_fraction
 from engine.diagnosis.result import Verdict
 from engine.diagnosis.settings import DiagnosisSettings
@@ -113,7 +119,22 @@ def decide(
     settings: DiagnosisSettings,
     sets: Sequence[CandidateSet] = (),
 ) -> Verdict:
-    """The verdict from the nominal calibration, the ranked candidates and sets (see the module notes)."""
+    """The verdict from the nominal calibration, the ranked candidates and sets (see the module notes).
+
+    ``score`` is the decision's score, ``confidence`` its calibrated probability of being right
+    (:mod:`engine.diagnosis.confidence`); the status does not depend on either.
+    """
+    v = _decide(nominal, candidates, settings, sets)
+    return replace(v, confidence=calibrated_confidence(v.status, v.confidence), score=v.confidence)
+
+
+def _decide(
+    nominal: CalibrationResult,
+    candidates: list[Candidate],
+    settings: DiagnosisSettings,
+    sets: Sequence[CandidateSet],
+) -> Verdict:
+    """The verdict with the decision's score as its confidence (:func:`decide` calibrates it)."""
     model = choose_model(candidates, sets, settings)
     total, worst = fit_statistic(nominal)
     gap_rms = math.sqrt(max(worst - 1.0, 0.0))

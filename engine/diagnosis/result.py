@@ -39,7 +39,9 @@ class Verdict:
     unit : str or None
         Unit of the value.
     confidence : float
-        0..1.
+        Probability that the verdict is right, 0..1: the decision's ``score`` recalibrated on blind
+        validation runs (:mod:`engine.diagnosis.confidence`); for ``unexplained``, that nothing in
+        the catalogue explains the record.
     reason : str
         One sentence on why.
     effects : list of dict
@@ -58,6 +60,11 @@ class Verdict:
         :attr:`DiagnosisResult.locus`.
     left : float or None
         Fraction of the nominal excess residual energy the named effects leave [-].
+    score : float or None
+        The decision's uncalibrated score 0..1 behind ``confidence`` (what the map is refitted on).
+    locus_confidence : float or None
+        For a locus from the locus estimate (``unexplained``, ``weak_gap``): probability that the
+        missing physics acts there (:func:`engine.diagnosis.confidence.locus_confidence`).
     """
 
     status: str
@@ -71,6 +78,8 @@ class Verdict:
     locus: str | None = None
     missing_term: dict[str, Any] | None = None
     left: float | None = None
+    score: float | None = None
+    locus_confidence: float | None = None
 
     @classmethod
     def without_effect(cls, status: str, confidence: float, reason: str) -> Verdict:
@@ -91,6 +100,8 @@ class Verdict:
             "locus": self.locus,
             "missing_term": self.missing_term,
             "left": self.left,
+            "score": self.score,
+            "locus_confidence": self.locus_confidence,
         }
 
 

@@ -382,6 +382,9 @@ class ValidationReport:
         Median and max diagnosis wall time [s].
     identification : dict or None
         Identification accuracy before/after (not wired yet).
+    reliability : dict or None
+        How often the verdicts stated at each confidence were right
+        (:func:`engine.validation.reliability.reliability_section`).
     """
 
     n_cases: int
@@ -397,6 +400,7 @@ class ValidationReport:
     per_case: list[dict] = field(default_factory=list)
     seconds: dict = field(default_factory=dict)
     identification: dict | None = None
+    reliability: dict | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -455,11 +459,13 @@ def score(out_dir: str | Path, library: EffectLibrary = CATALOGUE) -> Validation
     key = [AnswerEntry(**k) for k in json.loads((out / "key" / "answer_key.json").read_text())]
     confusion: dict[str, Counter] = defaultdict(Counter)
     top1, top2, rank1, abst, fa, rel_err, pulls, shrink, secs, rows = [], [], [], [], [], [], [], [], [], []
+    stated: dict[str, dict[str, Any]] = {}  # what each verdict stated, for the reliability table
     for k in key:
         path = out / "results" / f"{k.case_id}.json"
         if not path.exists():
             raise FileNotFoundError(f"no result for {k.case_id}: run diagnose_cases first")
         res = json.loads(path.read_text())
+        stated[k.case_id] = {"verdict": res.get("verdict"), "locus": res.get("locus")}
         v = res["verdict"]
         pred = v["effect"] if v["status"] == "explained" else v["status"]
         ranking = res.get("ranking", [])
@@ -513,6 +519,10 @@ def score(out_dir: str | Path, library: EffectLibrary = CATALOGUE) -> Validation
             fa.append(v["status"] != "no_gap" and not (k.kind != "clean" and v["status"] == "weak_gap"))
         rows.append(row)
     sh = np.array(shrink, dtype=float)
+    # here, not at the top: engine.validation imports this module
+    from engine.validation.reliability import reliability_section, run_outcomes
+
+    outcomes, _ = run_outcomes(out.name, {"per_case": rows}, stated)
     return ValidationReport(
         n_cases=len(key),
         n_by_expected=dict(Counter(k.expected_status for k in key)),
@@ -534,6 +544,7 @@ def score(out_dir: str | Path, library: EffectLibrary = CATALOGUE) -> Validation
         confusion={t: dict(c) for t, c in confusion.items()},
         per_case=rows,
         seconds={"median": float(np.nanmedian(secs)), "max": float(np.nanmax(secs))} if secs else {},
+        reliability=reliability_section(outcomes),
     )
 
 
@@ -629,9 +640,12 @@ def run_validation(
     report = score(out)
     # json.dumps as before: a figure over no case may be NaN, which write_json_atomic refuses
     write_text_atomic(out / "report.json", json.dumps(report.to_dict(), indent=1))
+    from engine.validation.reliability import reliability_markdown  # engine.validation imports this module
+
+    reliability = "\n".join(["", *reliability_markdown(report.reliability)]) if report.reliability else ""
     write_text_atomic(
         out / "report.md",
         f"# Blind validation: {n_cases} cases, seed {seed}\n\n{report.table()}\n\n## Confusion matrix\n\n"
-        f"{report.confusion_table()}\n",
+        f"{report.confusion_table()}\n{reliability}",
     )
     return report

@@ -3,7 +3,8 @@
 The JSON holds the run's provenance (protocol, seed, mix, libraries, the code
 version it was scored on and those the diagnoses ran on), every metric with
 its counts, rate, Wilson 95 % interval, target and whether it is met, the
-breakdowns and one compact row per case (a table: ``cases.columns``, ``cases.rows``). The Markdown says the same for a
+breakdowns, the reliability of the stated confidence (``reliability``,
+:func:`engine.validation.reliability.reliability_section`) and one compact row per case (a table: ``cases.columns``, ``cases.rows``). The Markdown says the same for a
 reader.
 """
 
@@ -16,6 +17,7 @@ from typing import Any
 from engine.atomic import write_text_atomic
 from engine.validation.layout import RunLayout
 from engine.validation.protocol import CASE_KINDS
+from engine.validation.reliability import reliability_markdown
 from engine.validation.score import STATUSES, Metric, Scores
 
 __all__ = ["build_report", "case_rows", "dumps", "markdown", "metric_lines", "summary_markdown", "write_report"]
@@ -143,6 +145,8 @@ def markdown(doc: dict[str, Any]) -> str:
     for name, cells in doc["per_effect"].items():
         vals = [f"{cells[c][0]}/{cells[c][1]}" if c in cells else "" for c in cols]
         lines.append(f"| {name} | " + " | ".join(vals) + " |")
+    if doc.get("reliability"):
+        lines += ["", *reliability_markdown(doc["reliability"])]
     stages = doc.get("stages_by_kind") or {}
     if stages:
         lines += [

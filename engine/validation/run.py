@@ -26,6 +26,7 @@ from engine.validation.cases import case_counts, generate_cases
 from engine.validation.layout import RunLayout
 from engine.validation.protocol import GENERATOR_RULES, PROTOCOL_VERSION
 from engine.validation.provenance import code_version
+from engine.validation.reliability import reliability_section, run_outcomes
 from engine.validation.report import build_report, metric_lines, write_report
 from engine.validation.score import score_cases
 
@@ -149,6 +150,8 @@ def score_run(layout: RunLayout, version: dict[str, Any] | None = None) -> dict[
             "ran_with": ran_with,
         },
     )
+    # how often the verdicts stated at each confidence were right (engine.validation.reliability)
+    doc["reliability"] = reliability_section(run_outcomes(layout.root.name, doc, results)[0])
     write_report(layout, doc)
     for line in metric_lines(scores.metrics):
         logger.info("%s", line)
