@@ -38,7 +38,9 @@ def summary(answer: dict[str, Any]) -> None:
     if verdict.get("locus") and not named:
         line += f", locus {verdict['locus']}"
     if isinstance(verdict.get("confidence"), int | float):
-        line += f", confidence {100 * verdict['confidence']:.0f} %"
+        line += f", probability right {100 * verdict['confidence']:.0f} %"
+    if isinstance(verdict.get("locus_confidence"), int | float):
+        line += f" (locus {100 * verdict['locus_confidence']:.0f} %)"
     info(line)
     width = answer.get("width")
     if isinstance(width, dict):

@@ -1,8 +1,8 @@
 """Coverage of the width a diagnosis shows: is the truth inside its 95 % interval? (issue 50, item 2)
 
-``python bench/width_coverage.py RUN_DIR [--json OUT.json]``: RUN_DIR is a protocol-2 run directory
+``python bench/width_coverage.py RUN_DIR [RUN_DIR ...] [--json OUT.json]``: each RUN_DIR is a protocol-2 run directory
 with its answer key (``out/validation-v2-seedN``), or a committed run (``docs/validation/v2-seedN``,
-the truth read from its report, rounded to 1 um). Prints the markdown table of
+the truth read from its report, rounded to 1 um); several are pooled. Prints the markdown table of
 :func:`engine.validation.width_coverage.coverage_markdown`.
 """
 
@@ -22,19 +22,25 @@ logger = logging.getLogger(__name__)
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("run", type=Path, help="a protocol-2 run directory, or a committed run in docs/validation")
+    parser.add_argument(
+        "runs", type=Path, nargs="+", help="protocol-2 run directories, or committed runs in docs/validation (pooled)"
+    )
     parser.add_argument("--json", type=Path, help="also write the rows as JSON here")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    if (args.run / "key" / "answer_key.json").is_file():
-        truths = truths_from_layout(args.run)
-        source = f"on the {len(truths)} diagnosed cases of {args.run} (truth from its answer key)"
-    elif (args.run / "results.tar.xz").is_file() and (args.run / "report.json").is_file():
-        truths = truths_from_committed(args.run)
-        source = f"on the {len(truths)} cases of the committed run {args.run} (truth from its report, to 1 um)"
-    else:
-        logger.error("%s holds neither an answer key nor report.json with results.tar.xz", args.run)
-        return 2
+    truths = []
+    sources = []
+    for run in args.runs:
+        if (run / "key" / "answer_key.json").is_file():
+            truths += truths_from_layout(run)
+            sources.append(f"{run} (truth from its answer key)")
+        elif (run / "results.tar.xz").is_file() and (run / "report.json").is_file():
+            truths += truths_from_committed(run)
+            sources.append(f"{run} (truth from its report, to 1 um)")
+        else:
+            logger.error("%s holds neither an answer key nor report.json with results.tar.xz", run)
+            return 2
+    source = f"on the {len(truths)} diagnosed cases of " + ", ".join(sources)
     rows = coverage(truths)
     sys.stdout.write(coverage_markdown(rows, source))
     if args.json:

@@ -158,3 +158,18 @@ def test_the_identification_takes_its_c_group_from_the_answers_model(inertia_cas
     ident.identification_hook()(rec, res)
     assert seen["c"] == res.final.values["c"]
     assert seen["c"] != res.calibration.values["c"]
+
+
+def test_the_width_rule_adds_its_terms_in_quadrature():
+    from engine.diagnosis.width import RELATIVE_FLOOR, STRUCTURE_FACTOR, width_sigma
+
+    K, sd = 7e-3, 0.5e-6
+    sigma, spread, structure = width_sigma(K, sd, 4.0, 100.0, [], 10.0, False)
+    assert (spread, structure) == (0.0, 0.0)
+    assert sigma == pytest.approx(math.hypot(sd * 2.0, RELATIVE_FLOOR * K))  # tau = 4 doubles the fit's sigma
+    # a model far in BIC does not widen; the missing physics of an unexplained gap does, by its models' K spread
+    others = [(7.1e-3, 200.0), (6.9e-3, 300.0)]
+    assert width_sigma(K, sd, 1.0, 100.0, others, 10.0, False)[0] == pytest.approx(math.hypot(sd, RELATIVE_FLOOR * K))
+    sigma, _, structure = width_sigma(K, sd, 1.0, 100.0, others, 10.0, True)
+    assert structure == pytest.approx(STRUCTURE_FACTOR * 0.2e-3)
+    assert sigma > structure

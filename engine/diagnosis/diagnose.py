@@ -65,12 +65,17 @@ the named effect with the largest share; for ``unexplained`` and ``weak_gap``
 the locus the data point to (:func:`engine.diagnosis.locus.estimate_locus`,
 which also estimates the missing term: ``verdict.missing_term``).
 
-Confidence (0..1): for ``no_gap`` and ``unexplained`` a logistic function of
-how far the deciding statistic lies from its threshold (in units of the
-statistic's scatter on clean records); for ``explained`` the same for the
-best candidate's fit, times its posterior weight among all candidates and the
-nominal model (BIC weights), so two effects that explain the record equally
-well share the confidence.
+Confidence
+----------
+``verdict.confidence`` is a probability that the verdict is right (issue 50): the decision's raw
+score (``verdict.score``: for ``no_gap`` and ``unexplained`` a logistic function of how far the
+deciding statistic lies from its threshold, in units of its scatter on clean records; for
+``explained`` the same for the named model's fit times its posterior weight among every model
+fitted, BIC weights) mapped through an isotonic calibration per status
+(:mod:`engine.diagnosis.confidence`), fitted on the development blind runs and scored on held-out
+ones (``docs/validation/confidence/``). For ``unexplained`` it is how sure the answer is that no
+catalogue effect or set explains the record; ``verdict.locus_confidence`` says, apart, how sure it
+is of the locus (calibrated the same way on the locus estimate's fit).
 
 Twins
 -----
@@ -100,6 +105,7 @@ from engine.diagnosis.ambiguity import Model
 from engine.diagnosis.calibration import CalibrationResult, calibrate
 from engine.diagnosis.candidate_set import CandidateSet
 from engine.diagnosis.candidates import fit_candidates
+from engine.diagnosis.confidence import locus_confidence
 from engine.diagnosis.decision import (
     choose_model,
     decide,
@@ -118,7 +124,7 @@ from engine.diagnosis.settings import NOMINAL_CALIBRATION as NOMINAL_CALIBRATION
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.diagnosis.space import Bounds, ModelSpace, default_space
 from engine.diagnosis.staged import singles_of_sets, staged_search
-from engine.diagnosis.width import answer_calibration, answer_width
+from engine.diagnosis.width import MISSING_PHYSICS, answer_calibration, answer_width
 from engine.parallel import single_threaded_blas
 from engine.records import Record
 from engine.simulation import CATALOGUE, EffectLibrary
@@ -156,7 +162,7 @@ def _locate(
         return replace(verdict, reason=f"{verdict.reason}; the locus could not be estimated ({exc})"), None
     out = report.to_dict()
     term = {k: v for k, v in out.get("term", {}).items() if k not in ("series", "t")} if out.get("term") else None
-    return replace(verdict, locus=report.locus, missing_term=term), out
+    return replace(verdict, locus=report.locus, missing_term=term, locus_confidence=locus_confidence(out)), out
 
 
 def diagnose(
@@ -287,7 +293,7 @@ def _diagnose(
     models: list[Model] = [*cands, *sets]
     final, source = answer_calibration(verdict.status, nominal, model, models)
     fitted = [nominal, *(m.calibration for m in models if m.calibration is not None)]
-    width = answer_width(record, final, source, space, fitted, settings.min_delta_bic)
+    width = answer_width(record, final, source, space, fitted, settings.min_delta_bic, verdict.status in MISSING_PHYSICS)
     stage("decision")
 
     after = None

@@ -7,7 +7,11 @@ For every case of a protocol-2 run (:mod:`engine.validation.layout`) with a resu
   service shows since issue 50; a width reported as not identifiable is counted apart (it makes no
   claim to cover anything) and a result written before issue 50 has none;
 - ``nominal``: the nominal calibration's K +- 1.96 sigma, the width the service showed before
-  issue 50 (for comparison on the same records).
+  issue 50 (for comparison on the same records);
+- ``rule``: for a result written before issue 50, the answer's width rebuilt from the stored fits
+  by :func:`engine.diagnosis.width.width_sigma` with ``tau = 1`` (the residuals are not stored;
+  ``tau >= 1``, so the rule as run is at least as wide): how the rule's constants were chosen on
+  the development runs and scored on held-out ones.
 
 Coverage is the fraction of intervals that hold the truth, with a Wilson 95 % interval, in total and
 by verdict status and by the case's kind. A committed run without its answer key (the key is not
@@ -28,10 +32,20 @@ from pathlib import Path
 from typing import Any
 
 from engine.constants import Z95
+from engine.diagnosis.settings import DiagnosisSettings
+from engine.diagnosis.width import MAX_RELATIVE_HALF_WIDTH, MISSING_PHYSICS, width_sigma
 from engine.validation.layout import RunLayout
 from engine.validation.stats import wilson_interval
 
-__all__ = ["CoverageRow", "Truth", "coverage", "coverage_markdown", "truths_from_committed", "truths_from_layout"]
+__all__ = [
+    "CoverageRow",
+    "Truth",
+    "coverage",
+    "coverage_markdown",
+    "stored_rule",
+    "truths_from_committed",
+    "truths_from_layout",
+]
 
 #: Half the rounding step of a report's ``K_mm`` (printed to 1 um) [m].
 REPORT_ROUNDING: float = 0.5e-6
@@ -55,6 +69,8 @@ class Truth:
         The answer's ``width`` (None before issue 50).
     nominal : tuple of float or None
         The nominal calibration's (K, sigma_K) [m], when K was fitted.
+    rule : tuple of float or None
+        The answer's (K, sigma_K) [m] rebuilt by the width rule (results before issue 50 only).
     """
 
     case_id: str
@@ -64,6 +80,7 @@ class Truth:
     status: str
     width: Mapping[str, Any] | None
     nominal: tuple[float, float] | None
+    rule: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -93,6 +110,53 @@ def _nominal(result: Mapping[str, Any]) -> tuple[float, float] | None:
     if K is None or sd is None or not math.isfinite(sd):
         return None
     return float(K), float(sd)
+
+
+#: The K range of the default search box [m], for the identifiability of a rebuilt width.
+_K_RANGE: float = 0.015 - 0.001
+
+
+def _calibrations(result: Mapping[str, Any]) -> list[Mapping[str, Any]]:
+    """Every stored fit of a result with a fitted K: the nominal one first, then the candidates'."""
+    fits = [result.get("calibration") or {}]
+    fits += [c["calibration"] for c in result.get("candidates") or () if c.get("calibration")]
+    return [f for f in fits if "K" in (f.get("values") or {}) and f.get("bic") is not None]
+
+
+def _answer_fit(result: Mapping[str, Any]) -> Mapping[str, Any] | None:
+    """The stored fit of the model the answer ended with (as :func:`engine.diagnosis.width.answer_calibration`)."""
+    verdict = result["verdict"]
+    fits = _calibrations(result)
+    if verdict["status"] == "explained":
+        named = sorted(e["effect"] for e in verdict.get("effects") or ())
+        for c in result.get("candidates") or ():
+            own = sorted(e["effect"] for e in c.get("effects") or ()) if c.get("kind") == "set" else [c.get("effect")]
+            if own == named and c.get("calibration") and "K" in c["calibration"].get("values", {}):
+                fit: Mapping[str, Any] = c["calibration"]
+                return fit
+        return None
+    if verdict["status"] == "unexplained":
+        return min(fits, key=lambda f: f["bic"]) if fits else None
+    return fits[0] if fits and fits[0] is (result.get("calibration") or {}) else None
+
+
+def stored_rule(
+    result: Mapping[str, Any], min_delta_bic: float = DiagnosisSettings().min_delta_bic
+) -> tuple[float, float] | None:
+    """The answer's (K, sigma_K) [m] rebuilt from a stored result by the width rule with ``tau = 1``, or None
+    when the answer's model has no fitted K or its interval would be reported as not identifiable."""
+    fit = _answer_fit(result)
+    if fit is None:
+        return None
+    K = float(fit["values"]["K"])
+    sd = float((fit.get("uncertainties") or {}).get("K", math.nan))
+    others = [(float(f["values"]["K"]), float(f["bic"])) for f in _calibrations(result) if f is not fit]
+    sigma, _, _ = width_sigma(
+        K, sd, 1.0, float(fit["bic"]), others, min_delta_bic, result["verdict"]["status"] in MISSING_PHYSICS
+    )
+    if not math.isfinite(sigma) or Z95 * sigma > MAX_RELATIVE_HALF_WIDTH * _K_RANGE:
+        return None
+    return K, sigma
 
 
 def truths_from_layout(root: Path) -> list[Truth]:
@@ -135,6 +199,7 @@ def truths_from_committed(root: Path) -> list[Truth]:
                     res["verdict"]["status"],
                     res.get("width"),
                     _nominal(res),
+                    stored_rule(res) if res.get("width") is None else None,
                 )
             )
     return sorted(out, key=lambda t: t.case_id)
@@ -162,6 +227,13 @@ def _nominal_check(t: Truth) -> tuple[str, float | None]:
     return ("covered" if _covers(K - Z95 * sd, K + Z95 * sd, t) else "missed"), Z95 * sd
 
 
+def _rule_check(t: Truth) -> tuple[str, float | None]:
+    if t.rule is None:
+        return "not_identifiable", None
+    K, sd = t.rule
+    return ("covered" if _covers(K - Z95 * sd, K + Z95 * sd, t) else "missed"), Z95 * sd
+
+
 def _row(rule: str, group: str, checks: Iterable[tuple[str, float | None]]) -> CoverageRow:
     checks = list(checks)
     scored = [(c, h) for c, h in checks if c in ("covered", "missed")]
@@ -180,8 +252,10 @@ def _row(rule: str, group: str, checks: Iterable[tuple[str, float | None]]) -> C
 def coverage(truths: list[Truth]) -> list[CoverageRow]:
     """Coverage rows: per rule (``answer``, ``nominal``), in total, by verdict status and by kind."""
     rows = []
-    for rule, check in (("answer", _answer), ("nominal", _nominal_check)):
+    for rule, check in (("answer", _answer), ("rule", _rule_check), ("nominal", _nominal_check)):
         if rule == "answer" and all(t.width is None for t in truths):
+            continue
+        if rule == "rule" and all(t.width is not None for t in truths):
             continue
         groups: dict[str, list[Truth]] = {"all": truths}
         for t in truths:
@@ -197,6 +271,7 @@ def coverage_markdown(rows: list[CoverageRow], source: str) -> str:
     """The rows as a markdown table, with what they were evaluated on."""
     head = (
         f"Truth inside the stated 95 % interval, {source}. `answer`: the answer's `width` (issue 50); "
+        "`rule`: that width rebuilt from a result written before issue 50 (tau = 1); "
         "`nominal`: the nominal calibration's K +- 1.96 sigma (what was shown before).\n\n"
         "| rule | group | n | covered | coverage [Wilson 95 %] | not identifiable | median half-width [um] |\n"
         "|---|---|---|---|---|---|---|\n"

@@ -474,7 +474,14 @@
     } else if (d.K !== null && d.K !== undefined) {
       out.push(`Backlash width: ${mm(d.K, 4)}${d.K_sigma ? ` ± ${mm(d.K_sigma, 2)}` : ""} mm.`);
     }
-    if (v.confidence !== undefined && v.confidence !== null) out.push(`Confidence: ${pct(v.confidence)}.`);
+    if (status === "unexplained" && v.confidence !== undefined && v.confidence !== null) {
+      out.push(`Probability that no effect of the catalogue explains the record: ${pct(v.confidence)}.`);
+      if (v.locus_confidence !== undefined && v.locus_confidence !== null) {
+        out.push(`Probability that the locus is right: ${pct(v.locus_confidence)}.`);
+      }
+    } else if (v.confidence !== undefined && v.confidence !== null) {
+      out.push(`Probability that this verdict is right: ${pct(v.confidence)}.`);
+    }
     return { status, headline: HEADLINES[status] || words(status) || "Verdict", sentences: out, reason: v.reason };
   }
 
