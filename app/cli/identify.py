@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import logging
 from pathlib import Path
 
 from app import output
 from app.cli.common import EXIT_OK, CommandError, add_db_option, add_record_options, open_store, read_record
 from engine.constants import CHANNELS
 from engine.plants import DEFAULT_PLANT, PLANTS
+
+logger = logging.getLogger(__name__)
 
 
 def cmd_identify(args: argparse.Namespace) -> int:
@@ -22,17 +25,18 @@ def cmd_identify(args: argparse.Namespace) -> int:
     if args.channel is None:
         raise CommandError("give --channel (one of " + ", ".join(CHANNELS) + ")")
     record = read_record(args)
-    output.write_json(
-        identify_from_store(
-            open_store(args),
-            record,
-            args.channel,
-            args.pattern_set,
-            args.kind,
-            continuous=args.continuous,
-            any_set=args.any_set,
-        )
+    answer = identify_from_store(
+        open_store(args),
+        record,
+        args.channel,
+        args.pattern_set,
+        args.kind,
+        continuous=args.continuous,
+        any_set=args.any_set,
     )
+    output.write_json(answer)
+    for w in answer.get("warnings") or ():  # on stderr, where a person sees them beside the JSON
+        logger.warning("%s%s", f"{w['channel']}: " if w.get("channel") else "", w["message"])
     return EXIT_OK
 
 

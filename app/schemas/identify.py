@@ -48,6 +48,20 @@ class ContinuousWidthPublic(BaseModel):
     fixed: dict[str, float] = Field(description="Parameters fixed by the record's conditions.")
     reduced_chi2: float = Field(description="chi2 / n of the fit (about 1 when the model fits to the noise).")
     seconds: float = Field(description="Time of the fit [s].")
+    interval_95: list[float] | None = Field(
+        default=None, description="95 % interval of K [m, m] (when the width estimate gives one)."
+    )
+
+
+class WarningOut(BaseModel):
+    """A suspicion that the record is not what the plant can produce, and what to check."""
+
+    code: str = Field(
+        description="Short stable id: constant_channel, channel_scale, sample_interval, misfit "
+        "(engine.diagnosis.plausibility)."
+    )
+    message: str = Field(description="The suspicion, with the numbers behind it, and what to check.")
+    channel: str | None = Field(default=None, description="The channel it concerns (null: the whole record).")
 
 
 class RecordReadPublic(BaseModel):
@@ -104,6 +118,12 @@ class IdentificationPublic(BaseModel):
     measured_at: datetime | None = Field(default=None, description="When the record was taken (or received).")
     continuous: ContinuousWidthPublic | None = Field(
         default=None, description="The calibrated K as a continuous width (only when requested)."
+    )
+    warnings: list[WarningOut] = Field(
+        default_factory=list,
+        description="What makes the record doubtful for the plant (a channel in a wrong unit, a wrong sample "
+        "interval, a fit far above the noise; with the continuous width also what its calibration reveals): "
+        "check these before acting on the width. Empty when nothing is.",
     )
     record: RecordReadPublic = Field(description="How the record was read.")
 

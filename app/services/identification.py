@@ -11,6 +11,8 @@ import numpy as np
 from app.services.errors import IncompatibleError, InvalidInputError, NotFoundError
 from app.services.patterns import identifier_from_pattern_set
 from engine.constants import C_NOMINAL, K_GRID, MODEL_VERSION
+from engine.diagnosis import plausibility
+from engine.diagnosis.plausibility import PlausibilityWarning
 from engine.identification import IdentificationResult
 from engine.identification.selection import MAX_C_DISTANCE, is_plain, nearest_pattern_set
 from engine.identification.training import DEFAULT_KIND
@@ -141,18 +143,25 @@ def identify(record: Record, channel: str, pattern_set: PatternSet) -> Identific
     return identifier_from_pattern_set(pattern_set).identify(to_protocol_grid(record)[channel])
 
 
-def continuous_width(record: Record, channel: str) -> dict:
-    """The calibrated K of ``record``'s ``channel`` as a continuous width, with its uncertainty (JSON-ready).
+def _one_channel(record: Record, channel: str) -> Record:
+    """``record`` reduced to ``channel``, keeping that channel's declared unit (the warnings quote it)."""
+    return record.replace(
+        channels={channel: record[channel]}, units={c: u for c, u in record.units.items() if c == channel}
+    )
 
-    The simulator is fitted to that one channel (K free, J1 and c free unless the
-    record's conditions give them, c1 likewise; a K condition is ignored), as in
-    the README's "calibrated K as a continuous width estimate".
+
+def continuous_width_checked(record: Record, channel: str) -> tuple[dict, list[PlausibilityWarning]]:
+    """:func:`continuous_width` and the warnings about the fit behind it.
+
+    The warnings are the width estimate's own (e.g. its ``misfit``) and what the calibration
+    reveals about the record (:func:`engine.diagnosis.plausibility.check_calibration`: a channel
+    in a wrong unit, a wrong sample interval, a misfit far above the noise).
     """
     check_record(record, channel)
     single = record.replace(channels={channel: record[channel]}, units={})
     est = estimate_width(single)
     cal = est.calibration
-    return {
+    out: dict = {
         "K": est.K,
         "sigma_K": est.sigma_K,
         "nearest_width": nearest_grid_width(est.K),
@@ -161,6 +170,24 @@ def continuous_width(record: Record, channel: str) -> dict:
         "reduced_chi2": cal.reduced_chi2,
         "seconds": cal.seconds,
     }
+    interval = getattr(est, "interval_95", None)
+    if interval is not None:
+        out["interval_95"] = [float(v) for v in interval]
+    warnings = plausibility.merge_warnings(
+        getattr(est, "warnings", []), plausibility.check_calibration(_one_channel(record, channel), cal)
+    )
+    return out, warnings
+
+
+def continuous_width(record: Record, channel: str) -> dict:
+    """The calibrated K of ``record``'s ``channel`` as a continuous width, with its uncertainty (JSON-ready).
+
+    The simulator is fitted to that one channel (K free, J1 and c free unless the
+    record's conditions give them, c1 likewise; a K condition is ignored), as in
+    the README's "calibrated K as a continuous width estimate". The warnings about the fit
+    are :func:`continuous_width_checked`'s.
+    """
+    return continuous_width_checked(record, channel)[0]
 
 
 def identify_from_store(
@@ -175,6 +202,10 @@ def identify_from_store(
     """Choose the pattern set (:func:`select_pattern_set`), identify, and describe the outcome (JSON-ready).
 
     With ``continuous``, also the calibrated K as a continuous width (:func:`continuous_width`, a few seconds).
+    The answer's ``warnings`` (a list, empty when none) say what makes the record doubtful for the plant:
+    the checks of the identified channel that need no fit (:func:`engine.diagnosis.plausibility.check_record`)
+    and, with ``continuous``, those of its calibration (:func:`continuous_width_checked`); each is
+    ``{"code", "message", "channel"}``.
     """
     check_record(record, channel)
     sel = select_pattern_set(store, channel, record, set_id=set_id, kind=kind, any_set=any_set)
@@ -186,6 +217,11 @@ def identify_from_store(
             f"the identification gave non-finite numbers: channel {channel!r} of the record reaches |x| = {largest:.3g}, "
             "far outside what the pattern set was trained on; check the record's units and values"
         )
+    warnings = plausibility.check_record(_one_channel(record, channel))
+    width = None
+    if continuous:
+        width, fit_warnings = continuous_width_checked(record, channel)
+        warnings = plausibility.merge_warnings(warnings, fit_warnings)
     return {
         "D": [float(d) for d in res.D],
         "index": int(res.index),
@@ -203,7 +239,8 @@ def identify_from_store(
         "c_source": sel.c_source,
         "c_distance": None if sel.c_used is None else abs(sel.pattern_set.c - sel.c_used),
         "max_c_distance": MAX_C_DISTANCE,
-        "continuous": continuous_width(record, channel) if continuous else None,
+        "continuous": width,
+        "warnings": [w.to_dict() for w in warnings],
         "record": {
             "sample_interval": record.sample_interval,
             "n_samples": record.n_samples,

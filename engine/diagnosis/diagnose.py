@@ -77,6 +77,13 @@ ones (``docs/validation/confidence/``). For ``unexplained`` it is how sure the a
 catalogue effect or set explains the record; ``verdict.locus_confidence`` says, apart, how sure it
 is of the locus (calibrated the same way on the locus estimate's fit).
 
+Plausibility
+------------
+``result.warnings`` lists what the plant cannot produce (:mod:`engine.diagnosis.plausibility`):
+a channel out of the plant's range or in a likely wrong unit, a sample interval the dynamics
+contradict, a misfit of the answer's model far above the noise. Each names the suspicion and
+what to check; the verdict and the width stand beside them, to be read with them.
+
 Twins
 -----
 Each named effect lists its exact twins (``alternatives``: effects that give the very same
@@ -118,6 +125,7 @@ from engine.diagnosis.decision import (
 )
 from engine.diagnosis.gap import gap_of
 from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, localise
+from engine.diagnosis.plausibility import check_calibration, check_record, merge_warnings
 from engine.diagnosis.result import DiagnosisResult, Verdict
 from engine.diagnosis.sets import search_sets
 from engine.diagnosis.settings import NOMINAL_CALIBRATION as NOMINAL_CALIBRATION
@@ -293,8 +301,15 @@ def _diagnose(
     models: list[Model] = [*cands, *sets]
     final, source = answer_calibration(verdict.status, nominal, model, models)
     fitted = [nominal, *(m.calibration for m in models if m.calibration is not None)]
-    width = answer_width(record, final, source, space, fitted, settings.min_delta_bic, verdict.status in MISSING_PHYSICS)
+    width = answer_width(
+        record, final, source, space, fitted, settings.min_delta_bic, verdict.status in MISSING_PHYSICS
+    )
     stage("decision")
+    # what the plant cannot produce, judged on the model the answer ends with (a named effect's misfit is no warning)
+    warnings = merge_warnings(check_record(record), check_calibration(record, final))
+    for w in warnings:
+        logger.warning("%s", w.message)
+    stage("plausibility")
 
     after = None
     gap_after = None
@@ -332,6 +347,7 @@ def _diagnose(
         stages=stages,
         answer_calibration=final,
         width=width,
+        warnings=[w.to_dict() for w in warnings],
     )
     if identify is not None:
         progress(0.9, "identifying the width before and after")

@@ -63,7 +63,7 @@ import pywt
 
 from engine.constants import CHANNEL_WAVELETS
 from engine.features.wavelet import level_for_interval
-from engine.records import Record
+from engine.records import Record, RecordError
 from engine.simulation.noise import LOWPASS_ORDERS
 
 __all__ = [
@@ -110,6 +110,29 @@ _CLIP_VARIANCE = 1.0 - 2.0 * _CLIP * math.exp(-(_CLIP**2) / 2.0) / math.sqrt(2.0
 )
 #: Median absolute deviation of a unit normal (Donoho & Johnstone's 0.6745).
 _MAD_NORMAL = 0.6744897501960817
+#: Largest magnitude of a channel processed as it is [channel unit] (2**100, about 1.3e30): a channel
+#: reaching beyond it is divided by a power of two first (exact in binary floating point) and its
+#: noise multiplied back, so that no square or sum of squares overflows to inf (issue 50: values
+#: x 1e200 gave an infinite noise, hence zero residuals and a confident ``no_gap``). Records never
+#: get there (the record boundary refuses |x| > 1e12, :mod:`engine.records.limits`), so a record's
+#: noise is computed bit for bit as before.
+_SCALE_ABOVE: float = 2.0**100
+
+
+def _power_of_two_scale(x: np.ndarray) -> float:
+    """A power of two bringing ``max|x|`` below 1 when it exceeds :data:`_SCALE_ABOVE`, else 1."""
+    m = float(np.max(np.abs(x))) if x.size else 0.0
+    if not (math.isfinite(m) and m > _SCALE_ABOVE):
+        return 1.0
+    return math.ldexp(1.0, math.frexp(m)[1])
+
+
+def _rms(x: np.ndarray) -> float:
+    """Root mean square of ``x``, scaled by a power of two when its squares could overflow."""
+    s = _power_of_two_scale(x)
+    if s == 1.0:
+        return float(np.sqrt(np.mean(np.square(x))))
+    return s * float(np.sqrt(np.mean(np.square(x / s))))
 
 
 def _robust_sigma(c: np.ndarray) -> float:
@@ -515,18 +538,46 @@ def estimate_noise(record: Record, coloured: bool = True) -> NoiseModel:
     NoiseModel
         A mapping channel -> noise standard deviation per sample (channel unit), with the
         per-level model of each channel (:meth:`NoiseModel.channel`).
+
+    Raises
+    ------
+    RecordError
+        When a channel's noise comes out non-finite (a channel holding inf or NaN; a record
+        never does, the boundary refuses them). A channel of huge values is estimated exactly
+        scaled (by a power of two), never overflowed.
     """
-    per = {name: _levels_of(name, x, record.sample_interval) for name, x in record.channels.items()}
+    scale = {name: _power_of_two_scale(x) for name, x in record.channels.items()}
+    per = {
+        name: _levels_of(name, x if scale[name] == 1.0 else x / scale[name], record.sample_interval)
+        for name, x in record.channels.items()
+    }
     fits = [lv for lv, _ in per.values() if lv is not None]
     order, fc = _shared_shape(fits) if coloured else (0, 0.5)
     fs = 1.0 / record.sample_interval
     out = {}
     for name, (lv, white) in per.items():
-        if order == 0 or lv is None:
-            out[name] = ChannelNoise(white, CHANNEL_WAVELETS[name])
-        else:
-            out[name] = _coloured(lv, order, fc, fs)
+        ch = ChannelNoise(white, CHANNEL_WAVELETS[name]) if order == 0 or lv is None else _coloured(lv, order, fc, fs)
+        out[name] = ch if scale[name] == 1.0 else ch.scaled(scale[name])
+        _require_finite(name, out[name], record.channels[name])
     return NoiseModel(out)
+
+
+def _require_finite(name: str, noise: ChannelNoise, x: np.ndarray) -> None:
+    """Refuse a noise estimate that is not finite: it would make every residual zero (or NaN) silently.
+
+    Raises
+    ------
+    RecordError
+        Naming the channel and its largest magnitude.
+    """
+    if math.isfinite(noise.sigma) and all(math.isfinite(v) for v in noise.level_sigma):
+        return
+    with np.errstate(invalid="ignore"):
+        largest = float(np.max(np.abs(x))) if x.size else math.nan
+    raise RecordError(
+        f"the noise of channel {name!r} cannot be estimated (it comes out {noise.sigma!r}): the channel reaches "
+        f"|x| = {largest:.3g}; check the record's units and values"
+    )
 
 
 def noise_weights(record: Record, noise: Mapping[str, float]) -> NoiseModel:
@@ -549,7 +600,7 @@ def noise_weights(record: Record, noise: Mapping[str, float]) -> NoiseModel:
     model = NoiseModel.of(noise)
     out = {}
     for name, x in record.channels.items():
-        rms = float(np.sqrt(np.mean(np.square(x))))
+        rms = _rms(x)
         floor = max(NOISE_FLOOR_REL * rms if rms > 0 else 1e-12, 1e-12)
         ch = model.channel(name)
         if ch.sigma >= floor:

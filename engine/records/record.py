@@ -22,6 +22,7 @@ from engine.constants import CHANNEL_UNITS, CHANNELS, EVENT_INDEX, SAMPLE_INTERV
 from engine.records.errors import ProtocolError, RecordError
 from engine.records.event import EventLocation
 from engine.records.grid import GridError, SampleGrid
+from engine.records.limits import require_magnitude
 from engine.records.units import UnitError, factor, from_model_units
 
 __all__ = ["Record", "WindowUse"]
@@ -68,7 +69,8 @@ class Record:
     ----------
     channels : mapping of str to ndarray
         Non-empty subset of ``CHANNELS`` in MODEL.md's units (a1 [m/s^2], m_el [pu],
-        omega1 [rad/s], a2 [m/s^2], v2 [m/s]); 1-D float arrays of one common length, finite.
+        omega1 [rad/s], a2 [m/s^2], v2 [m/s]); 1-D float arrays of one common length, finite and
+        at most 1e12 in magnitude (:data:`engine.records.limits.MAX_ABS_SAMPLE`).
     sample_interval : float
         Ts [s], 10 us to 1 ms.
     event_index : int
@@ -88,7 +90,8 @@ class Record:
     Raises
     ------
     RecordError
-        Malformed channels (unknown name, unequal lengths, non-finite values).
+        Malformed channels (unknown name, unequal lengths, non-finite values, a value beyond
+        +-``MAX_ABS_SAMPLE`` = 1e12 in the model's unit, :mod:`engine.records.limits`).
     ProtocolError
         The grid cannot hold a backlash test: interval outside 10 us - 1 ms, or less
         than 4.8 ms before or 200 ms after the event (the message says how much is missing).
@@ -137,6 +140,9 @@ class Record:
                 factor(c, u, self.conditions)
         except UnitError as exc:
             raise RecordError(str(exc)) from None
+        for c, arr in clean.items():  # values no computation survives: refused, naming channel and sample
+            given = f" (given in {units[c]})" if c in units else ""
+            require_magnitude(arr, f"channel {c!r}{given}", CHANNEL_UNITS[c])
         object.__setattr__(self, "units", units)
         try:
             grid = SampleGrid(self.sample_interval, n or 0, self.event_index)

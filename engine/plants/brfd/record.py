@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from engine.records import RecordError
+from engine.records.limits import require_magnitude
 
 __all__ = [
     "FORCE_UNITS",
@@ -124,8 +125,9 @@ def record_from_arrays(
     Raises
     ------
     RecordError
-        Unknown units, series of unequal lengths, non-finite samples, too short a record, or
-        instants that are not uniform.
+        Unknown units, series of unequal lengths, non-finite samples or samples beyond +-1e12 in SI
+        units (:data:`engine.records.limits.MAX_ABS_SAMPLE`), too short a record, or instants that
+        are not uniform.
     """
     if length_unit not in LENGTH_UNITS:
         raise RecordError(f"{name}: displacement unit {length_unit!r} is not one of {', '.join(LENGTH_UNITS)}")
@@ -157,10 +159,19 @@ def record_from_arrays(
             f"{name}: time is not uniform (interval {dt[i]:.6g} s at sample {i + 1}, median {ts:.6g} s); "
             "give the samples on a uniform grid, in order"
         )
+    with np.errstate(over="ignore"):  # a value the conversion overflows is refused just below
+        x = arrays["displacement"] * LENGTH_UNITS[length_unit]
+        force = arrays["friction force"] * FORCE_UNITS[force_unit]
+    for what, values, unit, given in (
+        ("time", arrays["time"], "s", "s"),
+        ("displacement", x, "m", length_unit),
+        ("friction force", force, "N", force_unit),
+    ):
+        require_magnitude(values, f"{name}: {what}" + ("" if given == unit else f" (given in {given})"), unit)
     return BrfdRecord(
         t=arrays["time"] - arrays["time"][0],
-        x=arrays["displacement"] * LENGTH_UNITS[length_unit],
-        force=arrays["friction force"] * FORCE_UNITS[force_unit],
+        x=x,
+        force=force,
         name=name,
         tension=_tension(name),
         meta=dict(meta or {}),

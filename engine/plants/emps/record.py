@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.records import RecordError
+from engine.records.limits import require_magnitude
 
 __all__ = ["SIGNALS", "EmpsRecord", "load_csv", "load_mat", "load_record", "record_from_arrays"]
 
@@ -99,7 +100,8 @@ def record_from_arrays(arrays: Mapping[str, np.ndarray], gains: Mapping[str, flo
     Raises
     ------
     RecordError
-        For a missing signal or gain, unequal lengths, a non-finite sample, a grid that is not
+        For a missing signal or gain, unequal lengths, a non-finite sample or one beyond
+        +-1e12 (:data:`engine.records.limits.MAX_ABS_SAMPLE`), a grid that is not
         uniform at 1 kHz, too few samples, or a gain that is not a positive number.
     """
     missing = [k for k in ("t", "qm", "qg", "vir") if k not in arrays]
@@ -119,6 +121,7 @@ def record_from_arrays(arrays: Mapping[str, np.ndarray], gains: Mapping[str, flo
         if not np.all(np.isfinite(a)):
             bad = int(np.flatnonzero(~np.isfinite(a))[0])
             raise RecordError(f"{name}: {key} [{unit}] is not finite at sample {bad}; remove or repair the sample")
+        require_magnitude(a, f"{name}: {key}", unit)
         out[key] = a
     if n < MIN_SAMPLES:
         raise RecordError(f"{name}: {n} samples; an EMPS record needs at least {MIN_SAMPLES}")

@@ -1,0 +1,474 @@
+"""Is the record what this plant can produce? Warnings that name the suspicion and what to check.
+
+A record in a wrong unit or with a wrong sample interval is not refused by anything else: the
+calibration fits it as well as it can and a width comes out, confidently (issue 50: omega1 in rpm
+and a1 in g gave 7.5 mm for 5 mm; a sample interval 10x too long gave a width). These checks look
+for what the plant cannot produce and say so in a :class:`PlausibilityWarning`, one or two
+sentences with the suspicion and what to check. They warn, they never refuse (the record
+boundary refuses what no computation survives, :mod:`engine.records.limits`).
+
+* :func:`check_record` needs no fit (cheap, cached simulations of the plausible box only):
+
+  - ``constant_channel``: a channel without a single change over the test window (a stuck or
+    disconnected sensor, a placeholder column).
+  - ``channel_scale``: a channel whose peak lies more than :data:`RANGE_MARGIN` times outside
+    the range of peaks the plant produces over its plausible box (:func:`peak_envelope`); when a
+    unit mistake (:func:`unit_suspects`) brings it into that range, the message names the unit.
+
+* :func:`check_calibration` reads a calibration of the record (its residuals and simulation):
+
+  - ``channel_scale``: a channel the fit does not reproduce (chi2 per sample above
+    :data:`MISFIT_CHI2`) whose peak is out of the plant's range as above, or whose least-squares
+    scale against the calibrated simulation (record = s x simulation) is far from 1 (outside
+    1/:data:`SCALE_FAR` to :data:`SCALE_FAR`), explains the misfit (the scaled simulation fits
+    :data:`EVIDENCE` times better) and matches a unit mistake within :data:`UNIT_MATCH`.
+  - ``sample_interval``: the fit is poor and the record, read with its sample interval multiplied
+    by one of :data:`TIME_FACTORS`, fits the plant :data:`EVIDENCE` times better
+    (:func:`time_scale_evidence`, a few dozen short simulations, run only on a poor fit).
+  - ``misfit``: chi2 per sample of a channel above :data:`MISFIT_CHI2`: the model does not
+    reproduce the record there and numbers fitted to it carry model error.
+
+Both return lists; :func:`merge_warnings` joins them without repeating a (code, channel).
+Where they fail: a plant with a large unmodelled effect can move a channel's peak out of the
+box's range (a contact 10x stiffer raises a1's by 3.7x, the most of any catalogued effect,
+measured at the catalogue's bounds) and, on one channel, can look like a time scale (a load
+inertia 2x fits omega1 read at half the interval 49x better); the messages therefore say what
+else the finding may mean.
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+import logging
+import math
+from collections.abc import Collection, Iterable
+from dataclasses import dataclass
+from typing import Any, Final
+
+import numpy as np
+from scipy.stats import qmc
+
+from engine.constants import CHANNELS, MAX_SAMPLE_INTERVAL, MIN_SAMPLE_INTERVAL
+from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings
+from engine.diagnosis.space import DEFAULT_BOUNDS, default_space
+from engine.records import PROTOCOL_GRID, Record, SampleGrid
+from engine.records.units import UNITS, UnitError, factor
+from engine.simulation import Case, PlantParameters, SolverSettings, run_cases
+
+logger = logging.getLogger(__name__)
+
+__all__ = [
+    "ENVELOPE_POINTS",
+    "EVIDENCE",
+    "MISFIT_CHI2",
+    "OTHER_UNITS",
+    "RANGE_MARGIN",
+    "SCALE_FAR",
+    "TIME_FACTORS",
+    "TIME_POINTS",
+    "UNIT_MATCH",
+    "PlausibilityWarning",
+    "check_calibration",
+    "check_record",
+    "merge_warnings",
+    "peak_envelope",
+    "time_scale_evidence",
+    "unit_suspects",
+]
+
+#: chi2 per sample of a channel above which the calibrated model is said not to reproduce it: the
+#: residual's RMS is then 5 times the noise. A fit to the noise gives 1 (0.9-1.1 measured on clean
+#: records at 30-50 dB, coloured noise included); the README's misfits that gave a width without a
+#: warning sat at 172-1105, unit and interval mistakes at 1e3-1e5 (measured here).
+MISFIT_CHI2: Final[float] = 25.0
+#: How far outside the range of peaks the plant produces (:func:`peak_envelope`) a channel's peak
+#: must lie to be suspect [-]. The unit mistakes (:data:`OTHER_UNITS` and the accepted units) are
+#: factors of 9.5 or more: with 2, omega1 in rpm or deg/s, v2 in mm/s and m_el in % are caught
+#: anywhere in the box (omega1 in rpm at the box's slowest: 22.7 against 2 x 8.5 rad/s), a1 in g
+#: wherever its true peak is below 136 m/s^2 (a2: 60), i.e. all but the box's most violent corner.
+#: The catalogued effects at their bounds change a channel's peak by at most 3.7x (a contact 10x
+#: stiffer, on a1), which reaches 2x beyond the box only at its edge.
+RANGE_MARGIN: Final[float] = 2.0
+#: A least-squares scale between record and calibrated simulation outside [1/SCALE_FAR, SCALE_FAR]
+#: is far from 1 [-]: no plant parameter in the box scales a channel by 2 while fitting it.
+SCALE_FAR: Final[float] = 2.0
+#: Tolerance of a match between an observed factor and a unit mistake's factor [-]: 25 %, wider
+#: than the spread of a misfit's least-squares scale around the true factor (9.16 for rpm's 9.55
+#: when the other channels pin the fit) and narrower than the gap between any two candidates.
+UNIT_MATCH: Final[float] = 1.25
+#: Factors tried on the sample interval [-]: the record read at ``Ts * a`` (a < 1: the declared
+#: interval was too long, the record looks slower than the plant). Decimal slips (10x), the usual
+#: decimations (2x, 5x) and both directions.
+TIME_FACTORS: Final[tuple[float, ...]] = (0.1, 0.2, 0.5, 2.0, 5.0, 10.0)
+#: How many times better (in chi2) another reading of a record must fit the plant than the record as
+#: read for a warning to name it [-]: the record's channel scaled to a unit's factor (``channel_scale``
+#: from the least-squares scale; omega1 in rpm, the other channels pinning the fit: 2350x) or read
+#: with a scaled sample interval (``sample_interval``). Measured on the interval (16 box points,
+#: first 20 ms after the event): records with the interval declared 2-10x wrong score 10 to 1e4 on
+#: most channels and on the full record (m_el alone, mostly a step, stays below 7); correct records
+#: with catalogued effects at their bounds score below 2.5 on the full record, up to 10 on a single
+#: a1 or m_el channel and 49 on omega1 alone with a load inertia 2x (hence the message's "if it is").
+EVIDENCE: Final[float] = 10.0
+#: Points of the plausible box (scrambled Sobol) simulated per time factor, besides the calibrated
+#: case and the nominal one [-]: enough to come near the best fit of the smooth first 20 ms after
+#: the event (the calibration's first horizon), cheap (18 cases x 7 grids, about 0.1-0.3 s).
+TIME_POINTS: Final[int] = 16
+#: Points of the plausible box (scrambled Sobol, besides its 16 corners) whose peaks make
+#: :func:`peak_envelope` [-]: the corners alone miss the lowest peaks (a1 24.9 inside, 27.8 at the
+#: corners); 64 points come within a few % of 256.
+ENVELOPE_POINTS: Final[int] = 64
+#: Units a channel is often given in by mistake beside the accepted ones
+#: (:data:`engine.records.units.UNITS`): channel -> unit -> factor to the model unit.
+OTHER_UNITS: Final[dict[str, dict[str, float]]] = {
+    "a1": {"mm/s^2": 1e-3},
+    "a2": {"mm/s^2": 1e-3},
+    "omega1": {"deg/s": math.pi / 180.0},
+    "m_el": {"%": 1e-2},
+    "v2": {"cm/s": 1e-2},
+}
+#: Relative slack of a time-scaled interval against the accepted range (as :mod:`engine.records.grid`).
+_SLACK = 1e-9
+
+
+@dataclass(frozen=True)
+class PlausibilityWarning:
+    """A suspicion that a record is not what the plant can produce, and what to check.
+
+    Attributes
+    ----------
+    code : str
+        Short stable id: ``constant_channel``, ``channel_scale``, ``sample_interval``, ``misfit``.
+    message : str
+        One or two sentences: the suspicion, with the numbers behind it, and what to check.
+    channel : str or None
+        The channel it concerns (None when it concerns the record as a whole).
+    """
+
+    code: str
+    message: str
+    channel: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready ``{"code", "message", "channel"}``."""
+        return {"code": self.code, "message": self.message, "channel": self.channel}
+
+
+def merge_warnings(*groups: Iterable[PlausibilityWarning]) -> list[PlausibilityWarning]:
+    """The warnings of several checks in order, the first of each (code, channel) only."""
+    seen: set[tuple[str, str | None]] = set()
+    out = []
+    for w in itertools.chain(*groups):
+        if (w.code, w.channel) not in seen:
+            seen.add((w.code, w.channel))
+            out.append(w)
+    return out
+
+
+# -- the plant's range ----------------------------------------------------------------------------
+@functools.lru_cache(maxsize=1)
+def peak_envelope() -> dict[str, tuple[float, float]]:
+    """Smallest and largest peak ``max |x|`` of each channel over the plausible box, in model units.
+
+    The box is the calibration's (:data:`engine.diagnosis.space.DEFAULT_BOUNDS`: K, J1, c, c1),
+    its 16 corners and :data:`ENVELOPE_POINTS` scrambled Sobol points, simulated once per process
+    on MODEL.md's grid (the test window; the peaks barely depend on the interval: within 2 % from
+    10 us to 1 ms, measured) with the nominal sensors.
+
+    Returns
+    -------
+    dict of str to (float, float)
+        Channel -> (lowest peak, highest peak) [model unit].
+    """
+    names = list(DEFAULT_BOUNDS)
+    lo = np.array([DEFAULT_BOUNDS[n][0] for n in names])
+    hi = np.array([DEFAULT_BOUNDS[n][1] for n in names])
+    corners = np.array(list(itertools.product((0.0, 1.0), repeat=len(names))))
+    sobol = qmc.Sobol(len(names), scramble=True, seed=0).random(ENVELOPE_POINTS)
+    cases = [
+        Case(PlantParameters().replace(**{n: float(v) for n, v in zip(names, lo + u * (hi - lo), strict=True)}))
+        for u in np.vstack([corners, sobol])
+    ]
+    channels, _, status = run_cases(cases, SolverSettings(max_step=CalibrationSettings().search_step), PROTOCOL_GRID)
+    peaks = np.max(np.abs(channels[status == 0]), axis=2)
+    logger.debug("peak envelope from %d of %d cases of the plausible box", peaks.shape[0], len(cases))
+    return {c: (float(peaks[:, j].min()), float(peaks[:, j].max())) for j, c in enumerate(CHANNELS)}
+
+
+def unit_suspects(record: Record, channel: str) -> dict[str, float]:
+    """Units the channel may really be in, and by what its values (as read) would then be multiplied.
+
+    Parameters
+    ----------
+    record : Record
+        The record (its declared unit of ``channel`` and its conditions, e.g. ``base_torque``).
+    channel : str
+        One of its channels.
+
+    Returns
+    -------
+    dict of str to float
+        Unit -> factor from the values as read (model units) to what they would be in the model
+        unit had the samples been in that unit: the accepted units and :data:`OTHER_UNITS`, less
+        the declared one (and N*m without ``conditions.base_torque``).
+    """
+    declared = record.unit(channel)
+    f_declared = factor(channel, declared, record.conditions)
+    out: dict[str, float] = {}
+    for unit in (*UNITS[channel], *OTHER_UNITS.get(channel, {})):
+        if unit == declared:
+            continue
+        try:
+            f = (
+                OTHER_UNITS[channel][unit]
+                if unit in OTHER_UNITS.get(channel, {})
+                else factor(channel, unit, record.conditions)
+            )
+        except UnitError:
+            continue
+        out[unit] = f / f_declared
+    return out
+
+
+def _fix(record: Record, channel: str, unit: str, ratio: float) -> str:
+    """What to do if ``channel`` is in ``unit``."""
+    if unit in UNITS[channel]:
+        return f'declare it ("units": {{"{channel}": "{unit}"}})'
+    return f"convert it to {record.unit(channel)} (multiply its values by {ratio:.4g})"
+
+
+def _as_given(record: Record, channel: str, value: float) -> float:
+    """A model-unit value of ``channel`` in the unit the record declares for it."""
+    return value / factor(channel, record.unit(channel), record.conditions)
+
+
+def _range_message(record: Record, channel: str, peak: float) -> str | None:
+    """The sentence about a peak out of the plant's range (None when it is within the range's margin)."""
+    lo, hi = peak_envelope()[channel]
+    unit = record.unit(channel)
+    if peak > hi * RANGE_MARGIN:
+        where = f"while the plant's never exceeds {_as_given(record, channel, hi):.3g} {unit}"
+    elif peak < lo / RANGE_MARGIN:
+        where = f"while the plant's peak never falls below {_as_given(record, channel, lo):.3g} {unit}"
+    else:
+        return None
+    head = (
+        f"{channel} peaks at {_as_given(record, channel, peak):.4g} {unit} {where} "
+        "(over its plausible box of K, J1, c, c1)"
+    )
+    fits = {u: r for u, r in unit_suspects(record, channel).items() if lo / UNIT_MATCH <= peak * r <= hi * UNIT_MATCH}
+    if fits:
+        centre = math.sqrt(lo * hi)
+        unit_best = min(fits, key=lambda u: abs(math.log(peak * fits[u] / centre)))
+        return f"{head}: is it in {unit_best}? If so, {_fix(record, channel, unit_best, fits[unit_best])}."
+    return f"{head}: check its unit, the sensor's gain and the record's scaling."
+
+
+# -- checks without a fit -------------------------------------------------------------------------
+def check_record(record: Record) -> list[PlausibilityWarning]:
+    """Warnings about a record that need no calibration: constant channels, channels out of the plant's range.
+
+    Parameters
+    ----------
+    record : Record
+        The drive's record (its test window is read, as every analysis does).
+
+    Returns
+    -------
+    list of PlausibilityWarning
+        ``constant_channel`` and ``channel_scale`` warnings, in channel order; empty when none.
+    """
+    window, _ = record.test_window()
+    out = []
+    for c, x in window.channels.items():
+        if np.ptp(x) == 0.0:
+            out.append(
+                PlausibilityWarning(
+                    "constant_channel",
+                    f"{c} does not change over the test window (every sample "
+                    f"{_as_given(record, c, float(x[0])):.4g} {record.unit(c)}): a stuck or disconnected sensor, "
+                    "or a placeholder column; check the sensor, or leave the channel out of the record.",
+                    c,
+                )
+            )
+            continue
+        message = _range_message(record, c, float(np.max(np.abs(x))))
+        if message is not None:
+            out.append(PlausibilityWarning("channel_scale", message, c))
+    for w in out:
+        logger.info("plausibility: %s", w.message)
+    return out
+
+
+# -- checks on a calibration ----------------------------------------------------------------------
+def _window(record: Record, calibration: CalibrationResult) -> Record:
+    """The samples the calibration fitted: the record's test window (the record itself when it is that window)."""
+    if calibration.grid is not None and record.grid == calibration.grid:
+        return record
+    window, _ = record.test_window()
+    if calibration.grid is not None and window.grid != calibration.grid:
+        raise ValueError(
+            f"the calibration was fitted on {calibration.grid}, not on this record's test window ({window.grid}); "
+            "pass the record that was calibrated"
+        )
+    return window
+
+
+def time_scale_evidence(
+    record: Record, calibration: CalibrationResult, channels: Collection[str] | None = None
+) -> tuple[float, float]:
+    """How much better the record fits the plant when read with its sample interval scaled.
+
+    For each factor ``a`` of :data:`TIME_FACTORS` whose interval ``a * Ts`` lies in the accepted
+    range (10 us to 1 ms), the calibrated case, the nominal one (the record's conditions applied)
+    and :data:`TIME_POINTS` points of the plausible box are simulated on the record's grid with
+    the interval ``a * Ts``, over the first 20 ms of model time after the event (the calibration's
+    first horizon, where the cost is smooth in the parameters), and the best noise-normalised chi2
+    on those samples is compared with the best of the same cases read at ``Ts``.
+
+    Parameters
+    ----------
+    record : Record
+        The record that was calibrated (its test window is used).
+    calibration : CalibrationResult
+        Its calibration (its ``case`` and noise normalisation ``sigma``).
+    channels : collection of str, optional
+        The channels compared (default: every channel calibrated); a channel in a wrong unit
+        would make any reading fit it badly, so :func:`check_calibration` leaves those out.
+
+    Returns
+    -------
+    (evidence, factor) : (float, float)
+        The largest ratio chi2 at ``Ts`` / chi2 at ``a * Ts`` and its factor ``a``; (0, 1) when no
+        factor gives an accepted interval or no channel is compared.
+    """
+    window = _window(record, calibration)
+    names = [c for c in window.channels if c in calibration.sigma and (channels is None or c in channels)]
+    if not names:
+        return 0.0, 1.0
+    rows = [CHANNELS.index(c) for c in names]
+    data = np.array([window[c] for c in names])
+    sigma = np.array([float(calibration.sigma[c]) for c in names])[:, None]
+    space = default_space(window)
+    cases = [space.base] if calibration.case is None else [calibration.case, space.base]
+    if space.dim:
+        cases += [space.case(u) for u in qmc.Sobol(space.dim, scramble=True, seed=0).random(TIME_POINTS)]
+    settings = CalibrationSettings()
+    solver = SolverSettings(max_step=settings.search_step)
+    horizon = settings.horizons_ms[0] * 1e-3
+    ts, n, e = window.sample_interval, window.n_samples, window.event_index
+    factors = [
+        a for a in TIME_FACTORS if MIN_SAMPLE_INTERVAL * (1 - _SLACK) <= a * ts <= MAX_SAMPLE_INTERVAL * (1 + _SLACK)
+    ]
+    if not factors:
+        return 0.0, 1.0
+    first = {a: min(n, e + max(1, round(horizon / (a * ts)))) for a in factors}
+
+    def chi2(sims: np.ndarray, status: np.ndarray, h: int) -> float:
+        c2 = np.sum(((data[None, :, :h] - sims[:, rows, :h]) / sigma[None]) ** 2, axis=(1, 2))
+        c2 = c2[(status == 0) & np.isfinite(c2)]
+        return float(c2.min()) if c2.size else math.inf
+
+    ref, _, ref_status = run_cases(cases, solver, window.grid, first=max(first.values()))
+    best = (0.0, 1.0)
+    for a in factors:
+        sims, _, status = run_cases(cases, solver, SampleGrid(a * ts, n, e), first=first[a])
+        scaled, declared = chi2(sims, status, first[a]), chi2(ref, ref_status, first[a])
+        if not math.isfinite(declared):
+            continue
+        evidence = math.inf if scaled == 0.0 else declared / scaled
+        logger.debug("time scale %g: chi2 %.4g against %.4g as declared (%d samples)", a, scaled, declared, first[a])
+        if evidence > best[0]:
+            best = (evidence, a)
+    return best
+
+
+def _times(a: float) -> str:
+    """``10x`` for 10 or 0.1, ``2x`` for 2 or 0.5."""
+    return f"{max(a, 1.0 / a):g}x"
+
+
+def check_calibration(record: Record, calibration: CalibrationResult) -> list[PlausibilityWarning]:
+    """Warnings about a record that its calibration reveals: channel scale, sample interval, misfit.
+
+    Parameters
+    ----------
+    record : Record
+        The record that was calibrated (the whole record or its test window; the test window is read).
+    calibration : CalibrationResult
+        Its calibration (:func:`engine.diagnosis.calibration.calibrate`): per-channel chi2, the
+        calibrated simulation on the record's grid, the noise normalisation.
+
+    Returns
+    -------
+    list of PlausibilityWarning
+        ``channel_scale`` (per channel), ``sample_interval`` (the record), ``misfit`` (per
+        channel), in that order; empty when the fit reproduces every channel to within
+        :data:`MISFIT_CHI2`. Checks that need no fit are :func:`check_record`'s.
+
+    Raises
+    ------
+    ValueError
+        The calibration was fitted on another grid than the record's test window.
+    """
+    window = _window(record, calibration)
+    n_channels = max(len(calibration.chi2_per_channel), 1)
+    per_sample = calibration.n_data / n_channels
+    chi2n = {
+        c: calibration.chi2_per_channel[c] / per_sample for c in window.channels if c in calibration.chi2_per_channel
+    }
+    poor = {c: v for c, v in chi2n.items() if v > MISFIT_CHI2}
+    if not poor:
+        return []
+    scale: list[PlausibilityWarning] = []
+    for c, v in poor.items():
+        x = window[c]
+        message = _range_message(record, c, float(np.max(np.abs(x))))
+        if message is None and calibration.simulation is not None:
+            sim = calibration.simulation[CHANNELS.index(c)]
+            s = float(np.dot(x, sim) / np.dot(sim, sim)) if np.dot(sim, sim) > 0 else math.nan
+            if math.isfinite(s) and s > 0 and abs(math.log(s)) > math.log(SCALE_FAR):
+                fits = {
+                    u: r for u, r in unit_suspects(record, c).items() if abs(math.log(s * r)) < math.log(UNIT_MATCH)
+                }
+                noise = float(calibration.sigma[c]) if c in calibration.sigma else 1.0
+                as_read = float(np.sum(((x - sim) / noise) ** 2))
+                scaled = float(np.sum(((x - s * sim) / noise) ** 2))
+                if fits and scaled * EVIDENCE <= as_read:
+                    u = min(fits, key=lambda k: abs(math.log(s * fits[k])))
+                    message = (
+                        f"the model reproduces {c} only scaled: the record is {s:.3g} x the calibrated simulation "
+                        f"(chi2 per sample {v:.3g} as it is): is it in {u} rather than {record.unit(c)}? "
+                        f"If so, {_fix(record, c, u, fits[u])}."
+                    )
+        if message is not None:
+            scale.append(PlausibilityWarning("channel_scale", message, c))
+    timing: list[PlausibilityWarning] = []
+    evidence, a = time_scale_evidence(record, calibration, [c for c in chi2n if c not in {w.channel for w in scale}])
+    if evidence >= EVIDENCE:
+        ts = window.sample_interval
+        pace = "slower" if a < 1 else "faster"
+        timing.append(
+            PlausibilityWarning(
+                "sample_interval",
+                f"the event's dynamics fit {_times(a)} {pace} than the model's: read with a sample interval of "
+                f"{a * ts:.3g} s instead of the declared {ts:.3g} s, the record's first "
+                f"{CalibrationSettings().horizons_ms[0]:g} ms after the event fit the plant "
+                f"{min(evidence, 1e6):.3g} times better; is the sample interval (or the time column) right? "
+                f"If it is, the plant's dynamics are far from the model's.",
+            )
+        )
+    misfit = [
+        PlausibilityWarning(
+            "misfit",
+            f"the calibrated model leaves {v:.3g} noise variances per sample on {c} (noise alone gives about 1): it "
+            f"does not reproduce the record there, and every number fitted to it (the width, its interval) carries "
+            f"model error; check {c}'s unit, the sample interval, the event index and the record's conditions.",
+            c,
+        )
+        for c, v in poor.items()
+    ]
+    out = [*scale, *timing, *misfit]
+    for w in out:
+        logger.info("plausibility: %s", w.message)
+    return out

@@ -1,0 +1,59 @@
+"""The largest magnitude a sample of a record may have: one limit for every plant's record boundary.
+
+A record whose values are absurdly large does not fail loudly further on: squares and sums of
+them overflow to inf, a noise estimate of inf makes every residual zero, and the answer comes out
+confident (issue 50: every value x 1e200 gave ``no_gap`` at confidence 1.0). Such a record is
+refused where it is read, by :func:`require_magnitude`, with a message naming the series, the
+sample and what to check. The drive's :class:`~engine.records.record.Record`, the EMPS reader
+(:mod:`engine.plants.emps.record`) and the BRFD reader (:mod:`engine.plants.brfd.record`) all
+call it, on their values in the engine's units (SI, per unit for the drive's torque).
+"""
+
+from __future__ import annotations
+
+from typing import Final
+
+import numpy as np
+
+from engine.records.errors import RecordError
+
+__all__ = ["MAX_ABS_SAMPLE", "require_magnitude"]
+
+#: Largest accepted magnitude of a sample, in the engine's unit of its series (m/s^2, rad/s, m/s,
+#: pu, m, N, V, s). Physically motivated: no sensor of these plants reads anywhere near it (the
+#: drive's largest channel over its plausible box is about 150 m/s^2; a channel in a wrong unit,
+#: mm/s or deg/s, reaches 1e3-1e4; even raw counts of a 32-bit converter stay below 2.2e9, and
+#: such records are accepted and then get a ``channel_scale`` warning rather than a refusal),
+#: while every computation keeps a margin of more than 200 decades: the square is 1e24, a sum of
+#: squares over a record of 1e7 samples 1e31, a fourth power 1e48 (float64 overflows at 1.8e308).
+#: A limit like 1e150 would not do: its square summed over 2048 samples already overflows.
+MAX_ABS_SAMPLE: Final[float] = 1e12
+
+
+def require_magnitude(values: np.ndarray, what: str, unit: str) -> None:
+    """Refuse a series holding a sample larger in magnitude than :data:`MAX_ABS_SAMPLE`.
+
+    Parameters
+    ----------
+    values : ndarray
+        The samples, finite (check that first), in the engine's unit ``unit``.
+    what : str
+        How the message names the series, e.g. ``"channel 'omega1'"`` or ``"run1: qm"``.
+    unit : str
+        The unit of ``values`` as the message should name it.
+
+    Raises
+    ------
+    RecordError
+        Naming the series, the first offending sample (0-based), its value and what to check.
+    """
+    too_large = np.abs(np.asarray(values, dtype=float)) > MAX_ABS_SAMPLE
+    if not np.any(too_large):
+        return
+    i = int(np.flatnonzero(too_large)[0])
+    value = float(np.asarray(values, dtype=float)[i])
+    raise RecordError(
+        f"{what} holds {value:.3g} {unit} at sample {i}: beyond +-{MAX_ABS_SAMPLE:.0e} {unit}, far more than any "
+        "sensor of the plant reads, and too large to compute with; check the record's units and scaling "
+        "(a wrong exponent, raw counts, a misplaced decimal point)"
+    )
