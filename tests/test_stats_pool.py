@@ -15,6 +15,7 @@ def test_the_pool_weights_by_inverse_variance_against_hand_computed_values() -> 
     two = pooled_estimate([1.0, 3.0], [1.0, 1.0])
     assert two.value == pytest.approx(2.0) and two.stderr == pytest.approx(1 / math.sqrt(2))
     assert two.chi2 == pytest.approx(2.0) and two.dof == 1
+    assert two.birge_ratio == pytest.approx(math.sqrt(2.0))  # sqrt(Q / dof)
     assert two.p_value == pytest.approx(0.157299, abs=1e-6)  # chi-square(1) survival at 2
     assert (two.low, two.high) == pytest.approx((2.0 - 1.959964 / math.sqrt(2), 2.0 + 1.959964 / math.sqrt(2)))
     uneven = pooled_estimate([0.0, 10.0], [1.0, 3.0])  # weights 1 and 1/9

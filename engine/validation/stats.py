@@ -310,6 +310,12 @@ class PooledEstimate:
     dof: int
     p_value: float
 
+    @property
+    def birge_ratio(self) -> float:
+        """``sqrt(chi2 / dof)``: about 1 when the estimates scatter as their standard errors say; well above 1
+        when the stated errors are too small for the scatter (or the estimates measure different quantities)."""
+        return float(np.sqrt(self.chi2 / self.dof))
+
 
 def pooled_estimate(
     values: Sequence[float], stderrs: Sequence[float], confidence: float = CONFIDENCE

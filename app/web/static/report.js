@@ -501,10 +501,10 @@
   }
 
   // What makes the record doubtful for the plant, each with what to check.
-  function renderWarnings(d, box) {
+  function renderWarnings(d, box, id) {
     const warnings = (d.result || {}).warnings || [];
     if (!warnings.length) return;
-    const list = el("ul", "", { class: "warnings", id: "verdict-warnings" });
+    const list = el("ul", "", { class: "warnings", id: id || "verdict-warnings" });
     for (const w of warnings) list.appendChild(el("li", `Check: ${w.message}`));
     box.appendChild(list);
   }
@@ -669,11 +669,16 @@
     const c = a.continuous;
     if (c && c.K !== undefined) {
       const sigma = c.sigma_K !== undefined && c.sigma_K !== null ? ` ± ${mm(c.sigma_K, 2)}` : "";
-      lines.push(`Continuous width: ${mm(c.K, 4)}${sigma} mm${c.reduced_chi2 !== undefined ? ` (fit chi²/n ${num(c.reduced_chi2)})` : ""}.`);
-      if (c.identifiable === false) lines.push(`Not identifiable: ${(c.reasons || []).join("; ")}.`);
+      const range = c.interval_95 ? `, 95 % interval ${mm(c.interval_95[0], 4)}–${mm(c.interval_95[1], 4)} mm` : "";
+      lines.push(`Continuous width: ${mm(c.K, 4)}${sigma} mm${range}${c.reduced_chi2 !== undefined ? ` (fit chi²/n ${num(c.reduced_chi2)})` : ""}.`);
+      if (c.identifiable === false) {
+        const why = c.reason || (c.reasons || []).join("; ");
+        lines.push(`Not identifiable${why ? `: ${why}` : ""}.`);
+      }
     }
     if (a.identification_id) lines.push(`Stored in the drive's history (identification ${a.identification_id}).`);
     box.appendChild(el("p", lines.join(" "), { id: "identification-text" }));
+    renderWarnings({ result: a }, box, "identification-warnings");
     $("identification-section").hidden = false;
   }
 
