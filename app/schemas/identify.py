@@ -158,6 +158,9 @@ class PlantWidthPublic(BaseModel):
     paper: list[dict[str, Any]] | None = Field(
         default=None, description="Per record, the seed's W3/D/argmin width on a grid of six widths."
     )
+    warnings: list[WarningOut] = Field(
+        default_factory=list, description="What to check before acting on the width (e.g. why it is not identifiable)."
+    )
     identification_id: str | None = Field(
         default=None, description="Where the identification of a named asset is stored (its history)."
     )

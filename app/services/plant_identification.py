@@ -49,6 +49,11 @@ def identify_records(plant_name: str, records: list[Any]) -> dict[str, Any]:
         "records": width.records,
         "unit": plant.catalogue[WIDTH_EFFECT].unit,
         "continuous": width.to_dict(),
+        # the answer's doubts, in the shape every identify and diagnose answer has ({code, message, channel})
+        "warnings": [
+            {"code": "not_identifiable", "message": f"the width is not identifiable: {reason}", "channel": None}
+            for reason in width.reasons
+        ],
     }
     if plant_name == "brfd":
         out["paper"] = [_paper(plant, r) for r in records]

@@ -114,6 +114,7 @@ def test_identify_the_width_of_a_brfd_record_over_http(client: httpx.Client) -> 
     assert cont["identifiable"] and cont["interval_95"][0] <= cont["K"] <= cont["interval_95"][1]
     assert set(cont["correlation_with_K"]) == {"Fc", "sigma0"}
     assert body["paper"][0]["width"] in body["paper"][0]["widths"]
+    assert body["warnings"] == []  # an identifiable width: nothing to check
     r = client.post("/v1/identify", json={"plant": "brfd", "record": {**record, "displacement units": "cubits"}})
     assert r.status_code == 422 and "displacement unit 'cubits'" in r.json()["detail"]
 

@@ -110,3 +110,25 @@ def test_the_cli_logs_each_warning(
     logged = [r for r in caplog.records if r.levelno == logging.WARNING and r.name == "app.cli.identify"]
     assert len(logged) == 1 and logged[0].getMessage().startswith("v2: v2 peaks at ")
     assert "is it in mm/s?" in logged[0].getMessage()
+
+
+def test_a_plant_width_that_is_not_identifiable_is_a_warning(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The BRFD's identify answer carries its doubts in the same ``warnings`` list (here: a stubbed fit)."""
+    from app.services import plant_identification
+    from engine.identification.plant_width import WidthFit
+
+    def flat(plant: Any, records: Any, width: str) -> WidthFit:
+        return WidthFit(
+            1e-3, math.nan, (0.0, 6e-3), False, ["the 95 % interval reaches zero width"], ["eq"], [{}], {}, []
+        )
+
+    monkeypatch.setattr(plant_identification, "fit_width", flat)
+    monkeypatch.setattr(plant_identification, "_paper", lambda plant, record: {})
+    out = plant_identification.identify_records("brfd", [object()])
+    assert out["warnings"] == [
+        {
+            "code": "not_identifiable",
+            "message": "the width is not identifiable: the 95 % interval reaches zero width",
+            "channel": None,
+        }
+    ]
