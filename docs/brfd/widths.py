@@ -6,7 +6,8 @@ DIR holds the data set's JSON files (e.g. the full copy in ``../shared/data/brfd
 ships three of them). Prints a Markdown table: per record the width fitted alone with its 95 %
 profile interval, identifiable or why not, the correlation with sigma0 and the force error without
 and with the play; then per series (dataset-1, dataset-2 sinusoidal, dataset-2 earthquakes) the
-joint fit (one width shared) and the spread of the per-record widths.
+joint fit (one width shared), the spread of the per-record widths and their Birge ratio
+(``sqrt(Q / (n - 1))`` of their inverse-variance pool: about 1 when they scatter as their sigmas say).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import numpy as np
 
 from engine.identification.plant_width import fit_width
 from engine.plants import get_plant
+from engine.validation.stats import pooled_estimate
 
 
 def _series(name: str) -> str:
@@ -50,8 +52,9 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(f"{rec.name}: {w.K * 1e3:.2f} mm\n")
     joint = {}
     summary = [
-        "| series | records identifiable | their widths: mean, spread (sd) [mm] | joint fit [mm] | joint interval [mm] |",
-        "| --- | --- | --- | --- | --- |",
+        "| series | records identifiable | their widths: mean, spread (sd) [mm] | Birge ratio of their widths | "
+        "joint fit [mm] | joint interval [mm] |",
+        "| --- | --- | --- | --- | --- | --- |",
     ]
     for series, names in per_series.items():
         ok = [n for n in names if fits[n][1].identifiable]
@@ -67,7 +70,13 @@ def main(argv: list[str] | None = None) -> int:
             + ("identifiable)" if j.identifiable else "not identifiable: " + "; ".join(j.reasons) + ")")
         )
         jint = f"[{j.interval[0] * 1e3:.2f}, {j.interval[1] * 1e3:.2f}]"
-        summary.append(f"| {series} | {len(ok)}/{len(names)} | {spread} | {jtxt} | {jint} |")
+        # do the per-record widths scatter as their stated sigmas say? (issue 50: Birge ratio <= 2)
+        birge = (
+            f"{pooled_estimate([fits[n][1].K for n in ok], [fits[n][1].sigma_K for n in ok]).birge_ratio:.2f}"
+            if len(ok) > 1
+            else "-"
+        )
+        summary.append(f"| {series} | {len(ok)}/{len(names)} | {spread} | {birge} | {jtxt} | {jint} |")
     lines = [
         "| record | tension [lb] | width [mm] | 95 % interval [mm] | identifiable | holds its series' joint width | "
         "corr(K, sigma0) | force error without -> with play [%] | s |",
