@@ -22,9 +22,9 @@ from engine.diagnosis.plausibility import (
 )
 from engine.plants.brfd import record as brfd_record
 from engine.plants.emps import record as emps_record
-from engine.records import Record, RecordError, record_from_data
+from engine.records import Record, RecordError, SampleGrid, record_from_data
 from engine.records.limits import MAX_ABS_SAMPLE
-from engine.simulation import PlantParameters, simulate, simulate_batch
+from engine.simulation import CATALOGUE, PlantParameters, simulate, simulate_batch
 from engine.simulation.noise import noise_std
 
 TRUTH = PlantParameters(K=0.0063, J1=0.845, c=1.22)
@@ -55,6 +55,13 @@ def unchecked(record: Record, scale: float) -> Record:
 @pytest.fixture(scope="module")
 def clean() -> Record:
     return noisy(simulate(TRUTH))
+
+
+@pytest.fixture(scope="module")
+def long_clean() -> Record:
+    """``clean``'s plant sampled at 0.1 ms for 48 ms before the event and 2 s after it: 10x the test window, so that
+    it can be declared at 10 us (0.1x its interval) and still cover the window."""
+    return noisy(simulate(TRUTH, grid=SampleGrid.around_event(1e-4, 48e-3, 2.0)), seed=3)
 
 
 @pytest.fixture(scope="module")
@@ -157,6 +164,50 @@ def test_check_record_names_the_unit_of_a_channel_out_of_range(clean: Record) ->
     assert (w.code, w.channel) == ("constant_channel", "v2") and "0.25 m/s" in w.message
 
 
+def test_the_load_rise_time_is_a_time_of_the_signal_not_of_its_grid_or_unit(clean: Record) -> None:
+    v2 = clean["v2"]
+    t = plausibility.rise_time(v2, 1e-4)
+    lo, hi = plausibility.rise_envelope()["v2"]
+    assert 1e-3 < lo <= t <= hi < 6e-3  # ms: the load's motion, far slower than a sample
+    assert plausibility.rise_time(3.6 * v2 + 0.4, 1e-4) == pytest.approx(t, rel=1e-6)  # unit, gain and offset
+    assert plausibility.rise_time(v2, 1e-3) == pytest.approx(10 * t, rel=1e-6)  # the same samples, 10x slower
+    coarse = simulate(TRUTH, grid=SampleGrid.protocol(1e-3))["v2"]  # the plant sampled at 1 ms
+    assert plausibility.rise_time(coarse, 1e-3) == pytest.approx(t, rel=0.1)
+    assert math.isnan(plausibility.rise_time(np.full(100, 0.3), 1e-4))
+
+
+def test_check_record_suspects_a_sample_interval_10x_wrong_without_a_fit(long_clean: Record) -> None:
+    assert check_record(long_clean) == []
+    slow = check_record(long_clean.replace(sample_interval=1e-3))  # the issue's CSV: 1 ms declared for 0.1 ms
+    assert codes(slow) == [("sample_interval", None)]
+    assert "looks 10x slower than the plant's" in slow[0].message
+    assert "0.0001 s instead of the declared 0.001 s" in slow[0].message
+    assert "is the sample interval (or the time column) right?" in slow[0].message
+    fast = check_record(long_clean.replace(sample_interval=1e-5))  # 0.1x: 10 us declared for 0.1 ms
+    assert codes(fast) == [("sample_interval", None)]
+    assert "10x faster" in fast[0].message and "0.0001 s instead of the declared 1e-05 s" in fast[0].message
+    # each witness of the load's motion alone (as identify checks the channel it identifies)
+    for channel in ("v2", "a2"):
+        alone = long_clean.replace(channels={channel: long_clean[channel]})
+        assert check_record(alone) == []
+        for declared in (1e-3, 1e-5):
+            assert codes(check_record(alone.replace(sample_interval=declared))) == [("sample_interval", None)]
+    # the motor side is not read (its time scales are the contact's and the switch-off's): the fit's check is its witness
+    omega1 = long_clean.replace(channels={"omega1": long_clean["omega1"]}, sample_interval=1e-3)
+    assert check_record(omega1) == []
+
+
+def test_catalogued_effects_at_their_bounds_are_not_a_sample_interval() -> None:
+    """The load's effects that move its time scale most, each at the bound that moves it most (module docstring)."""
+    effects = [{"resilient_stiffness": 0.5}, {"absorber_discontinuity": 3.0}, {"load_inertia": 2.0}]
+    for name in ("contact_stiffness", "resilient_stiffness", "load_inertia"):
+        effects.append({name: CATALOGUE[name].bounds[1]})
+    corner = PlantParameters(K=0.015, J1=1.2, c=0.5, c1=0.6)
+    sims = simulate_batch([corner] * len(effects), effects)
+    for i, effect in enumerate(effects):
+        assert "sample_interval" not in {w.code for w in check_record(noisy(sims.record(i), seed=i))}, effect
+
+
 def test_warnings_are_json_ready_and_merged_without_repeats() -> None:
     a = PlausibilityWarning("misfit", "x", "a1")
     assert a.to_dict() == {"code": "misfit", "message": "x", "channel": "a1"}
@@ -207,7 +258,8 @@ def test_the_fits_scale_names_the_unit_when_the_range_does_not(clean: Record, mo
 
 def test_a_sample_interval_10x_too_long(slow_fit: tuple[Record, CalibrationResult]) -> None:
     rec, cal = slow_fit
-    assert check_record(rec) == []  # its values are the plant's: only its dynamics give it away
+    # its values are the plant's: only its dynamics give it away, the load's rise time already without a fit
+    assert codes(check_record(rec)) == [("sample_interval", None)]
     warnings = check_calibration(rec, cal)
     assert codes(warnings)[0] == ("sample_interval", None)
     assert "10x slower" in warnings[0].message and "0.0001 s instead of the declared 0.001 s" in warnings[0].message

@@ -14,6 +14,23 @@ boundary refuses what no computation survives, :mod:`engine.records.limits`).
   - ``channel_scale``: a channel whose peak lies more than :data:`RANGE_MARGIN` times outside
     the range of peaks the plant produces over its plausible box (:func:`peak_envelope`); when a
     unit mistake (:func:`unit_suspects`) brings it into that range, the message names the unit.
+  - ``sample_interval``: the load's motion (v2, and a2 integrated: :data:`TIME_CHANNELS`) has a rise
+    time (:func:`rise_time`: the shortest time it takes to cover 15-25 % of its range) more than
+    :data:`TIME_MARGIN` times outside the range the plant produces over its plausible box
+    (:func:`rise_envelope`, from the same cached simulations, in seconds so that any grid compares),
+    and the record read with its interval multiplied by a factor of :data:`TIME_FACTORS` brings it back
+    within that margin (the issue's CSV with 1 ms declared for 0.1 ms samples, which a record without a
+    fit used to pass). Measured (``check_record`` on noiseless records and with white or coloured noise
+    at 30 and 40 dB; each count per noise level): no warning on 446 records with one catalogued effect
+    at each of its bounds at the box's 16 corners (worst: 1.6x outside the box's range), on 846 with two
+    effects at their bounds at 6 corners (worst 2.1x), on the box's 80 cases rendered at 1 ms and at
+    10 us (1.08x), and on the 30 blind records of ``out/dev-width-seed233`` (27 with v2: 1.16x). Read at
+    10x or 0.1x its interval, a record of 32 box points warns in 32 of 32 cases (v2 alone, a2 alone or
+    all five channels; 30 and 40 dB), and the reading named includes the true one; at 5x too long in 32 of
+    32, at 5x too short in 12-14 of 32, at 2x in none. a1, m_el and omega1 are not read (see
+    :data:`TIME_CHANNELS`): on their own they never warn. v2 alone at 20 dB (outside the blind runs'
+    30-50 dB) warns on 10 of 446 effect records (noise read as fast motion; 0 at 25 dB); a2 integrated
+    and a record with both do not (the two must agree).
 
 * :func:`check_calibration` reads a calibration of the record (its residuals and simulation):
 
@@ -24,7 +41,8 @@ boundary refuses what no computation survives, :mod:`engine.records.limits`).
     :data:`EVIDENCE` times better) and matches a unit mistake within :data:`UNIT_MATCH`.
   - ``sample_interval``: the fit is poor and the record, read with its sample interval multiplied
     by one of :data:`TIME_FACTORS`, fits the plant :data:`EVIDENCE` times better
-    (:func:`time_scale_evidence`, a few dozen short simulations, run only on a poor fit).
+    (:func:`time_scale_evidence`, a few dozen short simulations, run only on a poor fit): the
+    witness of the motor-side channels, which :func:`check_record` cannot read.
   - ``misfit``: chi2 per sample of a channel above :data:`MISFIT_CHI2`: the model does not
     reproduce the record there and numbers fitted to it carry model error.
 
@@ -33,7 +51,9 @@ Where they fail: a plant with a large unmodelled effect can move a channel's pea
 box's range (a contact 10x stiffer raises a1's by 3.7x, the most of any catalogued effect,
 measured at the catalogue's bounds) and, on one channel, can look like a time scale (a load
 inertia 2x fits omega1 read at half the interval 49x better); the messages therefore say what
-else the finding may mean.
+else the finding may mean. The load's rise time tells a wrong interval only by a factor of about 5 or
+more, and not which of two neighbouring factors (the box's range is 2.8x wide): the warning names every
+reading that brings it inside.
 """
 
 from __future__ import annotations
@@ -49,10 +69,10 @@ from typing import Any, Final
 import numpy as np
 from scipy.stats import qmc
 
-from engine.constants import CHANNELS, MAX_SAMPLE_INTERVAL, MIN_SAMPLE_INTERVAL
+from engine.constants import CHANNELS, MAX_SAMPLE_INTERVAL, MIN_SAMPLE_INTERVAL, SAMPLE_INTERVAL
 from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings
 from engine.diagnosis.space import DEFAULT_BOUNDS, default_space
-from engine.records import PROTOCOL_GRID, Record, SampleGrid
+from engine.records import PROTOCOL_GRID, GridError, Record, SampleGrid
 from engine.records.units import UNITS, UnitError, factor
 from engine.simulation import Case, PlantParameters, SolverSettings, run_cases
 
@@ -64,8 +84,12 @@ __all__ = [
     "MISFIT_CHI2",
     "OTHER_UNITS",
     "RANGE_MARGIN",
+    "RISE_FRACTIONS",
+    "RISE_RESOLUTION",
     "SCALE_FAR",
+    "TIME_CHANNELS",
     "TIME_FACTORS",
+    "TIME_MARGIN",
     "TIME_POINTS",
     "UNIT_MATCH",
     "PlausibilityWarning",
@@ -73,6 +97,8 @@ __all__ = [
     "check_record",
     "merge_warnings",
     "peak_envelope",
+    "rise_envelope",
+    "rise_time",
     "time_scale_evidence",
     "unit_suspects",
 ]
@@ -118,6 +144,33 @@ TIME_POINTS: Final[int] = 16
 #: :func:`peak_envelope` [-]: the corners alone miss the lowest peaks (a1 24.9 inside, 27.8 at the
 #: corners); 64 points come within a few % of 256.
 ENVELOPE_POINTS: Final[int] = 64
+#: Channels whose time scale :func:`check_record` compares with the plant's without a fit: the load's speed v2
+#: and its acceleration a2 (integrated over the test window, it is v2 but for a constant). The load's motion over
+#: the test window is set by the resilient element, the load's inertia and the absorber; no instant in it is
+#: sharp (no impact, no switch-off step), so its time scale is the plant's and not the sampling's. The motor side
+#: moves by impacts whose duration a contact 10x stiffer or softer changes by 3.2x, and the switch-off makes a1
+#: and m_el jump within one sample at any interval: their time scales say nothing a catalogued effect cannot
+#: also say. Measured with :func:`rise_time` (30 dB, the box's range from its noiseless cases): a1's and m_el's
+#: rise times are the switch-off's jump (box 0.03-0.95 and 0.01-0.70 ms) and a record read at 10x or 0.1x its
+#: interval stays inside; omega1 read at 10x or 0.1x lies at most 2.0x outside in the median, while a speed
+#: quantisation at its bound puts it 9.4x outside.
+TIME_CHANNELS: Final[tuple[str, ...]] = ("a2", "v2")
+#: Fractions of a channel's range whose fastest rise times make its time scale (:func:`rise_time`, their
+#: geometric mean) [-]: small enough to be local (the time of the steepest stretch, not of the window: a fraction
+#: near the height of a first small hump makes the time jump to a later, larger one, as 0.3-0.35 does with a
+#: softer resilient element), large enough that noise at 20-30 dB does not reach it by itself.
+RISE_FRACTIONS: Final[tuple[float, ...]] = (0.15, 0.2, 0.25)
+#: Finest time step at which :func:`rise_time` reads a channel [s] (MODEL.md's interval, the envelope's grid):
+#: a record on a finer grid is averaged over blocks of this length first, so that a 10 us record is as noisy,
+#: per step, as one at 0.1 ms and its rise times are comparable with the envelope's.
+RISE_RESOLUTION: Final[float] = SAMPLE_INTERVAL
+#: How far outside the range of rise times the plant produces over its plausible box (:func:`rise_envelope`) a
+#: channel's rise time must lie, as a factor, before :func:`check_record` tries the readings of
+#: :data:`TIME_FACTORS` [-]; a reading brings it back when it lies within the same factor of the range. Measured
+#: (module docstring): one catalogued effect at its bound moves the load's rise time at most 1.6x outside the
+#: box's range, two at their bounds at most 2.1x; a record read at 10x or 0.1x its interval lies 3.8x or more
+#: outside, at 5x 2.9x or more (at 0.2x 1.8x or more).
+TIME_MARGIN: Final[float] = 2.5
 #: Units a channel is often given in by mistake beside the accepted ones
 #: (:data:`engine.records.units.UNITS`): channel -> unit -> factor to the model unit.
 OTHER_UNITS: Final[dict[str, dict[str, float]]] = {
@@ -129,6 +182,15 @@ OTHER_UNITS: Final[dict[str, dict[str, float]]] = {
 }
 #: Relative slack of a time-scaled interval against the accepted range (as :mod:`engine.records.grid`).
 _SLACK = 1e-9
+#: Ratio between successive lags of :func:`rise_time` [-] (its times are interpolated between them).
+_LAG_RATIO = 1.06
+#: Share of a channel's samples left out at each end of its range in :func:`rise_time` [-]: a noise spike does not
+#: set the range.
+_RANGE_QUANTILE = 0.005
+#: What to ask when a record's dynamics point at another sample interval (both checks of ``sample_interval``).
+_INTERVAL_QUESTION = (
+    "is the sample interval (or the time column) right? If it is, the plant's dynamics are far from the model's."
+)
 
 
 @dataclass(frozen=True)
@@ -167,18 +229,11 @@ def merge_warnings(*groups: Iterable[PlausibilityWarning]) -> list[PlausibilityW
 
 # -- the plant's range ----------------------------------------------------------------------------
 @functools.lru_cache(maxsize=1)
-def peak_envelope() -> dict[str, tuple[float, float]]:
-    """Smallest and largest peak ``max |x|`` of each channel over the plausible box, in model units.
+def _box_records() -> np.ndarray:
+    """The channels of the plausible box's cases on MODEL.md's grid, shape (cases, 5, 2048) (failed cases left out).
 
-    The box is the calibration's (:data:`engine.diagnosis.space.DEFAULT_BOUNDS`: K, J1, c, c1),
-    its 16 corners and :data:`ENVELOPE_POINTS` scrambled Sobol points, simulated once per process
-    on MODEL.md's grid (the test window; the peaks barely depend on the interval: within 2 % from
-    10 us to 1 ms, measured) with the nominal sensors.
-
-    Returns
-    -------
-    dict of str to (float, float)
-        Channel -> (lowest peak, highest peak) [model unit].
+    The box is the calibration's (:data:`engine.diagnosis.space.DEFAULT_BOUNDS`: K, J1, c, c1), its 16 corners
+    and :data:`ENVELOPE_POINTS` scrambled Sobol points, simulated once per process with the nominal sensors.
     """
     names = list(DEFAULT_BOUNDS)
     lo = np.array([DEFAULT_BOUNDS[n][0] for n in names])
@@ -190,9 +245,119 @@ def peak_envelope() -> dict[str, tuple[float, float]]:
         for u in np.vstack([corners, sobol])
     ]
     channels, _, status = run_cases(cases, SolverSettings(max_step=CalibrationSettings().search_step), PROTOCOL_GRID)
-    peaks = np.max(np.abs(channels[status == 0]), axis=2)
-    logger.debug("peak envelope from %d of %d cases of the plausible box", peaks.shape[0], len(cases))
+    logger.debug("plausible box: %d of %d cases simulated", int(np.sum(status == 0)), len(cases))
+    out = channels[status == 0]
+    out.setflags(write=False)
+    return out
+
+
+@functools.lru_cache(maxsize=1)
+def peak_envelope() -> dict[str, tuple[float, float]]:
+    """Smallest and largest peak ``max |x|`` of each channel over the plausible box, in model units.
+
+    The box's cases (:func:`_box_records`: its 16 corners and :data:`ENVELOPE_POINTS` scrambled Sobol
+    points of K, J1, c, c1) are simulated once per process on MODEL.md's grid (the test window; the peaks
+    barely depend on the interval: within 2 % from 10 us to 1 ms, measured) with the nominal sensors.
+
+    Returns
+    -------
+    dict of str to (float, float)
+        Channel -> (lowest peak, highest peak) [model unit].
+    """
+    peaks = np.max(np.abs(_box_records()), axis=2)
     return {c: (float(peaks[:, j].min()), float(peaks[:, j].max())) for j, c in enumerate(CHANNELS)}
+
+
+def _load_motion(channel: str, x: np.ndarray, sample_interval: float) -> np.ndarray:
+    """The samples whose rise time is read: v2 as it is, a2 integrated over the samples given (v2 but for a constant)."""
+    x = np.asarray(x, dtype=float)
+    return np.cumsum(x) * sample_interval if channel == "a2" else x
+
+
+def rise_time(x: np.ndarray, sample_interval: float) -> float:
+    """The time a signal takes, at its fastest, to cover a fifth of its range [s] (NaN when it never does).
+
+    For each fraction ``q`` of :data:`RISE_FRACTIONS`, the shortest span ``h`` over which the straight line fitted
+    (least squares) to the samples of some stretch of length ``h`` rises or falls by ``q`` of the signal's range
+    (its :data:`_RANGE_QUANTILE` to ``1 - _RANGE_QUANTILE`` quantiles), interpolated between lags
+    :data:`_LAG_RATIO` apart; the result is their geometric mean. A record on a grid finer than
+    :data:`RISE_RESOLUTION` is first averaged over blocks of that length. A time of the signal's own shape: in
+    seconds, whatever the grid, the unit, a gain or an offset; noise at 20 dB barely moves it (the line's fit
+    averages it, and the fractions are far above it).
+
+    Parameters
+    ----------
+    x : ndarray
+        The samples (e.g. a channel over the test window; :func:`check_record` reads v2 and a2 integrated).
+    sample_interval : float
+        Their interval [s].
+
+    Returns
+    -------
+    float
+        The geometric mean over :data:`RISE_FRACTIONS` of the shortest rise times [s]; NaN for a constant
+        signal, fewer than 3 samples, or a fraction never reached.
+    """
+    x = np.asarray(x, dtype=float)
+    ts = float(sample_interval)
+    block = int(RISE_RESOLUTION / ts * (1.0 + _SLACK))
+    if block > 1:
+        n_blocks = x.size // block
+        x = x[: n_blocks * block].reshape(n_blocks, block).mean(axis=1)
+        ts *= block
+    n = x.size
+    if n < 3:
+        return math.nan
+    low, high = np.quantile(x, [_RANGE_QUANTILE, 1.0 - _RANGE_QUANTILE])
+    span = float(high - low)
+    if not (math.isfinite(span) and span > 0.0):
+        return math.nan
+    x = (x - float(np.mean(x))) / span
+    k = np.arange(n, dtype=float)
+    s0 = np.concatenate(([0.0], np.cumsum(x)))
+    s1 = np.concatenate(([0.0], np.cumsum(k * x)))
+    n_lags = math.ceil(math.log(n - 1) / math.log(_LAG_RATIO)) + 1
+    lags = np.unique(np.round(np.geomspace(1, n - 1, n_lags)).astype(int))
+    fractions = sorted(RISE_FRACTIONS)
+    times: list[float] = []
+    prev_h, prev_m = 0, 0.0
+    for h in lags:
+        t = np.arange(n - h)
+        total = s0[t + h + 1] - s0[t]
+        moment = s1[t + h + 1] - s1[t]
+        # least-squares slope over samples t .. t+h, times h: the line's rise over the stretch
+        rise = (moment - (t + h / 2.0) * total) * (12.0 / ((h + 1) * (h + 2)))
+        m = float(np.max(np.abs(rise)))
+        while len(times) < len(fractions) and m >= fractions[len(times)]:
+            q = fractions[len(times)]
+            times.append((prev_h + (q - prev_m) / (m - prev_m) * (h - prev_h)) * ts)
+        if len(times) == len(fractions):
+            return float(np.exp(np.mean(np.log(times))))
+        prev_h, prev_m = int(h), m
+    return math.nan
+
+
+@functools.lru_cache(maxsize=1)
+def rise_envelope() -> dict[str, tuple[float, float]]:
+    """Shortest and longest :func:`rise_time` of each of :data:`TIME_CHANNELS` over the plausible box [s].
+
+    Read over the test window of the box's cases (:func:`_box_records`, the same simulations as
+    :func:`peak_envelope`; in seconds, so that a record on any accepted grid compares with them: the box's
+    cases rendered at 1 ms and at 10 us lie within this range noiseless, within 8 % of it at 30 dB, measured).
+
+    Returns
+    -------
+    dict of str to (float, float)
+        Channel -> (shortest, longest) rise time [s].
+    """
+    ts = PROTOCOL_GRID.sample_interval
+    out = {}
+    for c in TIME_CHANNELS:
+        j = CHANNELS.index(c)
+        times = np.array([rise_time(_load_motion(c, x[j], ts), ts) for x in _box_records()])
+        times = times[np.isfinite(times)]
+        out[c] = (float(times.min()), float(times.max()))
+    return out
 
 
 def unit_suspects(record: Record, channel: str) -> dict[str, float]:
@@ -264,9 +429,101 @@ def _range_message(record: Record, channel: str, peak: float) -> str | None:
     return f"{head}: check its unit, the sensor's gain and the record's scaling."
 
 
+# -- the sample interval --------------------------------------------------------------------------
+def _factors(sample_interval: float) -> list[float]:
+    """The factors of :data:`TIME_FACTORS` that give an accepted interval (10 us to 1 ms) from ``sample_interval``."""
+    return [
+        a
+        for a in TIME_FACTORS
+        if MIN_SAMPLE_INTERVAL * (1 - _SLACK) <= a * sample_interval <= MAX_SAMPLE_INTERVAL * (1 + _SLACK)
+    ]
+
+
+def _times(a: float) -> str:
+    """``10x`` for 10 or 0.1, ``2x`` for 2 or 0.5."""
+    return f"{max(a, 1.0 / a):g}x"
+
+
+def _pace(*factors: float) -> str:
+    """How the record's dynamics compare with the plant's when it fits read at ``factors`` times its interval."""
+    ordered = sorted(factors, key=lambda a: abs(math.log(a)))
+    return f"{' or '.join(_times(a) for a in ordered)} {'slower' if ordered[0] < 1 else 'faster'}"
+
+
+def _read_at(sample_interval: float, *factors: float) -> str:
+    """The reading with the interval multiplied by one of ``factors``, as the messages say it."""
+    ordered = sorted(factors, key=lambda a: abs(math.log(a)))
+    intervals = " or ".join(f"{a * sample_interval:.3g}" for a in ordered)
+    return f"read with a sample interval of {intervals} s instead of the declared {sample_interval:.3g} s"
+
+
+def _rise_times(record: Record, sample_interval: float, channels: Collection[str]) -> dict[str, float]:
+    """:func:`rise_time` of the record's ``channels`` over the test window, read at ``sample_interval``.
+
+    Empty when the record read at that interval does not cover the test window (or the interval is not accepted).
+    """
+    try:
+        window = SampleGrid(sample_interval, record.n_samples, record.event_index).window()
+    except GridError:
+        return {}
+    return {c: rise_time(_load_motion(c, record[c][window], sample_interval), sample_interval) for c in channels}
+
+
+def _outside(channel: str, time: float) -> float:
+    """How many times outside the plant's range of rise times (:func:`rise_envelope`) ``time`` lies (1 within it)."""
+    lo, hi = rise_envelope()[channel]
+    return max(lo / time, time / hi, 1.0) if math.isfinite(time) and time > 0 else math.nan
+
+
+def _interval_warning(record: Record, skip: Collection[str] = ()) -> PlausibilityWarning | None:
+    """``sample_interval`` when the load's rise times lie far outside the plant's and another reading brings them back.
+
+    The record's :data:`TIME_CHANNELS` (v2, a2 integrated: two witnesses of one motion, which must agree) must
+    each have a rise time more than :data:`TIME_MARGIN` times outside the range the plant produces
+    (:func:`rise_envelope`); each is then read again with its interval multiplied by each factor of
+    :data:`TIME_FACTORS` (its test window at that interval; a reading that does not cover it is skipped), and
+    some reading must bring it within :data:`TIME_MARGIN` of the range. The warning names the readings that
+    bring it inside the range (two neighbouring factors often do: the range is 2.8x wide), or the nearest one:
+    those both channels agree on, else those of the farther one. Channels in ``skip`` (e.g. constant ones) are
+    not read.
+    """
+    ts = record.sample_interval
+    channels = [c for c in TIME_CHANNELS if c in record.channels and c not in skip]
+    declared = {c: t for c, t in _rise_times(record, ts, channels).items() if math.isfinite(_outside(c, t))}
+    if not declared or any(_outside(c, t) <= TIME_MARGIN for c, t in declared.items()):
+        return None
+    if len({t > rise_envelope()[c][1] for c, t in declared.items()}) > 1:
+        return None  # one witness too slow, the other too fast: not a sample interval
+    readings = {a: _rise_times(record, a * ts, list(declared)) for a in _factors(ts)}
+    suspects: dict[str, list[float]] = {}
+    for c in declared:
+        outside = {a: _outside(c, times[c]) for a, times in readings.items() if c in times}
+        outside = {a: v for a, v in outside.items() if math.isfinite(v)}
+        if not outside or min(outside.values()) > TIME_MARGIN:
+            return None
+        suspects[c] = [a for a, v in outside.items() if v <= 1.0] or [min(outside, key=outside.__getitem__)]
+    farthest = max(suspects, key=lambda c: _outside(c, declared[c]))
+    factors = [a for a in suspects[farthest] if all(a in fs for fs in suspects.values())] or suspects[farthest]
+    lo, hi = rise_envelope()[farthest]
+    longer = "longer than the plant's longest" if declared[farthest] > hi else "shorter than the plant's shortest"
+    on = " and ".join(
+        f"{declared[c] * 1e3:.3g} ms on {'a2 integrated' if c == 'a2' else c}" for c in TIME_CHANNELS if c in suspects
+    )
+    fixed = " or ".join(f"{readings[a][farthest] * 1e3:.2g}" for a in sorted(factors, key=lambda a: abs(math.log(a))))
+    fractions = f"{min(RISE_FRACTIONS) * 100:g}-{max(RISE_FRACTIONS) * 100:g} %"
+    return PlausibilityWarning(
+        "sample_interval",
+        f"the load's motion looks {_pace(*factors)} than the plant's: its rise time (the shortest time to cover "
+        f"{fractions} of its range) is {on}, {_outside(farthest, declared[farthest]):.2g}x {longer} over its "
+        f"plausible box of K, J1, c, c1 ({lo * 1e3:.2g}-{hi * 1e3:.2g} ms); {_read_at(ts, *factors)}, it is "
+        f"{fixed} ms, within that range; {_INTERVAL_QUESTION}",
+    )
+
+
 # -- checks without a fit -------------------------------------------------------------------------
 def check_record(record: Record) -> list[PlausibilityWarning]:
-    """Warnings about a record that need no calibration: constant channels, channels out of the plant's range.
+    """Warnings about a record that need no calibration: constant channels, channels out of the plant's range,
+    a sample interval the load's motion contradicts.
 
     Parameters
     ----------
@@ -276,7 +533,8 @@ def check_record(record: Record) -> list[PlausibilityWarning]:
     Returns
     -------
     list of PlausibilityWarning
-        ``constant_channel`` and ``channel_scale`` warnings, in channel order; empty when none.
+        ``constant_channel`` and ``channel_scale`` warnings, in channel order, then at most one
+        ``sample_interval`` (:data:`TIME_CHANNELS`' rise times, :func:`rise_time`); empty when none.
     """
     window, _ = record.test_window()
     out = []
@@ -295,6 +553,9 @@ def check_record(record: Record) -> list[PlausibilityWarning]:
         message = _range_message(record, c, float(np.max(np.abs(x))))
         if message is not None:
             out.append(PlausibilityWarning("channel_scale", message, c))
+    timing = _interval_warning(record, skip={w.channel for w in out if w.code == "constant_channel" and w.channel})
+    if timing is not None:
+        out.append(timing)
     for w in out:
         logger.info("plausibility: %s", w.message)
     return out
@@ -357,9 +618,7 @@ def time_scale_evidence(
     solver = SolverSettings(max_step=settings.search_step)
     horizon = settings.horizons_ms[0] * 1e-3
     ts, n, e = window.sample_interval, window.n_samples, window.event_index
-    factors = [
-        a for a in TIME_FACTORS if MIN_SAMPLE_INTERVAL * (1 - _SLACK) <= a * ts <= MAX_SAMPLE_INTERVAL * (1 + _SLACK)
-    ]
+    factors = _factors(ts)
     if not factors:
         return 0.0, 1.0
     first = {a: min(n, e + max(1, round(horizon / (a * ts)))) for a in factors}
@@ -381,11 +640,6 @@ def time_scale_evidence(
         if evidence > best[0]:
             best = (evidence, a)
     return best
-
-
-def _times(a: float) -> str:
-    """``10x`` for 10 or 0.1, ``2x`` for 2 or 0.5."""
-    return f"{max(a, 1.0 / a):g}x"
 
 
 def check_calibration(record: Record, calibration: CalibrationResult) -> list[PlausibilityWarning]:
@@ -446,16 +700,12 @@ def check_calibration(record: Record, calibration: CalibrationResult) -> list[Pl
     timing: list[PlausibilityWarning] = []
     evidence, a = time_scale_evidence(record, calibration, [c for c in chi2n if c not in {w.channel for w in scale}])
     if evidence >= EVIDENCE:
-        ts = window.sample_interval
-        pace = "slower" if a < 1 else "faster"
         timing.append(
             PlausibilityWarning(
                 "sample_interval",
-                f"the event's dynamics fit {_times(a)} {pace} than the model's: read with a sample interval of "
-                f"{a * ts:.3g} s instead of the declared {ts:.3g} s, the record's first "
-                f"{CalibrationSettings().horizons_ms[0]:g} ms after the event fit the plant "
-                f"{min(evidence, 1e6):.3g} times better; is the sample interval (or the time column) right? "
-                f"If it is, the plant's dynamics are far from the model's.",
+                f"the event's dynamics fit {_pace(a)} than the model's: {_read_at(window.sample_interval, a)}, "
+                f"the record's first {CalibrationSettings().horizons_ms[0]:g} ms after the event fit the plant "
+                f"{min(evidence, 1e6):.3g} times better; {_INTERVAL_QUESTION}",
             )
         )
     misfit = [

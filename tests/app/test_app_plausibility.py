@@ -79,6 +79,18 @@ def test_omega1_in_rpm_gets_a_channel_scale_warning(
     assert res["warnings"] == []
 
 
+def test_a_sample_interval_10x_too_long_is_suspected_without_the_continuous_width(
+    client: httpx.Client, trained_set: dict[str, Any], sim_record: dict[str, Any]
+) -> None:
+    """The issue's CSV: 0.1 ms samples declared at 1 ms. Without a fit, the load's rise time gives it away."""
+    slow = {**sim_record, "sample_interval": 10 * sim_record["sample_interval"]}
+    r = client.post("/v1/identify", json={"record": slow, "channel": "v2", "any_set": True})
+    assert r.status_code == 200, r.text
+    warnings = r.json()["warnings"]
+    assert [(w["code"], w["channel"]) for w in warnings] == [("sample_interval", None)]
+    assert "10x slower" in warnings[0]["message"] and "is the sample interval" in warnings[0]["message"]
+
+
 def test_the_cli_logs_each_warning(
     monkeypatch: pytest.MonkeyPatch,
     tmp_path: Path,
