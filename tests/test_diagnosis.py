@@ -92,7 +92,7 @@ def test_result_is_json_ready_in_the_shape_of_issue_4(rotor_case):
     assert len(d["candidates"]) == len(CATALOGUE)
     # where the time went: the stages that ran, in order, within the diagnosis's wall time
     names = [x["stage"] for x in d["stages"]]
-    assert names[0] == "nominal calibration" and names[-2:] == ["decision", "gap after the fix"]
+    assert names[0] == "nominal calibration" and names[-3:] == ["decision", "plausibility", "gap after the fix"]
     assert all(x["seconds"] >= 0 for x in d["stages"]) and sum(x["seconds"] for x in d["stages"]) <= d["seconds"]
 
 

@@ -158,7 +158,7 @@ class DiagnosisResult:
         Where the time went: ``{"stage", "seconds"}`` per stage of the work, in order (the nominal
         calibration, the single candidates, the early escalation, the first pairs, the first
         triples, the first exchange, the singles' escalation, the sets of up to three, the
-        decision, the gap after the fix or the locus, the identification), each that ran; wall
+        decision, the plausibility checks, the gap after the fix or the locus, the identification), each that ran; wall
         times [s].
     """
 
