@@ -7,6 +7,7 @@ warnings do not depend on either.
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -72,3 +73,31 @@ def test_values_that_would_overflow_are_refused(clean: Record) -> None:
     channels = {k: (v * 1e200).tolist() for k, v in clean.channels.items()}
     with pytest.raises(RecordError, match=r"a1.*sample"):
         Record.from_dict({"channels": channels, "event_index": clean.event_index})
+
+
+def test_a_reading_that_no_longer_covers_the_test_window_is_skipped(clean: Record) -> None:
+    """Seed-239 case0072: read at 0.1 Ts, a 2048-sample record at 0.1 ms covers 20 ms; a calibrated case with a
+    sensor effect reads the test window, so that reading must be skipped, not raise (it failed a blind diagnosis)."""
+    from engine.diagnosis.calibration import calibrate
+    from engine.diagnosis.plausibility import time_scale_evidence
+    from engine.diagnosis.space import default_space
+
+    rec = bench(dict(clean.channels))
+    window, _ = rec.test_window()
+    cal = calibrate(window, default_space(window).with_effect(CATALOGUE["sensor_offset"]))
+    evidence, factor = time_scale_evidence(window, cal)
+    assert math.isfinite(evidence) and evidence >= 0.0 and factor > 0
+
+
+def test_the_diagnosis_stands_when_a_check_fails(clean: Record, monkeypatch: pytest.MonkeyPatch) -> None:
+    import importlib
+
+    module = importlib.import_module("engine.diagnosis.diagnose")
+
+    def broken(record: Record, calibration: object) -> list:
+        raise ValueError("no reading")
+
+    monkeypatch.setattr(module, "check_calibration", broken)
+    res = diagnose(bench(dict(clean.channels)), LIBRARY, SETTINGS)
+    assert res.verdict.status == "no_gap"
+    assert [w["code"] for w in res.warnings] == ["checks_failed"] and "no reading" in res.warnings[0]["message"]

@@ -125,7 +125,7 @@ from engine.diagnosis.decision import (
 )
 from engine.diagnosis.gap import gap_of
 from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, localise
-from engine.diagnosis.plausibility import check_calibration, check_record, merge_warnings
+from engine.diagnosis.plausibility import PlausibilityWarning, check_calibration, check_record, merge_warnings
 from engine.diagnosis.result import DiagnosisResult, Verdict
 from engine.diagnosis.sets import search_sets
 from engine.diagnosis.settings import NOMINAL_CALIBRATION as NOMINAL_CALIBRATION
@@ -306,7 +306,11 @@ def _diagnose(
     )
     stage("decision")
     # what the plant cannot produce, judged on the model the answer ends with (a named effect's misfit is no warning)
-    warnings = merge_warnings(check_record(record), check_calibration(record, final))
+    try:
+        warnings = merge_warnings(check_record(record), check_calibration(record, final))
+    except (ValueError, RuntimeError) as exc:  # the answer stands without the checks; say they did not run
+        logger.warning("plausibility checks failed: %s", exc)
+        warnings = [PlausibilityWarning("checks_failed", f"the plausibility checks could not run ({exc})")]
     for w in warnings:
         logger.warning("%s", w.message)
     stage("plausibility")
