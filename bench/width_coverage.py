@@ -44,7 +44,11 @@ def main(argv: list[str] | None = None) -> int:
     rows = coverage(truths)
     sys.stdout.write(coverage_markdown(rows, source))
     if args.json:
-        payload = {"source": source, "rows": [{**asdict(r), "wilson_95": list(r.interval)} for r in rows]}
+        clean = [{k: (None if isinstance(v, float) and v != v else v) for k, v in asdict(r).items()} for r in rows]
+        payload = {
+            "source": source,
+            "rows": [{**c, "wilson_95": list(r.interval) if r.n else None} for c, r in zip(clean, rows, strict=True)],
+        }
         args.json.write_text(json.dumps(payload, indent=1, allow_nan=False) + "\n")
     return 0
 

@@ -250,17 +250,23 @@ def _row(rule: str, group: str, checks: Iterable[tuple[str, float | None]]) -> C
 
 
 def coverage(truths: list[Truth]) -> list[CoverageRow]:
-    """Coverage rows: per rule (``answer``, ``nominal``), in total, by verdict status and by kind."""
+    """Coverage rows: per rule (``answer`` over the results with a width, ``rule`` over results written before
+    issue 50, ``nominal`` over all), in total, by verdict status and by kind. A diagnosis that failed (status
+    ``error``) has no width: it counts under ``nominal`` only, and the report says how many there were."""
     rows = []
+    members_of = {
+        "answer": [t for t in truths if t.width is not None],
+        "rule": [t for t in truths if t.width is None and t.status != "error"],
+        "nominal": truths,
+    }
     for rule, check in (("answer", _answer), ("rule", _rule_check), ("nominal", _nominal_check)):
-        if rule == "answer" and all(t.width is None for t in truths):
+        scored = members_of[rule]
+        if not scored:
             continue
-        if rule == "rule" and all(t.width is not None for t in truths):
-            continue
-        groups: dict[str, list[Truth]] = {"all": truths}
-        for t in truths:
+        groups: dict[str, list[Truth]] = {"all": scored}
+        for t in scored:
             groups.setdefault(f"status {t.status}", []).append(t)
-        for t in truths:
+        for t in scored:
             groups.setdefault(f"kind {t.kind}", []).append(t)
         for name, members in groups.items():
             rows.append(_row(rule, name, (check(t) for t in members)))
