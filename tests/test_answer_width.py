@@ -9,7 +9,8 @@ import pytest
 
 from engine.diagnosis import diagnose
 from engine.diagnosis.calibration import calibrate
-from engine.diagnosis.width import MAX_RELATIVE_HALF_WIDTH, answer_width, residual_correlation_time
+from engine.diagnosis.correlation import residual_correlation_time
+from engine.diagnosis.width import MAX_RELATIVE_HALF_WIDTH, answer_width
 from engine.records import Record
 from engine.simulation import PlantParameters, simulate
 from engine.simulation.noise import noise_std

@@ -22,7 +22,8 @@ it honest off the ideal record (:func:`width_sigma`, one rule for every answer):
 
 1. **Correlated residuals.** A residual that is model error, not noise, is correlated in time:
    ``n`` samples then carry about ``n / tau`` independent ones, with ``tau`` the integrated
-   autocorrelation time of the whitened residual (:func:`residual_correlation_time`, Sokal's
+   autocorrelation time of the whitened residual
+   (:func:`engine.diagnosis.correlation.residual_correlation_time`, Sokal's
    automatic window). The fit's variance is scaled by ``tau`` (the linearised form of the profile
    rule of :mod:`engine.identification.plant_width`: cost within ``chi2_1(0.95) s2 tau``). For a
    fit to the noise the whitened residual is white and ``tau`` is about 1.
@@ -62,8 +63,7 @@ from engine.constants import Z95
 from engine.diagnosis.ambiguity import Model
 from engine.diagnosis.calibration import CalibrationResult
 from engine.diagnosis.candidate import Candidate
-from engine.diagnosis.noise import NoiseModel
-from engine.diagnosis.plant_gap import integrated_time
+from engine.diagnosis.correlation import residual_correlation_time
 from engine.diagnosis.space import ModelSpace
 from engine.records import Record
 
@@ -76,7 +76,6 @@ __all__ = [
     "AnswerWidth",
     "answer_calibration",
     "answer_width",
-    "residual_correlation_time",
     "width_sigma",
 ]
 
@@ -154,40 +153,6 @@ class AnswerWidth:
             "model_spread": self.model_spread,
             "structure_spread": self.structure_spread,
         }
-
-
-def residual_correlation_time(record: Record, calibration: CalibrationResult) -> float:
-    """Integrated autocorrelation time [samples] of the calibration's whitened residual.
-
-    Per channel, the residual record - simulation is whitened by the calibration's noise model (in
-    time for white noise; per wavelet level for coloured noise, each level's coefficients in time
-    order), and :func:`engine.diagnosis.plant_gap.integrated_time` is taken per sequence; the
-    result is their average weighted by squared norm (the sequences that carry the misfit count
-    most). About 1 for a fit to the noise.
-
-    Parameters
-    ----------
-    record : Record
-        The record calibrated on (its test window, the grid of ``calibration``).
-    calibration : CalibrationResult
-        A fit holding its simulation on that grid.
-    """
-    sim = calibration.simulated_record(record)
-    noise = NoiseModel.of(calibration.sigma)
-    pieces: list[np.ndarray] = []
-    for name, x in record.channels.items():
-        ch = noise.channel(name)
-        z = ch.normalise(np.asarray(x, dtype=float) - np.asarray(sim.channels[name], dtype=float))
-        if ch.white:
-            pieces.append(z)
-            continue
-        sizes = [s for s, u in zip(ch.sizes(len(x))[::-1], ch.used[::-1], strict=True) if u]  # A_L, D_L, ..., D1
-        pieces += [p for p in np.split(z, np.cumsum(sizes)[:-1]) if p.size >= 4]
-    weights = np.array([float(p @ p) for p in pieces])
-    if not pieces or weights.sum() <= 0.0:
-        return 1.0
-    taus = np.array([integrated_time(p) for p in pieces])
-    return float(max(1.0, weights @ taus / weights.sum()))
 
 
 def answer_calibration(

@@ -37,7 +37,7 @@ section 9). The interval is read from chi2 itself instead:
   parameter makes, the true log-likelihood difference is the white one over
   ``tau`` (the sandwich variance ``tau / (J^T J)``), hence the factor ``tau``.
   ``tau`` is that of the calibration's whitened residual
-  (:func:`engine.diagnosis.width.residual_correlation_time`, built on
+  (:func:`engine.diagnosis.correlation.residual_correlation_time`, built on
   :func:`engine.diagnosis.plant_gap.correlation_time`'s estimator; about 1 for
   a fit to the noise). The same rule gives the BRFD's interval
   (:mod:`engine.identification.plant_width`). Limitation: on a1 chi2 also
@@ -85,9 +85,9 @@ from scipy.stats import chi2 as chi2_dist
 
 from engine.constants import K_GRID, Z95
 from engine.diagnosis.calibration import CalibrationError, CalibrationResult, CalibrationSettings, calibrate
+from engine.diagnosis.correlation import residual_correlation_time
 from engine.diagnosis.plausibility import PlausibilityWarning
 from engine.diagnosis.space import default_space
-from engine.diagnosis.width import residual_correlation_time
 from engine.records import Record
 
 __all__ = [

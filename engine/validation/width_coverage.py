@@ -33,6 +33,7 @@ from typing import Any
 
 from engine.constants import Z95
 from engine.diagnosis.settings import DiagnosisSettings
+from engine.diagnosis.space import DEFAULT_BOUNDS
 from engine.diagnosis.width import MAX_RELATIVE_HALF_WIDTH, MISSING_PHYSICS, width_sigma
 from engine.validation.layout import RunLayout
 from engine.validation.stats import wilson_interval
@@ -113,7 +114,7 @@ def _nominal(result: Mapping[str, Any]) -> tuple[float, float] | None:
 
 
 #: The K range of the default search box [m], for the identifiability of a rebuilt width.
-_K_RANGE: float = 0.015 - 0.001
+_K_RANGE: float = DEFAULT_BOUNDS["K"][1] - DEFAULT_BOUNDS["K"][0]
 
 
 def _calibrations(result: Mapping[str, Any]) -> list[Mapping[str, Any]]:
