@@ -131,7 +131,11 @@ class AnswerWidth:
     model_spread : float
         Square root of the model-choice variance [m] (term 3).
     structure_spread : float
-        The unexplained gap's term [m] (term 4; 0 unless unexplained).
+        The unexplained gap's term [m] (term 4; 0 unless unexplained), :attr:`structure_factor` times
+        the K spread of the best models.
+    structure_factor : float
+        The factor that term was computed with (:data:`STRUCTURE_FACTOR` at the time; stored so
+        that a later rule can re-score stored answers).
     """
 
     K: float | None
@@ -144,6 +148,7 @@ class AnswerWidth:
     tau: float = 1.0
     model_spread: float = 0.0
     structure_spread: float = 0.0
+    structure_factor: float = STRUCTURE_FACTOR
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready copy (``from`` for :attr:`source`)."""
@@ -158,6 +163,7 @@ class AnswerWidth:
             "tau": self.tau,
             "model_spread": self.model_spread,
             "structure_spread": self.structure_spread,
+            "structure_factor": self.structure_factor,
         }
 
 

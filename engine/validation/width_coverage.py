@@ -34,7 +34,7 @@ from typing import Any
 from engine.constants import Z95
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.diagnosis.space import DEFAULT_BOUNDS
-from engine.diagnosis.width import MAX_RELATIVE_HALF_WIDTH, MISSING_PHYSICS, width_sigma
+from engine.diagnosis.width import MAX_RELATIVE_HALF_WIDTH, MISSING_PHYSICS, STRUCTURE_FACTOR, width_sigma
 from engine.validation.layout import RunLayout
 from engine.validation.stats import wilson_interval
 
@@ -71,7 +71,9 @@ class Truth:
     nominal : tuple of float or None
         The nominal calibration's (K, sigma_K) [m], when K was fitted.
     rule : tuple of float or None
-        The answer's (K, sigma_K) [m] rebuilt by the width rule (results before issue 50 only).
+        The answer's (K, sigma_K) [m] by today's width rule: rebuilt from the fits (results before
+        issue 50, tau = 1), or the answer's own width with today's structure factor
+        (:func:`recomposed_rule`).
     """
 
     case_id: str
@@ -160,6 +162,29 @@ def stored_rule(
     return K, sigma
 
 
+#: The structure factor of answers that do not store theirs (code before commit 1e92135).
+ANSWERED_STRUCTURE_FACTOR: float = 3.0
+
+
+def recomposed_rule(width: Mapping[str, Any] | None) -> tuple[float, float] | None:
+    """A stored answer's (K, sigma_K) [m] with its missing-physics term at today's :data:`STRUCTURE_FACTOR`.
+
+    The stored ``structure_spread`` is the factor of its time times the K spread of the best
+    models (``structure_factor`` in the answer; :data:`ANSWERED_STRUCTURE_FACTOR` for answers that
+    store none); every other term is kept. None when the answer was not identifiable or, at
+    today's factor, its interval would be reported as not identifiable.
+    """
+    if width is None or not width.get("identifiable") or width.get("sigma_K") is None:
+        return None
+    K, sd = float(width["K"]), float(width["sigma_K"])
+    s = float(width.get("structure_spread") or 0.0)
+    then = float(width.get("structure_factor", ANSWERED_STRUCTURE_FACTOR))
+    sigma = math.sqrt(max(sd**2 - s**2, 0.0) + (s * STRUCTURE_FACTOR / then) ** 2)
+    if Z95 * sigma > MAX_RELATIVE_HALF_WIDTH * _K_RANGE:
+        return None
+    return K, sigma
+
+
 def truths_from_layout(root: Path) -> list[Truth]:
     """The cases of a run directory with a result, their truth from its answer key."""
     layout = RunLayout(root)
@@ -170,7 +195,9 @@ def truths_from_layout(root: Path) -> list[Truth]:
         if e.case_id not in done:
             continue
         res = layout.read_result(e.case_id)
-        out.append(Truth(e.case_id, e.kind, e.K, 0.0, res["verdict"]["status"], res.get("width"), _nominal(res)))
+        w = res.get("width")
+        rule = stored_rule(res) if w is None else recomposed_rule(w)
+        out.append(Truth(e.case_id, e.kind, e.K, 0.0, res["verdict"]["status"], w, _nominal(res), rule))
     return out
 
 
@@ -200,7 +227,7 @@ def truths_from_committed(root: Path) -> list[Truth]:
                     res["verdict"]["status"],
                     res.get("width"),
                     _nominal(res),
-                    stored_rule(res) if res.get("width") is None else None,
+                    stored_rule(res) if res.get("width") is None else recomposed_rule(res.get("width")),
                 )
             )
     return sorted(out, key=lambda t: t.case_id)
@@ -251,13 +278,13 @@ def _row(rule: str, group: str, checks: Iterable[tuple[str, float | None]]) -> C
 
 
 def coverage(truths: list[Truth]) -> list[CoverageRow]:
-    """Coverage rows: per rule (``answer`` over the results with a width, ``rule`` over results written before
-    issue 50, ``nominal`` over all), in total, by verdict status and by kind. A diagnosis that failed (status
+    """Coverage rows: per rule (``answer`` over the results with a width, ``rule`` (today's) over every
+    diagnosed result, ``nominal`` over all), in total, by verdict status and by kind. A diagnosis that failed (status
     ``error``) has no width: it counts under ``nominal`` only, and the report says how many there were."""
     rows = []
     members_of = {
         "answer": [t for t in truths if t.width is not None],
-        "rule": [t for t in truths if t.width is None and t.status != "error"],
+        "rule": [t for t in truths if t.status != "error"],
         "nominal": truths,
     }
     for rule, check in (("answer", _answer), ("rule", _rule_check), ("nominal", _nominal_check)):
@@ -278,7 +305,8 @@ def coverage_markdown(rows: list[CoverageRow], source: str) -> str:
     """The rows as a markdown table, with what they were evaluated on."""
     head = (
         f"Truth inside the stated 95 % interval, {source}. `answer`: the answer's `width` (issue 50); "
-        "`rule`: that width rebuilt from a result written before issue 50 (tau = 1); "
+        f"`rule`: today's rule (structure factor {STRUCTURE_FACTOR:g}): the width rebuilt from the fits of a result "
+        "written before issue 50 (tau = 1), or the answer's width with its missing-physics term at that factor; "
         "`nominal`: the nominal calibration's K +- 1.96 sigma (what was shown before).\n\n"
         "| rule | group | n | covered | coverage [Wilson 95 %] | not identifiable | median half-width [um] |\n"
         "|---|---|---|---|---|---|---|\n"
