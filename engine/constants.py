@@ -19,7 +19,8 @@ from typing import Final
 #: Version of the reference model implemented by :mod:`engine.simulation`.
 #: Stored with every pattern set so that patterns trained on another model
 #: version are never silently mixed with this one.
-MODEL_VERSION: Final[str] = "1.1"
+#: 1.2 (docs/model-changes.md): the held-out family's seven terms, neutral by default.
+MODEL_VERSION: Final[str] = "1.2"
 
 # --- base quantities -------------------------------------------------------
 #: Electrical base angular frequency w_b [rad/s] (50 Hz supply).
@@ -92,6 +93,10 @@ SWITCH_OFF_DECAY_TIME: Final[float] = 0.01
 #: Most knots of the piecewise-linear schedule of the unknown input d(t) (``Disturbance``); the
 #: kernel's parameter vector holds that many slots.
 DISTURBANCE_MAX_KNOTS: Final[int] = 256
+
+# --- model 1.2 extensions (docs/model-changes.md) ----------------------------
+# The seven terms of the held-out family (engine.simulation.held_out) need no constant of their
+# own: each is its one value times the state (the load spring's unit is per revolution, 2 pi rad).
 
 # --- test protocol (MODEL.md section 2) ------------------------------------
 #: Sample interval Ts [s].

@@ -92,6 +92,13 @@ def test_defaults_are_model_md_constants():
         "tau_C2": 0.0,
         "m_off": 0.0,
         "disturbance": None,
+        # model 1.2 extensions (the held-out family), neutral by default
+        "u_neg": 0.0,
+        "sat": 0.0,
+        "b_2": 0.0,
+        "k_pre": 0.0,
+        "hard2": 0.0,
+        "k_3": 0.0,
     }
     assert PlantParameters().as_dict() == expected
     assert SolverSettings().max_step == SAMPLE_INTERVAL / 3

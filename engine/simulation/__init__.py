@@ -2,6 +2,7 @@
 
 from engine.simulation.effects import CATALOGUE, LOCI, Effect, EffectLibrary, Locus, UnknownEffectError, apply_effects
 from engine.simulation.held_back import HELD_BACK
+from engine.simulation.held_out import HELD_OUT
 from engine.simulation.noise import add_white_noise, noise_std
 from engine.simulation.parameters import (
     DISTURBANCE_LOCI,
@@ -27,6 +28,7 @@ __all__ = [
     "CATALOGUE",
     "DISTURBANCE_LOCI",
     "HELD_BACK",
+    "HELD_OUT",
     "LOCI",
     "Case",
     "Disturbance",

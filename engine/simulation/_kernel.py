@@ -20,6 +20,14 @@ to ``N_DIST_MAX`` knots (:func:`disturbance`). With every new entry zero the
 kernel performs the same floating-point operations as model 1.0, so its records
 are bit for bit the same.
 
+Model 1.2 adds seven more parametric terms, one per locus, all neutral at zero and active
+only under the same guard (``P_EXTENDED``): a negative-sequence share of the supply voltage,
+saturation of the magnetising reactance, fan (windage) torque on the motor shaft, a weak
+spring across the clutch, hardening of the resilient element, a spring from the load to
+ground, and a once-per-revolution error of the speed encoder (the held-out family,
+:data:`engine.simulation.held_out.HELD_OUT`). With all of them zero the kernel performs
+model 1.1's floating-point operations.
+
 The parameter vector layout is given by the ``P_*`` indices below and built by
 :func:`engine.simulation.simulator.parameter_vector`; it carries the record's
 sample grid too (``P_TS``, ``P_EVENT_INDEX``), and the number of samples is the
@@ -66,7 +74,18 @@ N_DIST_MAX = DISTURBANCE_MAX_KNOTS
 #: Switch-off instant t_e [s]: not an input; :func:`simulate_one` writes it into its working copy
 #: of the parameter vector for the torque's decay after the switch-off (``P_M_OFF``).
 P_T_SWITCH_OFF = P_DIST_VALUES + N_DIST_MAX
-N_PARAMS = P_T_SWITCH_OFF + 1
+# model 1.2: parametric terms of the held-out effects (engine.simulation.held_out), appended:
+# negative-sequence share of the supply [x u], saturation of x_m [1/pu^2], motor windage
+# [pu torque / pu speed^2], clutch preload spring [x k12], hardening of the resilient element
+# [1/pu^2], load position spring [pu torque / revolution], speed-encoder eccentricity [x]
+P_U_NEG = P_T_SWITCH_OFF + 1
+P_SAT = P_U_NEG + 1
+P_B_2 = P_SAT + 1
+P_K_PRE = P_B_2 + 1
+P_HARD2 = P_K_PRE + 1
+P_K_3 = P_HARD2 + 1
+P_ECC1 = P_K_3 + 1
+N_PARAMS = P_ECC1 + 1
 
 # locus codes of the unknown input (P_DIST_LOCUS): what d(t) is and where it enters
 DIST_NONE = 0
@@ -172,10 +191,15 @@ def clutch_deflection(t, y, P, motor_on):
 
 @njit(cache=True, fastmath=False)
 def electromagnetic_torque(y, P):
-    """m_el = psi_s_alpha i_s_beta - psi_s_beta i_s_alpha [pu] of the fluxes in y."""
+    """m_el = psi_s_alpha i_s_beta - psi_s_beta i_s_alpha [pu] of the fluxes in y (model 1.2: saturated x_m)."""
     xs = P[P_X_S]
     xr = P[P_X_R]
     xm = P[P_X_M]
+    if P[P_EXTENDED] != 0.0 and P[P_SAT] != 0.0:
+        xm_eff = xm / (1.0 + P[P_SAT] * (y[0] * y[0] + y[1] * y[1]))
+        xs = xs - xm + xm_eff
+        xr = xr - xm + xm_eff
+        xm = xm_eff
     det = xs * xr - xm * xm
     isa = (xr * y[0] - xm * y[2]) / det
     isb = (xr * y[1] - xm * y[3]) / det
@@ -206,6 +230,11 @@ def rhs(t, y, P, motor_on, dy, ch):
         xs = P[P_X_S]
         xr = P[P_X_R]
         xm = P[P_X_M]
+        if ext and P[P_SAT] != 0.0:  # saturation: x_m falls with the stator flux, leakages unchanged
+            xm_eff = xm / (1.0 + P[P_SAT] * (psa * psa + psb * psb))
+            xs = xs - xm + xm_eff
+            xr = xr - xm + xm_eff
+            xm = xm_eff
         det = xs * xr - xm * xm
         isa = (xr * psa - xm * pra) / det
         isb = (xr * psb - xm * prb) / det
@@ -217,6 +246,9 @@ def rhs(t, y, P, motor_on, dy, ch):
             u = u * (1.0 + dd)
         usa = u * math.cos(ang)
         usb = u * math.sin(ang)
+        if ext and P[P_U_NEG] != 0.0:  # negative sequence: u (e^{j ang} + u_neg e^{-j ang})
+            usa += P[P_U_NEG] * u * math.cos(ang)
+            usb -= P[P_U_NEG] * u * math.sin(ang)
         dy[0] = W_B * (usa - P[P_R_S] * isa)
         dy[1] = W_B * (usb - P[P_R_S] * isb)
         dy[2] = W_B * (-P[P_R_R] * ira - w1 * prb)
@@ -244,6 +276,9 @@ def rhs(t, y, P, motor_on, dy, ch):
     else:
         m_c = 0.0
     m_s = P[P_K2] * (y[8] - y[9]) + P[P_D2] * (w2 - w3)
+    if ext and P[P_HARD2] != 0.0:  # hardening resilient element: k2 x (1 + hard2 (k2 x)^2)
+        kx = P[P_K2] * (y[8] - y[9])
+        m_s += P[P_HARD2] * kx * kx * kx
     m_a = P[P_C] * w3 + P[P_C1] * smooth_sign(w3)
     m_f = P[P_B_1] * w1
     if P[P_TAU_C1] != 0.0:
@@ -256,6 +291,14 @@ def rhs(t, y, P, motor_on, dy, ch):
         m_1 -= P[P_TAU_COG] * math.sin(COGGING_ORDER * y[7])
         m_2 -= P[P_TAU_C2] * smooth_sign(w2)  # Coulomb friction of the wheel
         m_3 += P[P_TAU_RIPPLE3] * math.sin(2.0 * math.pi * LOAD_RIPPLE_HZ * t)  # load torque ripple
+        if P[P_B_2] != 0.0:  # windage (fan) torque against the motor's motion
+            m_1 -= P[P_B_2] * w1 * abs(w1)
+        if P[P_K_PRE] != 0.0:  # a weak spring across the clutch, inside and outside the zone
+            m_pre = P[P_K_PRE] * P[P_K12] * d
+            m_1 -= m_pre
+            m_2 += m_pre
+        if P[P_K_3] != 0.0:  # a spring from the load to ground [pu torque per revolution]
+            m_3 -= P[P_K_3] * y[9] / (2.0 * math.pi)
         if locus == DIST_MOTOR_SHAFT:
             m_1 += dd
         elif locus == DIST_DRIVE_TRAIN:
@@ -275,6 +318,8 @@ def rhs(t, y, P, motor_on, dy, ch):
     ch[0] = r * OMEGA_B * dw1
     ch[1] = m_el
     ch[2] = OMEGA_B * w1
+    if ext and P[P_ECC1] != 0.0:  # once-per-revolution error of the speed encoder
+        ch[2] = OMEGA_B * w1 * (1.0 + P[P_ECC1] * math.sin(y[7]))
     ch[3] = r * OMEGA_B * dw3
     ch[4] = r * OMEGA_B * w3
     fc = P[P_LOWPASS]

@@ -6,7 +6,9 @@ reference plant is unchanged unless an effect sets them: ``tau_C1`` and
 ``b_1`` (motor-shaft friction); since model 1.1 the terms of the held-back
 effects (``tau_ripple3``, ``clutch_offset``, ``tau_cog``, ``tau_C2``,
 ``m_off``) and an additive unknown input at one locus of the plant
-(:class:`Disturbance`). The sensor chain (delay, trigger offset, low-pass,
+(:class:`Disturbance`); since model 1.2 the terms of the held-out effects
+(``u_neg``, ``sat``, ``b_2``, ``k_pre``, ``hard2``, ``k_3`` and the sensors'
+``ecc1``). The sensor chain (delay, trigger offset, low-pass,
 gain, offset, quantisation) is also an extension with neutral defaults. See
 ``docs/model-changes.md``.
 """
@@ -177,6 +179,24 @@ class PlantParameters:
         decays as exp(-(t - t_e) / SWITCH_OFF_DECAY_TIME) [x]; 0 means it vanishes at once (MODEL.md).
     disturbance : Disturbance or None
         Extension (1.1): an additive unknown input at one locus; None means none.
+    u_neg : float
+        Extension (1.2): negative-sequence share of the supply voltage [x u]: the stator voltage
+        is u (exp(j f w_b t) + u_neg exp(-j f w_b t)) (u including a supply disturbance).
+    sat : float
+        Extension (1.2): saturation of the magnetising reactance [1/pu^2]: x_m -> x_m / (1 + sat
+        |psi_s|^2), the leakages x_s - x_m and x_r - x_m unchanged.
+    b_2 : float
+        Extension (1.2): windage (fan) torque on the motor shaft, b_2 * w_1 * abs(w_1) against its
+        motion [pu torque / pu speed^2] (not in m_el).
+    k_pre : float
+        Extension (1.2): a weak spring across the clutch acting always, k_pre * k12 * d on J1
+        (against) and J2, d the clutch deflection (zone offset subtracted) [x k12].
+    hard2 : float
+        Extension (1.2): hardening of the resilient element [1/pu^2]: its spring torque is
+        k2 x (1 + hard2 (k2 x)^2), x = theta_2 - theta_3.
+    k_3 : float
+        Extension (1.2): a spring from the load to ground, -k_3 * theta_3 / (2 pi) on the mass
+        [pu torque per revolution of theta_3].
     """
 
     K: float = const.K_NOMINAL
@@ -205,6 +225,12 @@ class PlantParameters:
     tau_C2: float = 0.0
     m_off: float = 0.0
     disturbance: Disturbance | None = None
+    u_neg: float = 0.0
+    sat: float = 0.0
+    b_2: float = 0.0
+    k_pre: float = 0.0
+    hard2: float = 0.0
+    k_3: float = 0.0
 
     @property
     def T1(self) -> float:
@@ -248,6 +274,12 @@ class PlantParameters:
                 f"half-width b = K / r = {self.b:.4g} rad (the clutch starts inside the zone)"
             )
         _check_range("m_off", self.m_off, -1.0, 1.0, "x")
+        _check_range("u_neg", self.u_neg, 0.0, 0.5, "x u")
+        _check_range("sat", self.sat, 0.0, 10.0, "1/pu^2")
+        _check_range("b_2", self.b_2, 0.0, 100.0, "pu")
+        _check_range("k_pre", self.k_pre, 0.0, 1.0, "x k12")
+        _check_range("hard2", self.hard2, 0.0, 100.0, "1/pu^2")
+        _check_range("k_3", self.k_3, 0.0, 100.0, "pu/rev")
         for name in ("k12", "k2"):
             _check_range(name, getattr(self, name), 1e-3, 1e5, "pu/rad")
         for name in ("r_s", "r_r"):
@@ -288,7 +320,10 @@ class SensorParameters:
        :meth:`engine.records.SampleGrid.window`), so it does not depend on the record's length;
     5. **quantisation** of omega1 to multiples of ``speed_quantum``.
 
-    Steps 1-2 are in the kernel, 3-5 act on the sampled values
+    Model 1.2 adds an error of the speed encoder before the chain: omega1 reads
+    ``Omega_b w_1 (1 + ecc1 sin(theta_1))`` (once per revolution of the motor shaft).
+
+    Steps 1-2 (and the encoder's error) are in the kernel, 3-5 act on the sampled values
     (:func:`engine.simulation.simulator.apply_sensor_readout`).
 
     Parameters
@@ -307,6 +342,9 @@ class SensorParameters:
         Every channel scaled by this [x], in [0.1, 10]; 1 means none.
     offset_rms : float
         Constant offset of every channel in units of the channel's RMS [x RMS], in [-1, 1]; 0 means none.
+    ecc1 : float
+        Extension (1.2): eccentricity of the speed encoder [x], in [0, 0.5]: omega1 reads
+        Omega_b w_1 (1 + ecc1 sin(theta_1)) before the low-pass, gain, offset and quantisation; 0 means none.
     """
 
     delay: float = 0.0
@@ -315,6 +353,7 @@ class SensorParameters:
     trigger_offset: float = 0.0
     gain: float = 1.0
     offset_rms: float = 0.0
+    ecc1: float = 0.0
 
     def validate(self) -> SensorParameters:
         for f in fields(self):
@@ -328,6 +367,7 @@ class SensorParameters:
         _check_range("trigger_offset", self.trigger_offset, -0.005, 0.005, "s")
         _check_range("gain", self.gain, 0.1, 10.0, "x")
         _check_range("offset_rms", self.offset_rms, -1.0, 1.0, "x RMS")
+        _check_range("ecc1", self.ecc1, 0.0, 0.5, "x")
         return self
 
     def replace(self, **changes: Any) -> SensorParameters:

@@ -1,7 +1,8 @@
 """Reference solution of the backlash test with scipy's ``solve_ivp``.
 
 A second, independent transcription of MODEL.md, of the effect catalogue, of the
-held-back effects and of the additive unknown input of model 1.1,
+held-back effects and of the additive unknown input of model 1.1, and of the held-out
+effects of model 1.2,
 used as the yardstick of the numba kernel (MODEL.md section 4, relative
 tolerance 1e-9; ``tests/test_simulation_accuracy.py``) and as the baseline of
 ``bench/bench_simulator.py``. It is slow on purpose: plain numpy, complex
@@ -29,6 +30,17 @@ share v of the electromagnetic torque at the switch-off that decays as
 switch-off (written in closed form here; the kernel integrates it as a state). The
 unknown input is a plain mapping ``{"locus", "t0", "dt", "values"}`` (see
 :func:`reference_simulate`), interpolated with ``numpy.interp``.
+
+Model 1.2 (``docs/model-changes.md``)
+-------------------------------------
+The held-out effects (:data:`engine.simulation.HELD_OUT`), written out here from their
+definitions: a negative-sequence share v of the supply, ``u_s = u (1 + d_supply) (e^{j f w_b t}
++ v e^{-j f w_b t})``; saturation, the inductance matrix rebuilt at every call from
+``x_m' = x_m / (1 + v |psi_s|^2)`` with the leakages kept (also for the torque at the
+switch-off); windage ``-v w_1 |w_1|`` on the motor shaft; a spring ``v k_12 d`` across the clutch
+(d the deflection from the zone's centre) against J1 and on J2; a hardening resilient element
+``k_2 x (1 + v (k_2 x)^2)``; a spring ``-v theta_3 / (2 pi)`` from the load to ground; and the
+speed encoder's ``omega1 = Omega_b w_1 (1 + v sin theta_1)`` before the sensor chain.
 
 Sensor chain
 ------------
@@ -141,6 +153,17 @@ HELD_BACK_NEUTRAL: Mapping[str, float] = {
 #: the motor shaft, the wheel or the mass; the backlash zone is moved by d [rad].
 DISTURBANCE_LOCI: tuple[str, ...] = ("supply", "motor_electrical", "motor_shaft", "clutch", "drive_train", "load")
 
+#: The held-out effects (model 1.2), at their "no effect" value.
+HELD_OUT_NEUTRAL: Mapping[str, float] = {
+    "supply_unbalance": 0.0,  # x u: u_s = u (e^{j f w_b t} + value e^{-j f w_b t})
+    "magnetic_saturation": 0.0,  # 1/pu^2: x_m -> x_m / (1 + value |psi_s|^2), leakages unchanged
+    "motor_windage": 0.0,  # pu torque / pu speed^2: - value w_1 |w_1| on the motor shaft
+    "clutch_preload_spring": 0.0,  # x k_12: value k_12 d from J1 to J2, d from the zone's centre, always
+    "resilient_hardening": 0.0,  # 1/pu^2: resilient spring k_2 x (1 + value (k_2 x)^2)
+    "load_position_spring": 0.0,  # pu torque per revolution: - value theta_3 / (2 pi) on the mass m2
+    "speed_encoder_eccentricity": 0.0,  # omega1 read as Omega_b w_1 (1 + value sin theta_1)
+}
+
 _N_PLANT = 10  # psi_s (2), psi_r (2), w_1..3, theta_1..3
 _N_CHANNELS = len(CHANNELS)
 _OMEGA1 = CHANNELS.index("omega1")
@@ -176,7 +199,7 @@ def _resolve(parameters: Mapping[str, float] | None, effects: Mapping[str, float
         if name not in MODEL_DEFAULTS:
             raise ValueError(f"unknown MODEL.md parameter {name!r}; known: {', '.join(MODEL_DEFAULTS)}")
         values[name] = float(value)
-    neutral_values = {**EFFECT_NEUTRAL, **HELD_BACK_NEUTRAL}
+    neutral_values = {**EFFECT_NEUTRAL, **HELD_BACK_NEUTRAL, **HELD_OUT_NEUTRAL}
     for name in effects or {}:
         if name not in neutral_values:
             raise ValueError(f"the reference does not implement effect {name!r}; known: {', '.join(neutral_values)}")
@@ -217,8 +240,8 @@ class ReferenceModel:
     Parameters
     ----------
     values : mapping
-        Every MODEL.md name and every effect name of :data:`EFFECT_NEUTRAL` and
-        :data:`HELD_BACK_NEUTRAL` (see :func:`reference_simulate`).
+        Every MODEL.md name and every effect name of :data:`EFFECT_NEUTRAL`,
+        :data:`HELD_BACK_NEUTRAL` and :data:`HELD_OUT_NEUTRAL` (see :func:`reference_simulate`).
     disturbance : mapping, optional
         The unknown input ``{"locus", "t0", "dt", "values"}``.
 
@@ -235,6 +258,11 @@ class ReferenceModel:
         self.ripple, self.offset = v["load_torque_ripple"], v["clutch_offset"]
         self.cogging, self.wheel_friction = v["motor_cogging"], v["wheel_coulomb_friction"]
         self.decay = v["switch_off_decay"]
+        self.unbalance, self.saturation = v["supply_unbalance"], v["magnetic_saturation"]
+        self.windage, self.preload = v["motor_windage"], v["clutch_preload_spring"]
+        self.hardening, self.load_spring = v["resilient_hardening"], v["load_position_spring"]
+        self.eccentricity = v["speed_encoder_eccentricity"]
+        self.x_s, self.x_r, self.x_m = v["x_s"], v["x_r"], v["x_m"]
         self.switch_off = (math.inf, 0.0)
         self.u = v["u"] * v["supply_voltage"]
         self.f = v["f"]
@@ -265,8 +293,9 @@ class ReferenceModel:
         dpsi = np.zeros(2, dtype=complex)
         m_el = 0.0
         if motor_on:
-            i_s, i_r = self.Linv @ psi
-            u_s = self.u * (1.0 + self.input.at("supply", t)) * np.exp(1j * self.f * W_B * t)
+            i_s, i_r = self.inverse_inductance(psi[0]) @ psi
+            phase = np.exp(1j * self.f * W_B * t)
+            u_s = self.u * (1.0 + self.input.at("supply", t)) * (phase + self.unbalance * np.conj(phase))
             dpsi[0] = W_B * (u_s - self.r_s * i_s)
             dpsi[1] = W_B * (-self.r_r * i_r + 1j * w[0] * psi[1])
             m_el = float(np.imag(np.conj(psi[0]) * i_s))
@@ -281,31 +310,45 @@ class ReferenceModel:
             m_c = min(0.0, self.k12 * (d + b) + self.d12 * dw)
         else:
             m_c = 0.0
-        m_s = self.k2 * (th[1] - th[2]) + self.d2 * (w[1] - w[2])
+        spring = self.k2 * (th[1] - th[2])
+        m_s = spring * (1.0 + self.hardening * spring**2) + self.d2 * (w[1] - w[2])
         m_a = self.c * w[2] + self.c1 * np.tanh(w[2] / W_SMOOTH)
         m_f = self.coulomb * np.tanh(w[0] / W_SMOOTH) + self.viscous * w[0]
         m_f += self.cogging * math.sin(COGGING_ORDER * th[0])
+        m_f += self.windage * w[0] * abs(w[0])
+        m_pre = self.preload * self.k12 * d  # the spring across the clutch, inside the zone too
         torques = np.array(
             [
-                m_el - m_c - m_f + self.input.at("motor_shaft", t, motor_on),
+                m_el - m_c - m_pre - m_f + self.input.at("motor_shaft", t, motor_on),
                 m_c
+                + m_pre
                 - m_s
                 - self.wheel_friction * math.tanh(w[1] / W_SMOOTH)
                 + self.input.at("drive_train", t, motor_on),
                 m_s
                 - m_a
                 + self.ripple * math.sin(2.0 * math.pi * LOAD_RIPPLE_HZ * t)
+                - self.load_spring * th[2] / (2.0 * math.pi)
                 + self.input.at("load", t, motor_on),
             ]
         )
         dw_dt = torques / self.T
+        omega1 = OMEGA_B * w[0] * (1.0 + self.eccentricity * math.sin(th[0]))  # the encoder's reading
         raw = np.array(
-            [self.r * OMEGA_B * dw_dt[0], m_el, OMEGA_B * w[0], self.r * OMEGA_B * dw_dt[2], self.r * OMEGA_B * w[2]]
+            [self.r * OMEGA_B * dw_dt[0], m_el, omega1, self.r * OMEGA_B * dw_dt[2], self.r * OMEGA_B * w[2]]
         )
         parts = [dpsi.real, dpsi.imag, dw_dt, OMEGA_B * w]
         if self.filter_rate:
             parts.append(self.filter_rate * (raw - y[_N_PLANT:]))
         return np.concatenate(parts), raw
+
+    def inverse_inductance(self, psi_s: complex) -> np.ndarray:
+        """L^-1 with [i_s, i_r] = L^-1 [psi_s, psi_r]; with saturation x_m depends on |psi_s|."""
+        if not self.saturation:
+            return self.Linv
+        x_m = self.x_m / (1.0 + self.saturation * abs(psi_s) ** 2)
+        x_s, x_r = self.x_s - self.x_m + x_m, self.x_r - self.x_m + x_m  # the leakages are unchanged
+        return np.array([[x_r, -x_m], [-x_m, x_s]]) / (x_s * x_r - x_m**2)
 
     def deflection(self, t: float, y: np.ndarray, motor_on: bool = True) -> float:
         """theta_1 - theta_2 measured from the centre of the backlash zone [rad]."""
@@ -335,8 +378,8 @@ def reference_simulate(
         MODEL.md parameters that differ from :data:`MODEL_DEFAULTS`, by their
         MODEL.md names (e.g. ``{"K": 0.005, "J1": 0.87, "c": 1.0}``).
     effects : mapping, optional
-        Catalogued and held-back effects by name and value (keys of :data:`EFFECT_NEUTRAL`
-        and :data:`HELD_BACK_NEUTRAL`).
+        Catalogued, held-back and held-out effects by name and value (keys of
+        :data:`EFFECT_NEUTRAL`, :data:`HELD_BACK_NEUTRAL` and :data:`HELD_OUT_NEUTRAL`).
     method, rtol, atol
         ``solve_ivp`` settings.
     grid : SampleGrid, optional
@@ -454,6 +497,13 @@ def reference_inputs(case: Case) -> tuple[dict[str, float], dict[str, float]]:
         "motor_cogging": p.tau_cog,
         "wheel_coulomb_friction": p.tau_C2,
         "switch_off_decay": p.m_off,
+        "supply_unbalance": p.u_neg,
+        "magnetic_saturation": p.sat,
+        "motor_windage": p.b_2,
+        "clutch_preload_spring": p.k_pre,
+        "resilient_hardening": p.hard2,
+        "load_position_spring": p.k_3,
+        "speed_encoder_eccentricity": s.ecc1,
     }
     return parameters, effects
 

@@ -161,9 +161,9 @@ def parameter_vector(
     Parameters
     ----------
     case : Case
-        Plant (with its model-1.1 terms and unknown input, if any) and measurement chain; only
-        the chain's delay, trigger offset and low-pass enter the kernel (gain, offset and
-        quantisation act afterwards: :func:`apply_sensor_readout`).
+        Plant (with its model-1.1 and 1.2 terms and unknown input, if any) and measurement chain;
+        only the chain's delay, trigger offset, low-pass and (model 1.2) encoder eccentricity enter
+        the kernel (gain, offset and quantisation act afterwards: :func:`apply_sensor_readout`).
     solver : SolverSettings
         RK4 step [s] and the longest time to the event [s].
     grid : SampleGrid
@@ -197,7 +197,15 @@ def parameter_vector(
         P[kern.P_DIST_T0], P[kern.P_DIST_DT], P[kern.P_DIST_N] = dist.t0, dist.dt, n
         P[kern.P_DIST_STEP] = dist.step
         P[kern.P_DIST_VALUES : kern.P_DIST_VALUES + n] = dist.values
-    extended = dist is not None or any(P[kern.P_TAU_RIPPLE3 : kern.P_M_OFF + 1] != 0.0)
+    # model 1.2 (appended after the switch-off slot, which the zeroing above cleared)
+    P[kern.P_U_NEG], P[kern.P_SAT], P[kern.P_B_2] = p.u_neg, p.sat, p.b_2
+    P[kern.P_K_PRE], P[kern.P_HARD2], P[kern.P_K_3] = p.k_pre, p.hard2, p.k_3
+    P[kern.P_ECC1] = s.ecc1
+    extended = (
+        dist is not None
+        or any(P[kern.P_TAU_RIPPLE3 : kern.P_M_OFF + 1] != 0.0)
+        or any(P[kern.P_U_NEG : kern.P_ECC1 + 1] != 0.0)
+    )
     P[kern.P_EXTENDED] = 1.0 if extended else 0.0
     return P
 
@@ -370,7 +378,8 @@ def simulate_batch(
         the event at sample 48); e.g. a measured record's ``grid`` to compare with it.
     library : EffectLibrary
         Where the names of ``effects`` are looked up: the catalogue by default;
-        e.g. :data:`~engine.simulation.held_back.HELD_BACK` for the held-back effects.
+        e.g. :data:`~engine.simulation.held_back.HELD_BACK` for the held-back effects,
+        :data:`~engine.simulation.held_out.HELD_OUT` for the held-out ones (model 1.2).
 
     Returns
     -------
