@@ -761,8 +761,19 @@ def test_cli_validate_runs_protocol_2_by_default(
     monkeypatch.setattr(run, "run_validation", fake_run)
     monkeypatch.setattr(v1, "run_validation", no_v1)
     assert main(["validate", "--out", str(tmp_path / "v")]) == 0
+    from engine.simulation import HELD_BACK
+    from engine.simulation.held_out import HELD_OUT
+
     assert calls == [
-        {"n_cases": 300, "seed": 97, "out_dir": tmp_path / "v", "workers": None, "mix": None, "scheduler": None}
+        {
+            "n_cases": 300,
+            "seed": 97,
+            "out_dir": tmp_path / "v",
+            "workers": None,
+            "mix": None,
+            "held_back": HELD_BACK,
+            "scheduler": None,
+        }
     ]  # workers None: a local Dask cluster of one worker per core
     out = capsys.readouterr().out
     assert "protocol 2: 300 cases, seed 97" in out and "| single effect: explained, top effect right |" in out
@@ -773,6 +784,10 @@ def test_cli_validate_runs_protocol_2_by_default(
     assert main(["validate", "--mix", "single"]) == 2
     assert "KIND=SHARE" in capsys.readouterr().err
     assert main(["validate", "--protocol", "1", "--mix", "single=1"]) == 2
+    # the held-out family of model 1.2, hidden from the diagnosis, for a blind run of held-back cases only
+    assert main(["validate", "--held-back", "held_out", "--mix", "held_back=1", "--out", str(tmp_path / "h")]) == 0
+    assert calls[-1]["held_back"] is HELD_OUT and calls[-1]["mix"] == {"held_back": 1.0}
+    assert main(["validate", "--protocol", "1", "--held-back", "held_out"]) == 2
 
 
 @pytest.mark.slow

@@ -13,6 +13,7 @@ from typing import Any
 
 from app import output
 from app.cli.common import EXIT_OK, CommandError, add_dask_options
+from engine.simulation.families import DEFAULT_FAMILY, FAMILIES
 
 #: The simulator benchmark, relative to the repository root.
 BENCH_SCRIPT = Path("bench") / "bench_simulator.py"
@@ -81,6 +82,7 @@ def _validate_v2(args: argparse.Namespace, n_cases: int, seed: int) -> None:
             out_dir=Path(args.out),
             workers=args.workers,
             mix=_parse_mix(args.mix),
+            held_back=FAMILIES[args.held_back],
             scheduler=args.scheduler,
         )
     except (FileExistsError, ValueError) as exc:
@@ -96,8 +98,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
     if n_cases < 1:
         raise CommandError(f"--cases must be at least 1, got {n_cases}")
     if args.protocol == 1:
-        if args.mix:
-            raise CommandError("--mix applies to protocol 2 only")
+        if args.mix or args.held_back != DEFAULT_FAMILY:
+            raise CommandError("--mix and --held-back apply to protocol 2 only")
         _validate_v1(args, n_cases, seed)
     else:
         _validate_v2(args, n_cases, seed)
@@ -180,5 +182,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         default=None,
         help="protocol 2: shares of the case kinds, e.g. single=0.25,pair=0.15,triple=0.1,held_back=0.2,clean=0.3 "
         "(the default)",
+    )
+    p.add_argument(
+        "--held-back",
+        choices=sorted(FAMILIES),
+        default=DEFAULT_FAMILY,
+        help="protocol 2: the family of effects outside the catalogue that held-back cases draw from (default "
+        f"{DEFAULT_FAMILY}: model 1.1's five, developed on; held_out: model 1.2's seven, kept for scoring, whose "
+        "figures are out of sample; development: open to development). E.g. --held-back held_out --mix held_back=1",
     )
     p.set_defaults(func=cmd_validate)

@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from engine.diagnosis.validation import SAME_PHYSICS, same_physics_names
-from engine.simulation import CATALOGUE, HELD_BACK
+from engine.simulation.families import locus_of
 from engine.validation.stats import CONFIDENCE, Rate, rate
 
 logger = logging.getLogger(__name__)
@@ -405,11 +405,10 @@ class RunOutcomes:
 
 
 def _locus_of(name: str) -> str | None:
-    for lib in (CATALOGUE, HELD_BACK):
-        if name in lib:
-            return str(lib[name].locus)
-    logger.warning("effect %s is in neither the catalogue nor the held-back family: no locus", name)
-    return None
+    locus = locus_of(name)
+    if locus is None:
+        logger.warning("effect %s is in neither the catalogue nor a family outside it: no locus", name)
+    return locus
 
 
 def _float(x: Any) -> float | None:

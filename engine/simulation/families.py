@@ -1,0 +1,34 @@
+"""The families of effects outside the catalogue, by name, for blind runs and their scorers.
+
+A protocol-2 run hides one family from the diagnosis and draws its held-back cases from it
+(``backlash validate --held-back NAME``):
+
+* ``held_back``: :data:`~engine.simulation.held_back.HELD_BACK` (model 1.1), the default; developed
+  on since issue 10, so its figures are in-family ones.
+* ``development``: :data:`~engine.simulation.development.DEVELOPMENT`, the held-back five and
+  three parameter drifts; open to development of the open-world step.
+* ``held_out``: :data:`~engine.simulation.held_out.HELD_OUT` (model 1.2), kept for scoring (its
+  rule: :data:`~engine.simulation.held_out.RULE`); its figures are the out-of-sample ones.
+"""
+
+from __future__ import annotations
+
+from engine.simulation.development import DEVELOPMENT
+from engine.simulation.effects import CATALOGUE, EffectLibrary
+from engine.simulation.held_back import HELD_BACK
+from engine.simulation.held_out import HELD_OUT
+
+__all__ = ["DEFAULT_FAMILY", "FAMILIES", "locus_of"]
+
+#: Every family outside the catalogue, by the name a run is given.
+FAMILIES: dict[str, EffectLibrary] = {"held_back": HELD_BACK, "development": DEVELOPMENT, "held_out": HELD_OUT}
+#: The family a run hides unless told otherwise.
+DEFAULT_FAMILY: str = "held_back"
+
+
+def locus_of(name: str) -> str | None:
+    """The locus of an effect of the catalogue or of any family (None for an unknown name)."""
+    for library in (CATALOGUE, *FAMILIES.values()):
+        if name in library:
+            return str(library[name].locus)
+    return None
