@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from app import output
-from app.cli.common import EXIT_OK, CommandError, add_dask_options
+from app.cli.common import EXIT_OK, CommandError, add_dask_options, examples
 from engine.plants import DEFAULT_PLANT, PLANTS
 
 
@@ -35,6 +35,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "diagnose-batch",
         help="diagnose every record file of a directory or glob (on Dask); one answer file each and a summary",
+        **examples(
+            "backlash diagnose-batch records/ --out answers/",
+            "backlash diagnose-batch 'site-a/*.csv' --out answers/ --workers 2",
+            "backlash diagnose-batch records/ --out answers/ --scheduler tcp://10.0.0.7:8786",
+        ),
     )
     p.add_argument("source", help="a directory of record files, or a glob such as 'bench/*.csv' (quote it)")
     p.add_argument("--out", type=Path, required=True, help="directory of the answers and summary (resumable)")

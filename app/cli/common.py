@@ -215,3 +215,22 @@ def user_errors() -> tuple[type[BaseException], ...]:
         PatternStoreError,
         ServiceError,
     )
+
+
+def effects_help(simulated: bool = False) -> str:
+    """The catalogue's effect names with their ranges and units, for help texts.
+
+    ``simulated``: also the held-back effects of model 1.1, which the simulator (not the diagnosis) accepts.
+    """
+    from engine.simulation import CATALOGUE, HELD_BACK
+
+    libs = (CATALOGUE, HELD_BACK) if simulated else (CATALOGUE,)
+    return "; ".join(f"{e.name} [{e.bounds[0]:g}, {e.bounds[1]:g}] {e.unit}" for lib in libs for e in lib.values())
+
+
+def examples(*lines: str) -> dict[str, Any]:
+    """``add_parser`` keywords for an epilog of examples, shown as written."""
+    return {
+        "epilog": "examples:\n" + "\n".join(f"  {line}" for line in lines),
+        "formatter_class": argparse.RawDescriptionHelpFormatter,
+    }

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
+from typing import Any
 
 from app import output
-from app.cli.common import EXIT_OK, CommandError, add_record_options, read_record
+from app.cli.common import EXIT_OK, CommandError, add_record_options, effects_help, examples, read_record
+from engine.atomic import write_json_atomic
 from engine.plants import DEFAULT_PLANT, PLANTS
 
 
@@ -28,13 +31,8 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         "typically 5-60 s on 2 cores)"
     )
     result = diagnosis.run(record, args.effects, bounds or None)
-    answer = result.to_dict()
-    output.write_json(answer)
-    output.summary(answer)
-    if args.plots:
-        for path in diagnosis.write_plots(record, result, args.plots):
-            output.info(f"wrote {path}")
-    return EXIT_OK
+    plots = [str(p) for p in diagnosis.write_plots(record, result, args.plots)] if args.plots else []
+    return _answer(args, result.to_dict(), plots)
 
 
 def _diagnose_plant(args: argparse.Namespace) -> int:
@@ -51,12 +49,27 @@ def _diagnose_plant(args: argparse.Namespace) -> int:
         "about a minute on 2 cores)"
     )
     result = plant_diagnosis.run(records, args.hold_calibration)
-    answer = result.to_dict()
-    output.write_json(answer)
-    output.summary(answer)
-    if args.plots:
-        for path in plant_diagnosis.write_plots(result, args.plots):
-            output.info(f"wrote {path}")
+    plots = [str(p) for p in plant_diagnosis.write_plots(result, args.plots)] if args.plots else []
+    return _answer(args, result.to_dict(), plots)
+
+
+def _answer(args: argparse.Namespace, answer: dict[str, Any], plots: list[str]) -> int:
+    """The answer: a summary for a person, the full JSON where asked for.
+
+    ``--out FILE``: the JSON to FILE, the summary on stdout. ``--json``, or stdout not a terminal
+    (a pipe, a file: scripts keep getting JSON): the JSON on stdout, the summary on stderr. Else the
+    summary alone, and how to get the rest.
+    """
+    if args.out is not None:
+        write_json_atomic(args.out, answer, indent=2)
+        output.summary(answer, plots, to_stdout=True)
+        output.info(f"wrote the full answer to {args.out}")
+    elif args.json or not sys.stdout.isatty():
+        output.write_json(answer)
+        output.summary(answer, plots)
+    else:
+        output.summary(answer, plots, to_stdout=True)
+        output.info("the full answer (candidates, residual cells, records): add --out FILE or --json")
     return EXIT_OK
 
 
@@ -74,9 +87,26 @@ def _bound(text: str) -> tuple[str, tuple[float, float]]:
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``diagnose`` to the subcommands."""
-    p = sub.add_parser("diagnose", help="diagnose the sim-to-real gap of a record (like POST /v1/diagnose)")
+    p = sub.add_parser(
+        "diagnose",
+        help="diagnose the sim-to-real gap of a record (like POST /v1/diagnose)",
+        description="Where the model parts company with the record, which unmodelled effect explains it, how far "
+        "the gap shrinks once it is added, and the backlash width of the model the answer ends with. On a terminal "
+        "it prints a summary; the full answer goes to --out FILE or, with --json, to stdout.",
+        **examples(
+            "backlash simulate --K 0.0068 --effect load_inertia=1.3 --snr-db 40 --out rec.csv",
+            "backlash diagnose rec.csv --out answer.json --plots plots/",
+            "backlash diagnose rec.csv --effects motor_coulomb_friction load_inertia --bound K=0.004:0.010",
+            "backlash diagnose emps.mat --plant emps --json > answer.json",
+        ),
+    )
     add_record_options(p)
-    p.add_argument("--effects", nargs="+", metavar="NAME", help="candidate effects (default the whole catalogue)")
+    p.add_argument(
+        "--effects",
+        nargs="+",
+        metavar="NAME",
+        help="candidate effects (default the whole catalogue): " + effects_help(),
+    )
     p.add_argument(
         "--bound",
         action="append",
@@ -86,6 +116,15 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "default K=0.001:0.015 J1=0.6:1.2 c=0.5:2.0",
     )
     p.add_argument("--plots", type=Path, metavar="DIR", help="also write PNG plots (residual map, overlays) to DIR")
+    out = p.add_mutually_exclusive_group()
+    out.add_argument(
+        "--out", type=Path, metavar="FILE", help="write the full answer (JSON) to FILE and print the summary"
+    )
+    out.add_argument(
+        "--json",
+        action="store_true",
+        help="print the full answer (JSON) on stdout, the summary on stderr (the default when stdout is not a terminal)",
+    )
     p.add_argument(
         "--plant",
         choices=sorted({DEFAULT_PLANT, *PLANTS}),

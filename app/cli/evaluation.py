@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from app import output
-from app.cli.common import EXIT_OK, CommandError, add_dask_options
+from app.cli.common import EXIT_OK, CommandError, add_dask_options, examples
 from engine.simulation.families import DEFAULT_FAMILY, FAMILIES
 
 #: The simulator benchmark, relative to the repository root.
@@ -141,7 +141,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``run``, ``bench`` and ``validate`` to the subcommands."""
-    p = sub.add_parser("run", help="the main job: train, evaluate, write tables and figures")
+    p = sub.add_parser(
+        "run",
+        help="the main job: train, evaluate, write tables and figures",
+        **examples("backlash run --out out", "backlash run --out out --workers 2"),
+    )
     p.add_argument("--out", default="out", help="output directory (default out)")
     add_dask_options(p)
     p.set_defaults(func=cmd_run)
@@ -158,6 +162,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "case gets the whole catalogue; single, pair, triple, held-back and clean cases across the plausible "
         "box, white or coloured noise, some with a drive's own sensors only. Run again on the same --out with "
         "the same settings to resume an interrupted run (either protocol). Protocol 1: the issue-4 protocol (README).",
+        **examples(
+            "backlash validate --cases 150 --seed 239 --workers 2 --out out/validation-v2-seed239",
+            "backlash validate --held-back held_out --mix held_back=1 --cases 35 --seed 241 --out out/held-out",
+            "backlash validate --protocol 1 --out out/validation-v1",
+        ),
     )
     p.add_argument(
         "--protocol", type=int, choices=sorted(VALIDATE_DEFAULTS), default=2, help="validation protocol (default 2)"

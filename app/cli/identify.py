@@ -7,8 +7,17 @@ import logging
 from pathlib import Path
 
 from app import output
-from app.cli.common import EXIT_OK, CommandError, add_db_option, add_record_options, open_store, read_record
+from app.cli.common import (
+    EXIT_OK,
+    CommandError,
+    add_db_option,
+    add_record_options,
+    examples,
+    open_store,
+    read_record,
+)
 from engine.constants import CHANNELS
+from engine.identification.training import IDENTIFIERS
 from engine.plants import DEFAULT_PLANT, PLANTS
 
 logger = logging.getLogger(__name__)
@@ -56,7 +65,17 @@ def _identify_plant(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``identify`` to the subcommands."""
-    p = sub.add_parser("identify", help="identify the backlash width of a record (like POST /v1/identify)")
+    p = sub.add_parser(
+        "identify",
+        help="identify the backlash width of a record (like POST /v1/identify)",
+        description="The backlash width of a record from a stored pattern set (train one first: backlash train), "
+        "and with --continuous the calibrated width with its interval.",
+        **examples(
+            "backlash train --channel a1 --c 1.0",
+            "backlash identify rec.csv --channel a1 --continuous",
+            "backlash identify sine1.json --plant brfd --joint sine2.json --continuous",
+        ),
+    )
     add_record_options(p)
     p.add_argument("--channel", choices=CHANNELS, help="the backlash drive's channel (required without --plant)")
     p.add_argument(
@@ -74,7 +93,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="with --plant: another record of the same device, fitted jointly (one width shared); repeatable",
     )
     p.add_argument("--pattern-set", help="pattern-set id (default: the stored set with the nearest c)")
-    p.add_argument("--kind", help="only choose pattern sets of this kind")
+    p.add_argument("--kind", choices=sorted(IDENTIFIERS), help="only choose pattern sets of this kind")
     p.add_argument(
         "--any-set",
         action="store_true",

@@ -17,7 +17,10 @@ def build_parser() -> argparse.ArgumentParser:
     """The ``backlash`` argument parser with every subcommand."""
     parser = argparse.ArgumentParser(
         prog="backlash",
-        description="Backlash diagnosis: simulate the backlash test, train pattern sets, identify the backlash width.",
+        description="Backlash diagnosis: simulate the backlash test, train pattern sets, identify the backlash width, "
+        "diagnose why a simulator does not match a record (the gap, its cause, its locus), serve it over HTTP.",
+        epilog="start with: backlash simulate --K 0.0068 --out rec.csv && backlash diagnose rec.csv; "
+        "each command's --help has examples",
     )
     parser.add_argument(
         "--log-level",

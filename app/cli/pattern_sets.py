@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 
 from app import output
-from app.cli.common import EXIT_OK, add_db_option, effect, finite, open_store, param
+from app.cli.common import EXIT_OK, add_db_option, effect, effects_help, examples, finite, open_store, param
 from engine.constants import CHANNELS
+from engine.identification.training import DEFAULT_KIND, IDENTIFIERS
 
 
 def cmd_train(args: argparse.Namespace) -> int:
@@ -57,11 +58,21 @@ def cmd_pattern_sets(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``train`` and ``pattern-sets`` to the subcommands."""
-    p = sub.add_parser("train", help="train and store a pattern set (like POST /v1/pattern-sets)")
+    p = sub.add_parser(
+        "train",
+        help="train and store a pattern set (like POST /v1/pattern-sets)",
+        **examples(
+            "backlash train --channel a1 --c 1.0",
+            "backlash train --channel omega1 --c 1.4 --kind paper --max-epochs 200",
+            "backlash train --channel a1 --c 1.0 --effect motor_coulomb_friction=0.02",
+        ),
+    )
     p.add_argument("--channel", required=True, choices=CHANNELS)
     p.add_argument("--c", type=finite, required=True, help="apparent-viscosity group [pu]")
     p.add_argument("--J1", type=finite, nargs="+", help="J1 values [kg m^2] (default the paper's grid)")
-    p.add_argument("--kind", help="identifier kind (default: the engine's default kind)")
+    p.add_argument(
+        "--kind", choices=sorted(IDENTIFIERS), help=f"identifier kind (default {DEFAULT_KIND}: the template identifier)"
+    )
     p.add_argument("--l", type=finite, help="paper kind: learning coefficient l")
     p.add_argument("--delta1", type=finite, help="paper kind: stop at RMS < delta1")
     p.add_argument("--max-epochs", type=int, help="paper kind: epoch cap per network")
@@ -77,17 +88,26 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         type=effect,
         action="append",
         metavar="NAME=VALUE",
-        help="unmodelled effect applied to every training case (repeatable)",
+        help="unmodelled effect applied to every training case (repeatable); names and ranges: "
+        + effects_help(simulated=True),
     )
     add_db_option(p)
     p.set_defaults(func=cmd_train)
 
-    p = sub.add_parser("pattern-sets", help="list, show or delete stored pattern sets")
+    p = sub.add_parser(
+        "pattern-sets",
+        help="list, show or delete stored pattern sets",
+        **examples(
+            "backlash pattern-sets list --channel a1",
+            "backlash pattern-sets show ID",
+            "backlash pattern-sets delete ID",
+        ),
+    )
     p.add_argument("action", choices=["list", "show", "delete"])
     p.add_argument("id", nargs="?", help="pattern-set id (show, delete)")
     p.add_argument("--channel", choices=CHANNELS)
     p.add_argument("--c", type=finite)
-    p.add_argument("--kind")
+    p.add_argument("--kind", choices=sorted(IDENTIFIERS), help="only sets of this identifier kind")
     add_db_option(p)
     p.set_defaults(func=cmd_pattern_sets)
 

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from app import output
-from app.cli.common import EXIT_OK, CommandError, add_unit_options, effect, finite, units_of
+from app.cli.common import EXIT_OK, CommandError, add_unit_options, effect, effects_help, examples, finite, units_of
 from engine.constants import (
     C1_NOMINAL,
     C_NOMINAL,
@@ -99,13 +99,28 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``simulate`` to the subcommands."""
-    p = sub.add_parser("simulate", help="simulate the backlash test of a case (like POST /v1/simulate)")
+    p = sub.add_parser(
+        "simulate",
+        help="simulate the backlash test of a case (like POST /v1/simulate)",
+        description="The backlash test of MODEL.md on the reference plant, with unmodelled effects if asked: a "
+        "record (a1, m_el, omega1, a2, v2) as JSON or CSV.",
+        **examples(
+            "backlash simulate --K 0.0068 --out rec.csv",
+            "backlash simulate --K 0.0055 --effect load_inertia=1.3 --snr-db 40 --out rec.csv",
+            "backlash simulate --K 0.005 --channels a1 omega1 --omega1-unit rpm --known c1 --out drive.csv",
+            "backlash simulate --cases cases.json --out records.json",
+        ),
+    )
     p.add_argument("--K", type=finite, help="backlash zone width [m]")
     p.add_argument("--J1", type=finite, help=f"motor-side inertia [kg m^2] (default {J1_NOMINAL:g})")
     p.add_argument("--c", type=finite, help=f"apparent viscosity [pu] (default {C_NOMINAL:g})")
     p.add_argument("--c1", type=finite, help=f"absorber discontinuity [pu] (default {C1_NOMINAL:g})")
     p.add_argument(
-        "--effect", type=effect, action="append", metavar="NAME=VALUE", help="unmodelled effect (repeatable)"
+        "--effect",
+        type=effect,
+        action="append",
+        metavar="NAME=VALUE",
+        help="unmodelled effect (repeatable); names and ranges: " + effects_help(simulated=True),
     )
     p.add_argument("--cases", type=Path, help="JSON file with a list of cases (the batch form); writes JSON")
     p.add_argument("--out", type=Path, help="output file, .json or .csv (default: JSON on stdout)")
