@@ -23,7 +23,7 @@ from engine.diagnosis.plausibility import (
 from engine.plants.brfd import record as brfd_record
 from engine.plants.emps import record as emps_record
 from engine.records import Record, RecordError, SampleGrid, record_from_data
-from engine.records.limits import MAX_ABS_SAMPLE
+from engine.records.limits import MAX_ABS_SAMPLE, MAX_SAMPLES
 from engine.simulation import CATALOGUE, PlantParameters, simulate, simulate_batch
 from engine.simulation.noise import noise_std
 
@@ -123,6 +123,20 @@ def test_the_other_plants_records_refuse_them_too() -> None:
     force[9] = 1e10  # 4.4e13 N: beyond the limit in SI units
     with pytest.raises(RecordError, match=r"test: friction force \(given in kip\) holds 4.45e\+13 N at sample 9"):
         brfd_record.record_from_arrays(np.arange(1024) / 1024, np.zeros(1024), force, "test", "in", "kip")
+
+
+def test_a_record_longer_than_the_cap_is_refused_on_every_plant(clean: Record) -> None:
+    """One cap on samples per record at every plant's boundary (issue 51, item 2): refused, saying what to send."""
+    n = MAX_SAMPLES + 1
+    with pytest.raises(RecordError, match=rf"channel 'a1' has {n} samples, more than the {MAX_SAMPLES}"):
+        Record({"a1": np.zeros(n)}, clean.sample_interval, clean.event_index)
+    t = np.arange(n) * emps_record.SAMPLE_INTERVAL
+    arrays = {"t": t, "qm": np.zeros(n), "qg": np.zeros(n), "vir": np.zeros(n)}
+    with pytest.raises(RecordError, match=r"run1: t has \d+ samples, more than"):
+        emps_record.record_from_arrays(arrays, {"kp": 1.0, "kv": 1.0, "gtau": 1.0}, "run1")
+    with pytest.raises(RecordError, match=r"test: time has \d+ samples, more than"):
+        brfd_record.record_from_arrays(np.arange(n) / 1024, np.zeros(n), np.zeros(n), "test", "m", "N")
+    Record({"a1": np.zeros(MAX_SAMPLES)}, clean.sample_interval, clean.event_index)  # the cap itself is accepted
 
 
 def test_the_noise_estimate_never_overflows(clean: Record) -> None:

@@ -177,7 +177,8 @@ def test_clean_rendering_is_no_gap(clean: dict[str, Record], name: str) -> None:
     assert res.verdict.status == "no_gap", (name, res.verdict.reason)
     summary = res.record_summary()
     assert summary is not None and summary["sample_interval"] == clean[name].sample_interval
-    assert res.before.grid == clean[name].grid  # the overlay comes back on the record's own grid
+    # the overlay comes back on the record's own grid, over the test window the diagnosis read
+    assert res.before.grid == clean[name].test_window()[0].grid
 
 
 @pytest.mark.parametrize(
@@ -193,10 +194,11 @@ def test_effect_is_named_on_every_rendering(
     assert res.verdict.status == "explained", (name, res.verdict.reason)
     assert res.verdict.effect == "load_inertia", name
     assert res.verdict.value is not None and abs(res.verdict.value - EFFECT["load_inertia"]) < 0.01, name
-    # records before/after on the record's own grid and in its own units
-    assert res.after is not None and res.after.grid == rec.grid and res.after.units == rec.units
+    # records before/after on the record's own grid and in its own units, over its test window only
+    window = rec.test_window()[0]
+    assert res.after is not None and res.after.grid == window.grid and res.after.units == rec.units
     out = res.to_dict()["records"]["after"]
-    assert len(next(iter(out["channels"].values()))) == rec.n_samples
+    assert len(next(iter(out["channels"].values()))) == window.n_samples <= rec.n_samples
     for c, unit in rec.units.items():
         assert out["units"][c] == unit
     # the plots read the record's own bands and units

@@ -220,7 +220,8 @@ def diagnose(
     Notes
     -----
     The record's test window (4.8 ms before to 200 ms after the event) is analysed on the
-    record's own grid; ``records.before``/``records.after`` cover all its samples. When the
+    record's own grid; ``records.before``/``records.after`` cover that window (a longer record's other
+    samples are not simulated: memory and the answer stay bounded by the window). When the
     record's event was located from the data, its instant within the located interval is
     calibrated too, and pure time shifts (trigger offset, measurement delay) cannot be
     diagnosed (their candidates say so).
@@ -323,7 +324,7 @@ def _diagnose(
     if verdict.status == "explained":
         if model is None:  # an explained verdict names a fitted model (answer_calibration checked its fit)
             raise RuntimeError(f"the named effect {verdict.effect} has no fit")
-        after = final.simulated_record(whole)
+        after = final.simulated_record(record)
         gap_after = gap_of(final)
         shrinkage = model.shrinkage
         cells_after = localise(record, final.simulated_record(record), nominal.sigma, DEFAULT_WINDOWS_MS)
@@ -338,7 +339,7 @@ def _diagnose(
         verdict=verdict,
         gap_before=gap_before,
         gap_after=gap_after,
-        before=nominal.simulated_record(whole),
+        before=nominal.simulated_record(record),
         after=after,
         cells_after=cells_after,
         n_simulations=n_sim,

@@ -101,6 +101,7 @@ def plot_overlays(record: Record, result: DiagnosisResult, path: str | Path) -> 
     Path
         The written file.
     """
+    record, _ = record.test_window()  # what the diagnosis read, and what result.before/after cover
     channels = list(record.channels)
     fig = Figure(figsize=(11, 2.6 * len(channels)), constrained_layout=True)
     axes = fig.subplots(2 * len(channels), 1, sharex=True, gridspec_kw={"height_ratios": [3, 1] * len(channels)})

@@ -17,7 +17,7 @@ import numpy as np
 
 from engine.records.errors import RecordError
 
-__all__ = ["MAX_ABS_SAMPLE", "require_magnitude"]
+__all__ = ["MAX_ABS_SAMPLE", "MAX_SAMPLES", "require_length", "require_magnitude"]
 
 #: Largest accepted magnitude of a sample, in the engine's unit of its series (m/s^2, rad/s, m/s,
 #: pu, m, N, V, s). Physically motivated: no sensor of these plants reads anywhere near it (the
@@ -28,6 +28,36 @@ __all__ = ["MAX_ABS_SAMPLE", "require_magnitude"]
 #: squares over a record of 1e7 samples 1e31, a fourth power 1e48 (float64 overflows at 1.8e308).
 #: A limit like 1e150 would not do: its square summed over 2048 samples already overflows.
 MAX_ABS_SAMPLE: Final[float] = 1e12
+
+
+#: Most samples per series of a record. A diagnosis reads only the test window (about 205 ms: 20 500
+#: samples at the finest accepted interval of 10 us), so no answer needs more; the cap keeps a
+#: record's memory, its answer and what is stored of it bounded (issue 51: a 10^7-sample record
+#: became a 4.6 GB worker). 10^6 samples is 10 s at 10 us: cut a longer record around the event.
+MAX_SAMPLES: Final[int] = 1_000_000
+
+
+def require_length(n: int, what: str) -> None:
+    """Refuse a series of more than :data:`MAX_SAMPLES` samples.
+
+    Parameters
+    ----------
+    n : int
+        Its number of samples.
+    what : str
+        How the message names the record or series, e.g. ``"channel 'a1'"``.
+
+    Raises
+    ------
+    RecordError
+        Naming the series, its length, the limit and what to do.
+    """
+    if n > MAX_SAMPLES:
+        raise RecordError(
+            f"{what} has {n} samples, more than the {MAX_SAMPLES} a record may hold; send the stretch the analysis "
+            "needs (the backlash drive's diagnosis reads only its test window, 4.8 ms before to 200 ms after the "
+            "event; a plant of whole records, a shorter record or a coarser sample interval)"
+        )
 
 
 def require_magnitude(values: np.ndarray, what: str, unit: str) -> None:

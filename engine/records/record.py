@@ -22,7 +22,7 @@ from engine.constants import CHANNEL_UNITS, CHANNELS, EVENT_INDEX, SAMPLE_INTERV
 from engine.records.errors import ProtocolError, RecordError
 from engine.records.event import EventLocation
 from engine.records.grid import GridError, SampleGrid
-from engine.records.limits import require_magnitude
+from engine.records.limits import require_length, require_magnitude
 from engine.records.units import UnitError, factor, from_model_units
 
 __all__ = ["Record", "WindowUse"]
@@ -114,6 +114,8 @@ class Record:
             if name not in CHANNELS:
                 raise RecordError(f"unknown channel {name!r}; known channels: {', '.join(CHANNELS)}")
             arr = np.asarray(values, dtype=float)
+            if arr.ndim == 1:
+                require_length(arr.shape[0], f"channel {name!r}")
             if arr.ndim != 1 or arr.shape[0] < 2:
                 raise RecordError(f"channel {name!r} has shape {arr.shape}; it must be a list of samples (at least 2)")
             if n is None:

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from engine.records import RecordError
-from engine.records.limits import require_magnitude
+from engine.records.limits import require_length, require_magnitude
 
 __all__ = [
     "FORCE_UNITS",
@@ -149,6 +149,7 @@ def record_from_arrays(
     if len(set(sizes.values())) != 1:
         raise RecordError(f"{name}: series of unequal lengths {sizes}; every column needs one value per sample")
     n = sizes["time"]
+    require_length(n, f"{name}: time")
     if n < MIN_SAMPLES:
         raise RecordError(f"{name}: {n} samples; a record needs at least {MIN_SAMPLES} (one second at 1024 Hz)")
     dt = np.diff(arrays["time"])

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.records import RecordError
-from engine.records.limits import require_magnitude
+from engine.records.limits import require_length, require_magnitude
 
 __all__ = ["SIGNALS", "EmpsRecord", "load_csv", "load_mat", "load_record", "record_from_arrays"]
 
@@ -111,6 +111,7 @@ def record_from_arrays(arrays: Mapping[str, np.ndarray], gains: Mapping[str, flo
     if missing:
         raise RecordError(f"{name}: missing gain(s) {missing}; an EMPS record holds kp, kv and gtau")
     n = arrays["t"].size
+    require_length(n, f"{name}: t")
     out: dict[str, np.ndarray] = {}
     for key, unit in SIGNALS.items():
         if key not in arrays:
