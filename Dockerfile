@@ -1,5 +1,7 @@
 # The backlash service: `docker build -t backlash .` then
-#   docker run -p 8000:8000 -v backlash-data:/data backlash
+#   docker run -p 8000:8000 -v backlash-data:/data -e BACKLASH_API_KEY=<a key of 8+ characters> backlash
+# It listens on 0.0.0.0 inside the container, so it starts only with an API key (clients send it in the
+# X-API-Key header), or with -e BACKLASH_ALLOW_NO_KEY=1 where every client that can reach the port is trusted.
 # Settings are BACKLASH_* environment variables (see app/core/config.py); the database (pattern
 # sets, jobs, records, diagnoses) lives on the /data volume. Other commands: docker run backlash backlash --help
 # Without access to a container registry, build a local stand-in for the base from Debian's packages

@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 from collections.abc import AsyncIterator
 from contextlib import ExitStack, asynccontextmanager
+from typing import IO
 
 from fastapi import FastAPI
 from fastapi.routing import APIRoute
@@ -16,7 +17,12 @@ from fastapi.routing import APIRoute
 from app import web
 from app.api.errors import register_exception_handlers
 from app.api.main import api_router
-from app.api.middleware import ApiKeyMiddleware, BodySizeLimitMiddleware
+from app.api.middleware import (
+    ApiKeyMiddleware,
+    BodyReadTimeoutMiddleware,
+    BodySizeLimitMiddleware,
+    HeadAsGetMiddleware,
+)
 from app.api.openapi import install_openapi
 from app.api.routes import health
 from app.api.routes.health import package_version
@@ -28,6 +34,7 @@ from app.services import diagnoses, training
 from app.services.diagnoses import DIAGNOSE_JOB
 from app.services.sync_diagnosis import SyncDiagnoses
 from app.services.training import TRAIN_JOB
+from app.web.docs import install_docs
 from engine.constants import MODEL_VERSION
 from engine.storage import PatternStore
 
@@ -50,18 +57,29 @@ def _operation_id(route: APIRoute) -> str:
     return f"{route.tags[0]}-{route.name}" if route.tags else route.name
 
 
-def create_app(settings: Settings | None = None) -> FastAPI:
-    """Build the application; the pattern store is opened and the job threads started on startup."""
+def create_app(settings: Settings | None = None, *, database_lock: IO[bytes] | None = None) -> FastAPI:
+    """Build the application; the pattern store is opened and the job threads started on startup.
+
+    Parameters
+    ----------
+    settings : Settings, optional
+        Default: from the environment.
+    database_lock : file, optional
+        The service lock of ``settings.db_path`` (:func:`app.core.instance.hold_database`) when the caller has
+        taken it (``backlash serve`` does, before it checks the store) and keeps it; otherwise the start takes
+        it, before opening the store, and gives it back at shutdown.
+    """
     settings = settings or get_settings()
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         setup_logging(settings.log_level)
-        app.state.store = store = PatternStore(settings.db_path)
         # Whatever the start took is given back in reverse order at shutdown, and also when a later
         # step of the start fails (the service lock, above all: a retry in this process must get it).
         with ExitStack() as taken:
-            taken.callback(hold_database(store.path).close)  # ServiceAlreadyRunning: another service has the file
+            if database_lock is None:  # first: a refused start never opens (or migrates) the file
+                taken.callback(hold_database(settings.db_path).close)  # ServiceAlreadyRunning: another has it
+            app.state.store = store = PatternStore(settings.db_path)
             app.state.dask = None
             if settings.dask_scheduler is not None:
                 from engine.distributed import connect
@@ -101,12 +119,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         description=DESCRIPTION,
         lifespan=lifespan,
         generate_unique_id_function=_operation_id,
+        docs_url=None,  # served from local assets instead of a CDN (app/web/docs.py)
+        redoc_url=None,
     )
     app.state.settings = settings
     register_exception_handlers(app)
+    app.add_middleware(HeadAsGetMiddleware)
+    app.add_middleware(BodyReadTimeoutMiddleware, timeout=settings.read_timeout)
     app.add_middleware(BodySizeLimitMiddleware, max_body_bytes=settings.max_body_bytes)
     if settings.api_key is not None:  # outermost: refuse before reading any body
         app.add_middleware(ApiKeyMiddleware, api_key=settings.api_key.get_secret_value())
+    install_docs(app)  # before the report page's /static mount
     app.include_router(health.router)
     app.include_router(api_router, prefix=API_V1_STR)
     app.include_router(web.router)

@@ -98,26 +98,58 @@ def format_units(units: Mapping[str, str]) -> str:
 
 
 def _csv_columns(text: str) -> tuple[list[str], list[list[float]]]:
-    """Header and numeric columns of a CSV text (``t`` included); raises on malformed CSV."""
+    """Header and numeric columns of a CSV text (``t`` included); raises on malformed CSV.
+
+    The rows are read one at a time into the columns, never kept as a list of rows: a large record then
+    makes no millions of small lists (whose garbage collection would hold the interpreter, and with it
+    the service's event loop, for a noticeable time), and the loop lets other threads run between rows.
+    """
     if not text.strip():
         raise RecordFormatError(
             f"the CSV is empty; send a header row of channel names ({', '.join(CHANNELS)}, optionally "
             f"{TIME_COLUMN!r} for the time in s) and one row per sample"
         )
+    reader = csv.reader(io.StringIO(text))
     try:
-        rows = list(csv.reader(io.StringIO(text)))
+        first = next(reader)
+        header = _csv_header(first)
+        columns: list[list[float]] = [[] for _ in header]
+        blank: list[tuple[int, list[str]]] = []  # blank rows not yet known to lie inside the data (else trailing)
+        n_rows = 0
+        failure: RecordFormatError | None = None
+        for r, row in enumerate(reader, start=2):
+            if not any(cell.strip() for cell in row):
+                blank.append((r, row))
+                continue
+            for line, cells in (*blank, (r, row)):
+                n_rows += 1
+                if failure is None:
+                    failure = _append_row(columns, header, line, cells)
+            blank.clear()
+            if failure is not None and n_rows >= 2:
+                raise failure
     except csv.Error as exc:
         raise RecordFormatError(f"malformed CSV: {exc}") from exc
-    while rows and not any(cell.strip() for cell in rows[-1]):
-        rows.pop()  # trailing blank lines
-    header = [cell.strip() for cell in rows[0]]
+    if n_rows < 2:
+        raise RecordError(
+            f"the CSV has {n_rows} data row(s); a record needs one row per sample, covering at least "
+            f"{PRE_EVENT_TIME * 1e3:g} ms before the event and {POST_EVENT_TIME * 1e3:g} ms from it on"
+        )
+    if failure is not None:
+        raise failure
+    return header, columns
+
+
+def _csv_header(row: list[str]) -> list[str]:
+    """The CSV's header row, checked: channel names (and optionally ``t``), each once."""
+    header = [cell.strip() for cell in row]
     if "" in header:
-        raise RecordFormatError(f"malformed CSV: the header row {rows[0]!r} has an empty column name")
+        raise RecordFormatError(f"malformed CSV: the header row {row!r} has an empty column name")
     unknown = [name for name in header if name not in CHANNELS and name != TIME_COLUMN]
     if unknown:
         if _is_number(unknown[0]):
             raise RecordFormatError(
-                f"the CSV's first row {rows[0][:5]!r} is not a header; start with a row of channel names "
+                f"the CSV's first row {row[:5]!r} is not a header; start with a row of channel names "
                 f"({', '.join(CHANNELS)}, optionally {TIME_COLUMN!r})"
             )
         raise RecordError(
@@ -128,24 +160,19 @@ def _csv_columns(text: str) -> tuple[list[str], list[list[float]]]:
         dup = next(name for name in header if header.count(name) > 1)
         what = "column" if dup == TIME_COLUMN else "channel"
         raise RecordFormatError(f"{what} {dup!r} appears twice in the CSV header")
-    data = rows[1:]
-    if len(data) < 2:
-        raise RecordError(
-            f"the CSV has {len(data)} data row(s); a record needs one row per sample, covering at least "
-            f"{PRE_EVENT_TIME * 1e3:g} ms before the event and {POST_EVENT_TIME * 1e3:g} ms from it on"
-        )
-    columns: list[list[float]] = [[] for _ in header]
-    for r, row in enumerate(data, start=2):
-        if len(row) != len(header):
-            raise RecordFormatError(f"malformed CSV: line {r} has {len(row)} fields, the header has {len(header)}")
-        for j, cell in enumerate(row):
-            try:
-                columns[j].append(float(cell))
-            except ValueError:
-                raise RecordFormatError(
-                    f"malformed CSV: line {r}, column {header[j]!r}: {cell!r} is not a number"
-                ) from None
-    return header, columns
+    return header
+
+
+def _append_row(columns: list[list[float]], header: list[str], line: int, row: list[str]) -> RecordFormatError | None:
+    """Append the numbers of data row ``line`` to ``columns``; the error (not raised) when the row is malformed."""
+    if len(row) != len(header):
+        return RecordFormatError(f"malformed CSV: line {line} has {len(row)} fields, the header has {len(header)}")
+    for j, cell in enumerate(row):
+        try:
+            columns[j].append(float(cell))
+        except ValueError:
+            return RecordFormatError(f"malformed CSV: line {line}, column {header[j]!r}: {cell!r} is not a number")
+    return None
 
 
 def decode_csv_body(raw: bytes) -> str:

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Coroutine
 from typing import Annotated, Any, Literal, TypeVar
 
 from fastapi import Depends, HTTPException, Query, Request
 from fastapi.exceptions import RequestValidationError
 from pydantic import BaseModel, ValidationError
+from starlette.concurrency import run_in_threadpool
 
 from app.core.config import Settings
 from app.jobs import JobManager
@@ -76,15 +78,70 @@ def body_kind(request: Request) -> Literal["json", "csv"]:
     )
 
 
-async def json_body(request: Request, model: type[M]) -> M:
-    """The request body validated as ``model`` (errors as FastAPI's, located under ``body``)."""
-    raw = await request.body()
-    if not raw.strip():
-        raise RequestValidationError([{"type": "missing", "loc": ("body",), "msg": "a JSON body is required"}])
+def json_media(request: Request) -> None:
+    """Only JSON bodies (no Content-Type means JSON); 415 otherwise."""
+    media = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if media not in ("", "application/json") and not media.endswith("+json"):
+        raise HTTPException(
+            415, f"unsupported Content-Type {media!r}: send the body as JSON with Content-Type: application/json"
+        )
+
+
+def validate_json(model: type[M], raw: bytes) -> M:
+    """``raw`` validated as ``model`` (errors as FastAPI's, located under ``body``); blocking, for a worker thread.
+
+    pydantic's JSON parser refuses nesting deeper than it supports with a ``json_invalid`` error (400), so a
+    deeply nested body is answered, never a ``RecursionError``.
+    """
     try:
         return model.model_validate_json(raw)
     except ValidationError as exc:
         raise body_errors(exc) from None
+
+
+async def json_body(request: Request, model: type[M]) -> M:
+    """The request body validated as ``model`` (errors as FastAPI's, located under ``body``).
+
+    The body is parsed and validated in a worker thread: a large one must not hold the event loop,
+    which serves every other request (``/healthz`` among them) meanwhile.
+    """
+    raw = await request.body()
+    if not raw.strip():
+        raise RequestValidationError([{"type": "missing", "loc": ("body",), "msg": "a JSON body is required"}])
+    return await run_in_threadpool(validate_json, model, raw)
+
+
+#: Largest body of the routes whose body is parameters, not a record (simulate, train) [bytes]: a 10 000-case
+#: batch with effects is well under 2 MB; a larger body is refused (413) before it is parsed.
+PARAMETER_BODY_BYTES = 4 << 20
+
+
+def json_model(
+    model: type[M], max_bytes: int | None = PARAMETER_BODY_BYTES
+) -> Callable[[Request], Coroutine[Any, Any, M]]:
+    """A dependency that reads the JSON body as ``model`` off the event loop (:func:`json_body`).
+
+    For routes whose body is JSON only; document the body with ``openapi_extra=body_schema(model)``
+    (:func:`app.api.openapi.body_schema`), since FastAPI does not see it as a body parameter. A body
+    longer than ``max_bytes`` is refused with 413 (``None``: only ``BACKLASH_MAX_BODY_BYTES`` applies).
+    """
+
+    def too_large(size: str) -> HTTPException:
+        return HTTPException(
+            413, f"request body is {size}; the limit of this operation is {max_bytes} bytes: send fewer cases"
+        )
+
+    async def read(request: Request) -> M:
+        json_media(request)
+        declared = request.headers.get("content-length", "")
+        if max_bytes is not None and declared.isdigit() and int(declared) > max_bytes:
+            raise too_large(f"{int(declared)} bytes")
+        if max_bytes is not None and len(await request.body()) > max_bytes:
+            raise too_large(f"more than {max_bytes} bytes")
+        return await json_body(request, model)
+
+    read.__name__ = f"{model.__name__}_body"
+    return read
 
 
 class CSVRecordParams:
@@ -182,9 +239,19 @@ CSVRecordDep = Annotated[CSVRecordParams, Depends()]
 
 
 async def csv_record(request: Request, params: CSVRecordParams) -> Record:
-    """The record sent in CSV form (header of channel names, optionally ``t``; one row per sample)."""
-    text = decode_csv_body(await request.body())
-    return record_from_csv(text, params.sample_interval, params.event_index, params.conditions, params.units())
+    """The record sent in CSV form (header of channel names, optionally ``t``; one row per sample).
+
+    Decoded and parsed in a worker thread, off the event loop (as :func:`json_body`).
+    """
+    raw = await request.body()
+    units = params.units()
+
+    def read() -> Record:
+        return record_from_csv(
+            decode_csv_body(raw), params.sample_interval, params.event_index, params.conditions, units
+        )
+
+    return await run_in_threadpool(read)
 
 
 def reject_query(request: Request, names: tuple[str, ...]) -> None:

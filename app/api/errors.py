@@ -11,10 +11,12 @@ from __future__ import annotations
 import logging
 from typing import Any
 
+import fastapi.routing
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
 
 from app.records_io import RecordFormatError
 from app.services.errors import (
@@ -67,10 +69,21 @@ SERVER_ERRORS: dict[type[Exception], tuple[int, str]] = {
 
 #: How many field errors a validation answer lists.
 MAX_LISTED_ERRORS = 20
+#: Longest ``detail`` of an error answer [characters]: a message that quotes what the request sent stays short.
+MAX_DETAIL_CHARS = 2000
+#: Longest name of a field in a validation answer [characters].
+MAX_NAME_CHARS = 100
+
+
+def shorten(text: str, limit: int = MAX_DETAIL_CHARS) -> str:
+    """``text``, cut to ``limit`` characters with a note of how many were left out."""
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit]}... ({len(text) - limit} more characters)"
 
 
 def error_body(detail: str, error: str, errors: list[dict[str, Any]] | None = None) -> dict[str, Any]:
-    body: dict[str, Any] = {"detail": detail, "error": error}
+    body: dict[str, Any] = {"detail": shorten(detail), "error": error}
     if errors is not None:
         body["errors"] = errors
     return body
@@ -89,7 +102,9 @@ def validation_answer(errors: list[dict[str, Any]]) -> JSONResponse:
     """400 for malformed JSON, else 422, naming the first offending fields."""
     if any(e.get("type") == "json_invalid" for e in errors):
         e = next(e for e in errors if e.get("type") == "json_invalid")
-        reason = (e.get("ctx") or {}).get("error", e.get("msg", ""))
+        reason = str((e.get("ctx") or {}).get("error", e.get("msg", "")))
+        if "recursion limit exceeded" in reason:  # pydantic's parser: arrays and objects nested too deeply
+            reason = f"{reason} (arrays and objects nested too deeply; no request body nests that far)"
         return JSONResponse(
             error_body(f"malformed JSON: {reason}; send the request body as valid JSON", "RequestValidationError"),
             status_code=400,
@@ -97,7 +112,11 @@ def validation_answer(errors: list[dict[str, Any]]) -> JSONResponse:
     if len(errors) == 1 and errors[0].get("type") == "missing" and tuple(errors[0].get("loc", ())) == ("body",):
         return JSONResponse(error_body("the request needs a JSON body", "RequestValidationError"), status_code=422)
     listed = [
-        {"loc": list(e.get("loc", ())), "msg": e.get("msg", ""), "type": e.get("type", "")}
+        {
+            "loc": [shorten(p, MAX_NAME_CHARS) if isinstance(p, str) else p for p in e.get("loc", ())],
+            "msg": shorten(str(e.get("msg", "")), MAX_NAME_CHARS * 2),
+            "type": e.get("type", ""),
+        }
         for e in errors[:MAX_LISTED_ERRORS]
     ]
     parts = [f"{_loc(e['loc'])}: {e['msg']}" for e in listed[:3]]
@@ -128,12 +147,41 @@ async def _request_validation(request: Request, exc: Exception) -> JSONResponse:
     return validation_answer(errors)
 
 
+def allowed_methods(request: Request) -> list[str]:
+    """Every method some route of the application answers at the request's path (HEAD wherever GET is).
+
+    Starlette's 405 names the methods of the first route whose path matches; a path served by several routes
+    (GET and DELETE of ``/v1/jobs/{id}``) would be said to allow only one of them.
+    """
+    scope = {**request.scope, "type": "http"}
+    routes: list[Any] = list(request.app.router.routes)
+    flatten = getattr(fastapi.routing, "iter_route_contexts", None)  # FastAPI >= 0.165 keeps included routers whole
+    if flatten is not None:
+        routes = list(flatten(routes))
+    methods: set[str] = set()
+    for route in routes:
+        allowed = getattr(route, "methods", None)
+        if allowed and route.matches(scope)[0] is not Match.NONE:
+            methods |= set(allowed)
+    if "GET" in methods:
+        methods.add("HEAD")
+    return sorted(methods)
+
+
 async def _http_exception(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, StarletteHTTPException)  # registered for this class only
+    if exc.status_code == 405:
+        allowed = allowed_methods(request)
+        method = "HEAD" if request.scope.get("head_request") else request.method
+        detail = f"{method} is not allowed on {request.url.path}; allowed: {', '.join(allowed)}"
+        return JSONResponse(
+            error_body(detail, "MethodNotAllowed"), status_code=405, headers={"Allow": ", ".join(allowed)}
+        )
     name = {
         401: "Unauthorized",
         404: "NotFound",
         405: "MethodNotAllowed",
+        408: "RequestTimeout",
         413: "ContentTooLarge",
         415: "UnsupportedMediaType",
     }.get(exc.status_code, "HTTPException")
@@ -142,9 +190,10 @@ async def _http_exception(request: Request, exc: Exception) -> JSONResponse:
 
 async def _user_error(request: Request, exc: Exception) -> JSONResponse:
     status = next(USER_ERRORS[cls] for cls in type(exc).__mro__ if cls in USER_ERRORS)
-    logger.info("%s %s -> %d %s: %s", request.method, request.url.path, status, type(exc).__name__, exc)
+    message = shorten(str(exc))
+    logger.info("%s %s -> %d %s: %s", request.method, request.url.path, status, type(exc).__name__, message)
     headers = {"Retry-After": str(exc.retry_after)} if isinstance(exc, QueueFullError) else None
-    return JSONResponse(error_body(str(exc), type(exc).__name__), status_code=status, headers=headers)
+    return JSONResponse(error_body(message, type(exc).__name__), status_code=status, headers=headers)
 
 
 async def _server_error(request: Request, exc: Exception) -> JSONResponse:

@@ -1,10 +1,11 @@
-"""ASGI middleware: the optional API key and the request-body size limit."""
+"""ASGI middleware: the optional API key, the request-body size limit and the body's read timeout."""
 
 from __future__ import annotations
 
 import hmac
 import json
 
+import anyio
 from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -25,6 +26,14 @@ async def _send_json(send: Send, status: int, body: dict, headers: list[tuple[by
         }
     )
     await send({"type": "http.response.body", "body": data})
+
+
+def key_matches(given: str | bytes | None, key: str | bytes) -> bool:
+    """Whether ``given`` (the header's value) is the API key ``key``, compared in constant time."""
+    if given is None:
+        return False
+    as_bytes = given.encode("latin-1", errors="replace") if isinstance(given, str) else given
+    return hmac.compare_digest(as_bytes, key.encode() if isinstance(key, str) else key)
 
 
 class ApiKeyMiddleware:
@@ -50,7 +59,7 @@ class ApiKeyMiddleware:
             await self.app(scope, receive, send)
             return
         given = next((v for k, v in scope["headers"] if k == API_KEY_HEADER.lower().encode()), None)
-        if given is None or not hmac.compare_digest(given, self._key):
+        if given is None or not key_matches(given, self._key):
             what = "missing" if given is None else "wrong"
             await _send_json(
                 send,
@@ -115,3 +124,58 @@ class BodySizeLimitMiddleware:
             return message
 
         await self.app(scope, limited_receive, send)
+
+
+class BodyReadTimeoutMiddleware:
+    """Answer 408 (and close the connection) when a request's body stalls: more than ``timeout`` seconds pass
+    between two of its pieces.
+
+    A slow client would otherwise hold its connection and the request's task for as long as it likes
+    (uvicorn has no read timeout; :class:`app.core.server.HeadTimeoutProtocol` limits the request head).
+    Once the body is in, reads wait as long as they need (they then only wait for the client to go).
+    """
+
+    def __init__(self, app: ASGIApp, timeout: float) -> None:
+        self.app = app
+        self.timeout = float(timeout)
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        body_done = False
+
+        async def timed_receive() -> Message:
+            nonlocal body_done
+            if body_done:
+                return await receive()
+            with anyio.move_on_after(self.timeout) as waited:
+                message = await receive()
+            if waited.cancelled_caught:
+                raise HTTPException(
+                    408,
+                    f"the request body stalled: nothing arrived for {self.timeout:g} s (BACKLASH_READ_TIMEOUT); "
+                    "send it again",
+                    headers={"Connection": "close"},
+                )
+            if message["type"] != "http.request" or not message.get("more_body", False):
+                body_done = True
+            return message
+
+        await self.app(scope, timed_receive, send)
+
+
+class HeadAsGetMiddleware:
+    """Answer ``HEAD`` as ``GET`` (the server sends the head of the answer only), wherever ``GET`` is served.
+
+    FastAPI's routes answer only the methods they name, so ``HEAD /`` (a link checker, a load balancer) got 405.
+    The request keeps its method in the scope's ``"head_request"`` flag (the 405 answer says ``HEAD``).
+    """
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] == "http" and scope["method"] == "HEAD":
+            scope = {**scope, "method": "GET", "head_request": True}  # a copy: the server still knows it is HEAD
+        await self.app(scope, receive, send)

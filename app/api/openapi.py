@@ -60,7 +60,8 @@ _FASTAPI_VALIDATION_SCHEMAS = ("HTTPValidationError", "ValidationError")
 #: app/api/middleware.py), documented where the route does not document them itself.
 BODY_ERRORS: dict[str, str] = {
     "400": "Malformed body (JSON or CSV), or an invalid Content-Length header",
-    "413": "Request body larger than BACKLASH_MAX_BODY_BYTES",
+    "408": "The body stalled: nothing arrived for BACKLASH_READ_TIMEOUT seconds",
+    "413": "Request body larger than BACKLASH_MAX_BODY_BYTES (bodies of parameters, not records: 4 MiB)",
     "415": "Content-Type not accepted by this operation",
     "422": "Invalid request: the first offending fields, or what the engine refused and why",
 }

@@ -195,6 +195,8 @@ def units_of(args: argparse.Namespace) -> dict[str, str]:
 
 def user_errors() -> tuple[type[BaseException], ...]:
     """Exceptions whose message tells the user what to fix: printed, exit status 2."""
+    from app.core.instance import ServiceLockError
+    from app.core.server import ExposureError
     from app.records_io import RecordFormatError
     from app.services.errors import ServiceError
     from engine.diagnosis.space import BoundsError
@@ -214,6 +216,8 @@ def user_errors() -> tuple[type[BaseException], ...]:
         InvalidPatternSet,
         PatternStoreError,
         ServiceError,
+        ServiceLockError,
+        ExposureError,
     )
 
 

@@ -6,6 +6,8 @@ environment variable        meaning                                default
 ``BACKLASH_DB_PATH``        pattern-store SQLite file              ``./data/patterns.sqlite3``
 ``BACKLASH_API_KEY``        if set, every request but ``/healthz``  unset (no key needed)
                             needs the header ``X-API-Key``
+``BACKLASH_ALLOW_NO_KEY``   1: serve on a non-loopback address     0 (refuse to start so)
+                            without an API key
 ``BACKLASH_MAX_BODY_BYTES`` largest request body [bytes] (413)    32 MiB
 ``BACKLASH_MAX_BATCH_CASES`` most cases in one batch simulation    64
 ``BACKLASH_WORKERS``        trainings at once                      1
@@ -14,6 +16,9 @@ environment variable        meaning                                default
 ``BACKLASH_DIAGNOSIS_WORKERS`` worker processes of diagnosis jobs    1
 ``BACKLASH_MAX_SYNC_DIAGNOSES`` synchronous diagnoses at once (429)  2
 ``BACKLASH_SYNC_DIAGNOSE_TIMEOUT`` time limit of one [s] (504)       120
+``BACKLASH_KEEP_ALIVE_TIMEOUT`` idle keep-alive connection [s]     5
+``BACKLASH_READ_TIMEOUT``   longest wait for a request's headers,  30
+                            or between pieces of its body [s]
 ``BACKLASH_LOG_LEVEL``      DEBUG, INFO, WARNING, ERROR            INFO
 =========================  =====================================  ==========================
 """
@@ -33,6 +38,9 @@ from engine.storage import DEFAULT_STORE_PATH
 ENV_PREFIX = "BACKLASH_"
 #: Path prefix of the versioned API.
 API_V1_STR = "/v1"
+
+#: The most cases ``BACKLASH_MAX_BATCH_CASES`` may allow (also the schema's bound on a batch's cases).
+MAX_BATCH_CASES_LIMIT = 10_000
 
 LogLevel = Literal["DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL"]
 
@@ -60,7 +68,7 @@ class Settings(BaseSettings):
         description="Largest accepted request body [bytes]; larger bodies get 413. The default holds a 100 kHz "
         "record of 0.8 s with five channels as JSON (about 9 MB) with room to spare.",
     )
-    max_batch_cases: Annotated[int, Field(ge=1, le=10_000)] = Field(
+    max_batch_cases: Annotated[int, Field(ge=1, le=MAX_BATCH_CASES_LIMIT)] = Field(
         default=64, description="Most cases in one POST /v1/simulate/batch request."
     )
     workers: Annotated[int, Field(ge=1, le=64)] = Field(
@@ -86,6 +94,19 @@ class Settings(BaseSettings):
         default=120.0,
         description="Time limit of a synchronous diagnosis [s]; beyond it the diagnosis is stopped (504). "
         "Diagnosis jobs have no limit.",
+    )
+    allow_no_key: bool = Field(
+        default=False,
+        description="Serve on an address other than loopback without an API key (otherwise `backlash serve` "
+        "refuses to start so): for a network where every client is trusted.",
+    )
+    keep_alive_timeout: Annotated[int, Field(ge=1, le=300)] = Field(
+        default=5, description="Seconds an idle keep-alive connection stays open after an answer."
+    )
+    read_timeout: Annotated[float, Field(gt=0, le=600)] = Field(
+        default=30.0,
+        description="Longest wait [s] for a request's headers (from the connection's opening or the previous "
+        "answer; the connection is then closed) and between two pieces of its body (408).",
     )
     log_level: LogLevel = Field(default="INFO", description="Log level of the service and the engine.")
     dask_scheduler: str | None = Field(

@@ -8,6 +8,8 @@ figures in one transaction), so that a diagnosis is either whole or absent.
 from __future__ import annotations
 
 import builtins
+import contextlib
+import sqlite3
 import uuid
 from dataclasses import dataclass
 from datetime import datetime
@@ -57,11 +59,20 @@ class DiagnosisRepository:
         self.store = store
 
     def create(
-        self, *, job_id: str, record_id: str, plant: str, asset: str | None, measured_at: datetime | None
+        self,
+        *,
+        job_id: str,
+        record_id: str,
+        plant: str,
+        asset: str | None,
+        measured_at: datetime | None,
+        diagnosis_id: str | None = None,
+        conn: sqlite3.Connection | None = None,
     ) -> str:
-        """Insert a diagnosis without a result yet; return its id."""
-        diagnosis_id = uuid.uuid4().hex
-        with self.store.writing() as conn:
+        """Insert a diagnosis without a result yet (with the id ``diagnosis_id`` when given, else a new one; in the
+        write transaction ``conn`` when given); return its id."""
+        diagnosis_id = diagnosis_id or uuid.uuid4().hex
+        with self.store.writing() if conn is None else contextlib.nullcontext(conn) as conn:
             conn.execute(
                 "INSERT INTO diagnoses (id, job_id, record_id, plant, asset, measured_at, created_at) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?)",

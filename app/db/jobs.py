@@ -10,7 +10,9 @@ cancellation, and the other way round.
 from __future__ import annotations
 
 import builtins
+import contextlib
 import json
+import sqlite3
 import uuid
 from dataclasses import dataclass
 from datetime import datetime
@@ -107,8 +109,16 @@ class JobRepository:
     def __init__(self, store: PatternStore) -> None:
         self.store = store
 
-    def create(self, kind: str, *, meta: dict[str, Any], spec: dict[str, Any], retry_of: str | None = None) -> Job:
-        """Insert a new ``queued`` job and return it."""
+    def create(
+        self,
+        kind: str,
+        *,
+        meta: dict[str, Any],
+        spec: dict[str, Any],
+        retry_of: str | None = None,
+        conn: sqlite3.Connection | None = None,
+    ) -> Job:
+        """Insert a new ``queued`` job and return it (in the write transaction ``conn`` when given)."""
         job = Job(
             id=uuid.uuid4().hex,
             kind=kind,
@@ -123,7 +133,7 @@ class JobRepository:
             spec=dict(spec),
             retry_of=retry_of,
         )
-        with self.store.writing() as conn:
+        with self.store.writing() if conn is None else contextlib.nullcontext(conn) as conn:
             conn.execute(
                 f"INSERT INTO jobs ({_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (
@@ -167,8 +177,9 @@ class JobRepository:
             rows = conn.execute(sql + " ORDER BY seq DESC LIMIT ?", (*args, int(limit))).fetchall()
         return [_row(r) for r in rows]
 
-    def count_unfinished(self) -> int:
-        with self.store.reading() as conn:
+    def count_unfinished(self, conn: sqlite3.Connection | None = None) -> int:
+        """Queued plus running jobs (read in ``conn`` when given, e.g. the transaction that adds one)."""
+        with self.store.reading() if conn is None else contextlib.nullcontext(conn) as conn:
             return int(conn.execute(f"SELECT count(*) FROM jobs WHERE state IN ({_states(UNFINISHED)})").fetchone()[0])
 
     # -- transitions (each only from the states it may come from; True if it happened) -------------

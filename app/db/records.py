@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import builtins
 import json
+import sqlite3
 import uuid
 import zlib
 from dataclasses import dataclass
@@ -18,7 +19,7 @@ from typing import Any, Literal
 from app.db.codec import from_text, now, to_text
 from engine.storage import PatternStore
 
-__all__ = ["RecordRepository", "StoredRecord"]
+__all__ = ["NewRecord", "RecordRepository", "StoredRecord"]
 
 Media = Literal["json", "csv"]
 
@@ -47,6 +48,14 @@ class StoredRecord:
     media: Media
     params: dict[str, Any]
     body: bytes | None = None
+
+
+@dataclass(frozen=True)
+class NewRecord:
+    """A record about to be stored (:meth:`RecordRepository.new`): its metadata and its compressed body."""
+
+    record: StoredRecord
+    body_z: bytes
 
 
 def _row(row: tuple[Any, ...], body: bytes | None = None) -> StoredRecord:
@@ -85,7 +94,34 @@ class RecordRepository:
         n_samples: int,
     ) -> StoredRecord:
         """Store a record's body as sent; return its metadata (with a new id)."""
-        rec = StoredRecord(
+        new = self.new(
+            body,
+            media=media,
+            params=params,
+            plant=plant,
+            name=name,
+            asset=asset,
+            measured_at=measured_at,
+            n_samples=n_samples,
+        )
+        with self.store.writing() as conn:
+            self.insert(conn, new)
+        return new.record
+
+    @staticmethod
+    def new(
+        body: bytes,
+        *,
+        media: Media,
+        params: dict[str, Any],
+        plant: str,
+        name: str | None,
+        asset: str | None,
+        measured_at: datetime | None,
+        n_samples: int,
+    ) -> NewRecord:
+        """A record to store (a new id, the body compressed), not stored yet: :meth:`insert` stores it."""
+        record = StoredRecord(
             id=uuid.uuid4().hex,
             plant=plant,
             name=name,
@@ -96,23 +132,27 @@ class RecordRepository:
             media=media,
             params=dict(params),
         )
-        with self.store.writing() as conn:
-            conn.execute(
-                f"INSERT INTO records ({_SUMMARY}, body_z) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                (
-                    rec.id,
-                    plant,
-                    name,
-                    asset,
-                    to_text(measured_at),
-                    rec.n_samples,
-                    to_text(rec.created_at),
-                    media,
-                    json.dumps(rec.params, allow_nan=False),
-                    zlib.compress(body, 6),
-                ),
-            )
-        return rec
+        return NewRecord(record, zlib.compress(body, 6))
+
+    @staticmethod
+    def insert(conn: sqlite3.Connection, new: NewRecord) -> None:
+        """Store ``new`` in the caller's write transaction ``conn`` (with the rows that belong with it)."""
+        rec = new.record
+        conn.execute(
+            f"INSERT INTO records ({_SUMMARY}, body_z) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+            (
+                rec.id,
+                rec.plant,
+                rec.name,
+                rec.asset,
+                to_text(rec.measured_at),
+                rec.n_samples,
+                to_text(rec.created_at),
+                rec.media,
+                json.dumps(rec.params, allow_nan=False),
+                new.body_z,
+            ),
+        )
 
     def get(self, record_id: str) -> StoredRecord | None:
         """The record with its body, or ``None``."""

@@ -28,6 +28,7 @@ import logging
 import multiprocessing
 import os
 import signal
+import sqlite3
 import sys
 import threading
 import time
@@ -50,12 +51,15 @@ __all__ = [
     "JobKind",
     "JobManager",
     "ProgressFn",
+    "RowsFn",
     "die_with_parent",
     "new_process_pool",
     "run_in_process",
 ]
 
 ProgressFn = Callable[[float, str], None]
+#: ``with_rows(conn, job)`` of :meth:`JobManager.submit`: writes the rows that belong with a new job, in its transaction.
+RowsFn = Callable[[sqlite3.Connection, Job], None]
 #: ``run(spec, progress)`` of a thread kind; returns items merged into the job's meta.
 ThreadRunner = Callable[[dict[str, Any], ProgressFn], dict[str, Any] | None]
 #: ``run(db_path, spec, progress)`` of a process kind: a module-level function (it is pickled by name).
@@ -233,9 +237,19 @@ class JobManager:
     # -- public API ----------------------------------------------------------------------------
 
     def submit(
-        self, kind: str, spec: dict[str, Any], *, meta: dict[str, Any] | None = None, retry_of: str | None = None
+        self,
+        kind: str,
+        spec: dict[str, Any],
+        *,
+        meta: dict[str, Any] | None = None,
+        retry_of: str | None = None,
+        with_rows: RowsFn | None = None,
     ) -> Job:
         """Store a queued job of ``kind`` and start it when a worker is free; return its snapshot.
+
+        The queue's limit is checked, the job inserted and ``with_rows(conn, job)`` run (the rows that belong
+        with the job: a diagnosis's record and its diagnosis) in one write transaction: a refused job stores
+        nothing, and a stored job is never without its rows. The job starts only once they are committed.
 
         Raises
         ------
@@ -246,20 +260,27 @@ class JobManager:
         with self._lock:
             if self._closed:
                 raise QueueFullError("the server is shutting down and accepts no new jobs")
-            pending = self.repo.count_unfinished()
-            if pending >= self._max_pending:
-                raise QueueFullError(
-                    f"{pending} jobs are queued or running (the limit is {self._max_pending}); "
-                    "wait for some to finish and retry"
-                )
-            job = self.repo.create(kind, meta=meta or {}, spec=spec, retry_of=retry_of)
+            with self.store.writing() as conn:
+                pending = self.repo.count_unfinished(conn)
+                if pending >= self._max_pending:
+                    raise QueueFullError(
+                        f"{pending} jobs are queued or running (the limit is {self._max_pending}); "
+                        "wait for some to finish and retry"
+                    )
+                job = self.repo.create(kind, meta=meta or {}, spec=spec, retry_of=retry_of, conn=conn)
+                if with_rows is not None:
+                    with_rows(conn, job)
             future: Future[Any]
-            if job_kind.runs_in == "thread":
-                future = self._threads.submit(self._run_thread, job.id, job_kind, spec)
-            else:
-                future = self._pools[job_kind.pool].schedule(
-                    run_in_process, args=(self.store.path, job.id, job_kind.run, spec)
-                )
+            try:
+                if job_kind.runs_in == "thread":
+                    future = self._threads.submit(self._run_thread, job.id, job_kind, spec)
+                else:
+                    future = self._pools[job_kind.pool].schedule(
+                        run_in_process, args=(self.store.path, job.id, job_kind.run, spec)
+                    )
+            except Exception as exc:  # a job no worker will ever run must not stay queued
+                self.repo.fail(job.id, self.public_error(f"the job could not be started: {type(exc).__name__}: {exc}"))
+                raise
             self._futures[job.id] = future
         future.add_done_callback(functools.partial(self._settle, job.id))
         logger.info("job %s (%s) queued", job.id, kind)
@@ -330,6 +351,18 @@ class JobManager:
             raise ConflictError(f"job {job_id} is of kind {job.kind!r}, which this service does not run")
         return self.submit(job.kind, job.spec, meta=job.meta, retry_of=job.id)
 
+    def public_error(self, error: str) -> str:
+        """A job's error as clients read it: the database's file and folder named, not shown (the log has them).
+
+        The engine's store errors name the file they failed on (``pattern store /srv/data/patterns.sqlite3 ...``);
+        where the service keeps its data is not the clients' business.
+        """
+        path = self.store.path
+        for shown, said in ((str(path), "the service's database"), (str(path.parent), "the service's data folder")):
+            if shown != path.anchor:  # never the root folder alone
+                error = error.replace(shown, said)
+        return error
+
     # -- internals ---------------------------------------------------------------------------
 
     def _run_thread(self, job_id: str, kind: JobKind, spec: dict[str, Any]) -> None:
@@ -358,12 +391,12 @@ class JobManager:
             return
         except ProcessExpired as exc:
             if not cancelled:
-                self.repo.fail(job_id, f"the worker process running the job died ({exc})")
+                self.repo.fail(job_id, self.public_error(f"the worker process running the job died ({exc})"))
                 logger.error("job %s: worker process died: %s", job_id, exc)
             return
         except Exception as exc:  # the job's failure is data, not a crash of the server
             error = str(exc) if isinstance(exc, JobError) else f"{type(exc).__name__}: {exc}"
-            if self.repo.fail(job_id, error):
+            if self.repo.fail(job_id, self.public_error(error)):
                 logger.warning("job %s failed: %s", job_id, error, exc_info=exc)
             return
         final = self.repo.get(job_id)

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, FiniteFloat
+from pydantic import AllowInfNan, BaseModel, ConfigDict, Field, Strict, StrictInt
 
 from app.records_io import ACCEPTED_UNITS_DOC
 from app.schemas.assets import AssetName, MeasuredAt
@@ -24,6 +24,43 @@ if TYPE_CHECKING:
 else:
     #: One of the recorded channels of MODEL.md section 3 (validated as a literal, an enum in the OpenAPI schema).
     ChannelName = Literal[CHANNELS]
+
+#: A finite number as JSON writes one (an integer or a decimal), never a string or a boolean: ``false`` or
+#: ``"0.005"`` is refused (422), not read as 0 or 0.005.
+Number = Annotated[float, Strict(), AllowInfNan(False)]
+#: A sample of a record: a number as JSON writes one, never a string or a boolean (NaN and infinities are let
+#: through, for the record's reader to say which sample is not finite).
+Sample = Annotated[float, Strict()]
+
+
+def stated_range(minimum: float | None = None, maximum: float | None = None, *, exclusive: bool = False) -> Any:
+    """``Field`` metadata that states a number's accepted range in the schema (``Annotated[Number, ...]``) without
+    checking it here: the engine checks it, with a message that names the quantity, its unit and the range.
+    ``exclusive``: the minimum itself is not accepted."""
+    extra: dict[str, float] = {}
+    if minimum is not None:
+        extra["exclusiveMinimum" if exclusive else "minimum"] = minimum
+    if maximum is not None:
+        extra["maximum"] = maximum
+    return Field(json_schema_extra=extra)  # type: ignore[arg-type]
+
+
+#: The simulator's accepted ranges of a case's parameters (engine.simulation.PlantParameters.validate), stated in
+#: the schema; tests/app/test_app_hardening.py checks them against the engine.
+PLANT_RANGES: dict[str, tuple[float, float]] = {
+    "K": (1e-5, 0.05),
+    "J1": (0.05, 20.0),
+    "c": (0.0, 100.0),
+    "c1": (0.0, 100.0),
+}
+WidthK = Annotated[Number, stated_range(*PLANT_RANGES["K"])]
+InertiaJ1 = Annotated[Number, stated_range(*PLANT_RANGES["J1"])]
+ViscosityC = Annotated[Number, stated_range(*PLANT_RANGES["c"])]
+DiscontinuityC1 = Annotated[Number, stated_range(*PLANT_RANGES["c1"])]
+#: A sample interval of a record [s] (engine.records.SampleGrid checks it).
+Interval = Annotated[Number, stated_range(MIN_SAMPLE_INTERVAL, MAX_SAMPLE_INTERVAL)]
+#: A positive number (checked here: a base torque [N*m] that no conversion uses would not be checked elsewhere).
+Positive = Annotated[Number, Field(gt=0)]
 
 _CHANNELS_DOC = ", ".join(f"{c} [{CHANNEL_UNITS[c]}]" for c in CHANNELS)
 
@@ -47,11 +84,11 @@ class ConditionsIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    J1: FiniteFloat | None = Field(default=None, description="Motor-side inertia [kg m^2].")
-    c: FiniteFloat | None = Field(default=None, description="Apparent viscosity of the absorber [pu].")
-    c1: FiniteFloat | None = Field(default=None, description="Absorber discontinuity at zero speed [pu].")
-    K: FiniteFloat | None = Field(default=None, description="Backlash zone width [m] (when known, e.g. simulated).")
-    base_torque: FiniteFloat | None = Field(
+    J1: Number | None = Field(default=None, description="Motor-side inertia [kg m^2].")
+    c: Number | None = Field(default=None, description="Apparent viscosity of the absorber [pu].")
+    c1: Number | None = Field(default=None, description="Absorber discontinuity at zero speed [pu].")
+    K: Number | None = Field(default=None, description="Backlash zone width [m] (when known, e.g. simulated).")
+    base_torque: Positive | None = Field(
         default=None,
         description="The motor's base torque [N*m]: needed (positive) when m_el is given in N*m, to convert it to pu.",
     )
@@ -66,18 +103,18 @@ class RecordIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    sample_interval: FiniteFloat | None = Field(
+    sample_interval: Interval | None = Field(
         default=None,
         description=f"Ts [s], {MIN_SAMPLE_INTERVAL:g} to {MAX_SAMPLE_INTERVAL:g}. Default: the step of `t` when "
         f"given, else MODEL.md's {SAMPLE_INTERVAL:g}; given with `t`, the two must agree.",
     )
-    event_index: int | None = Field(
+    event_index: Annotated[StrictInt, Field(ge=0)] | None = Field(
         default=None,
         description="Index of the sample taken at the event t_e (the motor switched off). Omitted: the event is "
         "located from the data (m_el, else a1; a record with neither needs it) and the answer's record "
         "carries `event_location`.",
     )
-    channels: dict[str, list[float]] = Field(
+    channels: dict[str, list[Sample]] = Field(
         description=f"Non-empty subset of the channels {_CHANNELS_DOC} (in those units unless `units` says "
         f"otherwise); finite numbers, the same number for every channel, covering at least "
         f"{PRE_EVENT_TIME * 1e3:g} ms before the event and {POST_EVENT_TIME * 1e3:g} ms from it on "
@@ -86,13 +123,13 @@ class RecordIn(BaseModel):
     units: dict[str, str] | None = Field(
         default=None, description="Unit of each channel not in its model unit; accepted: " + ACCEPTED_UNITS_DOC + "."
     )
-    t: list[float] | None = Field(
+    t: list[Sample] | None = Field(
         default=None,
         description="Time of each sample [s] (uniform, increasing; any origin), one per sample: defines the "
         "sample interval.",
     )
     conditions: ConditionsIn | None = Field(default=None, description="Known operating conditions.")
-    event_time: FiniteFloat | None = Field(
+    event_time: Number | None = Field(
         default=None, description="t_e [s] since switch-on, when known (simulated records carry it)."
     )
     asset: AssetName | None = None

@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, FiniteFloat
+from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from app.schemas.assets import AssetName, MeasuredAt
-from app.schemas.common import RecordIn
+from app.schemas.common import Number, RecordIn, Sample
+from engine.diagnosis.space import DEFAULT_BOUNDS
 from engine.plants.brfd import BrfdRecord
 from engine.plants.brfd.record import from_json_object
 from engine.plants.emps import EmpsRecord
 from engine.plants.emps.record import record_from_arrays
+from engine.simulation import CATALOGUE
 
 
 class DiagnoseCreate(BaseModel):
@@ -25,10 +27,15 @@ class DiagnoseCreate(BaseModel):
         description="The plant the record is of; `emps` and `brfd` take their own records instead.",
     )
     record: RecordIn
-    effects: list[str] | None = Field(
+    effects: list[Annotated[str, Field(json_schema_extra={"enum": list(CATALOGUE)})]] | None = Field(
         default=None, description="Candidate effects (catalogue names) to consider; default the whole catalogue."
     )
-    bounds: dict[str, tuple[float, float]] | None = Field(
+    bounds: (
+        Annotated[
+            dict[str, tuple[Sample, Sample]], Field(json_schema_extra={"propertyNames": {"enum": list(DEFAULT_BOUNDS)}})
+        ]
+        | None
+    ) = Field(
         default=None,
         description=(
             "Search box of the calibration per parameter, name -> [low, high] in its unit: K [m], J1 [kg m^2], "
@@ -47,14 +54,14 @@ class EmpsRecordIn(BaseModel):
     name: str = Field(default="record", max_length=200, description="Name of the record (echoed in the answer).")
     asset: AssetName | None = None
     measured_at: MeasuredAt | None = None
-    t: list[FiniteFloat] = Field(description="Sample instants [s], uniform at 1 ms.")
-    qm: list[FiniteFloat] = Field(description="Measured motor position, load side [m].")
-    qg: list[FiniteFloat] = Field(description="Reference position [m].")
-    vir: list[FiniteFloat] = Field(description="Controller output as measured [V].")
-    pulses_N: list[FiniteFloat] | None = Field(default=None, description="Pulse signal added to the command [V].")
-    kp: FiniteFloat = Field(description="Position gain [1/s].")
-    kv: FiniteFloat = Field(description="Velocity gain [V/(m/s)].")
-    gtau: FiniteFloat = Field(description="Drive gain [N/V].")
+    t: list[Number] = Field(description="Sample instants [s], uniform at 1 ms.")
+    qm: list[Number] = Field(description="Measured motor position, load side [m].")
+    qg: list[Number] = Field(description="Reference position [m].")
+    vir: list[Number] = Field(description="Controller output as measured [V].")
+    pulses_N: list[Number] | None = Field(default=None, description="Pulse signal added to the command [V].")
+    kp: Number = Field(description="Position gain [1/s].")
+    kv: Number = Field(description="Velocity gain [V/(m/s)].")
+    gtau: Number = Field(description="Drive gain [N/V].")
 
     def to_record(self) -> EmpsRecord:
         """The engine's record, checked (RecordError, 422, says what to fix)."""
@@ -76,12 +83,12 @@ class BrfdRecordIn(BaseModel):
     name: str = Field(default="record", max_length=200, description="Name of the record (echoed in the answer).")
     asset: AssetName | None = None
     measured_at: MeasuredAt | None = None
-    data: list[list[FiniteFloat]] = Field(
+    data: list[list[Number]] = Field(
         description="One row per sample: time [s], displacement, friction force (then velocity and the actuator "
         "forces, which are not used)."
     )
-    dt: FiniteFloat | None = Field(default=None, description="Sample interval [s] (checked against the time column).")
-    sampling_freq: FiniteFloat | None = Field(default=None, alias="sampling freq", description="[Hz], informative.")
+    dt: Number | None = Field(default=None, description="Sample interval [s] (checked against the time column).")
+    sampling_freq: Number | None = Field(default=None, alias="sampling freq", description="[Hz], informative.")
     time_units: str = Field(default="s", alias="time units")
     displacement_units: str = Field(alias="displacement units", description="in, mm or m (the data set: in).")
     friction_force_units: str = Field(alias="friction force units", description="kip, lb, kN or N (the data set: kip).")
@@ -103,7 +110,7 @@ class BrfdDiagnoseCreate(BaseModel):
     calibrate_on: BrfdRecordIn | None = Field(
         default=None, description="Calibrate on this record of the same plant instead (the cross-record check)."
     )
-    hold_calibration: bool = Field(
+    hold_calibration: StrictBool = Field(
         default=False, description="Hold the calibrated parameters while fitting effects (default: refit them)."
     )
 
@@ -118,7 +125,7 @@ class PlantDiagnoseCreate(BaseModel):
     calibrate_on: EmpsRecordIn | None = Field(
         default=None, description="Calibrate on this record of the same plant instead (the cross-record check)."
     )
-    hold_calibration: bool = Field(
+    hold_calibration: StrictBool = Field(
         default=False, description="Hold the calibrated parameters while fitting effects (default: refit them)."
     )
 

@@ -4,7 +4,16 @@ from pydantic import BaseModel, Field
 
 
 class HealthPublic(BaseModel):
+    """The service's health; without the API key (when the service has one) only ``status``."""
+
     status: str = Field(description="ok")
-    version: str = Field(description="Version of the backlash package.")
-    model_version: str = Field(description="Reference-model version the engine implements.")
-    pattern_sets: int = Field(description="Pattern sets in the store.")
+    version: str | None = Field(
+        default=None, description="Version of the backlash package (absent without the API key, when one is set)."
+    )
+    model_version: str | None = Field(
+        default=None,
+        description="Reference-model version the engine implements (absent without the API key, when one is set).",
+    )
+    pattern_sets: int | None = Field(
+        default=None, description="Pattern sets in the store (absent without the API key, when one is set)."
+    )

@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from app.schemas.common import ChannelName, RecordIn
 from app.schemas.diagnose import BrfdRecordIn
@@ -25,12 +25,12 @@ class IdentifyCreate(BaseModel):
         f"record's conditions.c (nominal c = {C_NOMINAL:g} when the record does not give c).",
     )
     kind: str | None = Field(default=None, description="Only choose pattern sets of this identifier kind.")
-    any_set: bool = Field(
+    any_set: StrictBool = Field(
         default=False,
         description="Also choose among sets trained with effects or on another J1 grid than the paper's (by default "
         "only sets trained as the paper trains are chosen; a set named by pattern_set is always used).",
     )
-    continuous: bool = Field(
+    continuous: StrictBool = Field(
         default=False,
         description="Also estimate K as a continuous width by fitting the simulator to the channel (a few "
         "seconds): K, its standard deviation and the fit.",

@@ -5,9 +5,10 @@ from __future__ import annotations
 import inspect
 from typing import TYPE_CHECKING, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictInt, model_validator
 
-from app.schemas.common import ChannelName
+from app.schemas.common import ChannelName, InertiaJ1, Number, ViscosityC
+from app.schemas.simulate import Effects
 from engine.constants import C_GROUPS, C_NOMINAL, J1_GRID
 from engine.identification.training import DEFAULT_KIND, IDENTIFIERS
 
@@ -43,11 +44,11 @@ class PatternSetCreate(BaseModel):
     )
 
     channel: ChannelName = Field(description="Channel the identifier works on.")
-    c: FiniteFloat = Field(
+    c: ViscosityC = Field(
         description="Apparent-viscosity group of the training cases [pu] "
         f"(paper: {', '.join(f'{c:g}' for c in C_GROUPS)})."
     )
-    J1_values: list[FiniteFloat] | None = Field(
+    J1_values: list[InertiaJ1] | None = Field(
         default=None,
         min_length=1,
         max_length=32,
@@ -56,17 +57,17 @@ class PatternSetCreate(BaseModel):
     kind: IdentifierKind = Field(
         default=DEFAULT_KIND, description=f"Identifier kind: {', '.join(IDENTIFIERS)} (default {DEFAULT_KIND})."
     )
-    l: FiniteFloat | None = Field(
+    l: Number | None = Field(
         default=None,
         gt=0,
         description=f"paper kind: learning coefficient l [-] (default {_PAPER_DEFAULTS['learning_rate']:g}).",
     )
-    delta1: FiniteFloat | None = Field(
+    delta1: Number | None = Field(
         default=None,
         gt=0,
         description=f"paper kind: training stops at RMS < delta1 [-] (default {_PAPER_DEFAULTS['delta1']:g}).",
     )
-    max_epochs: int | None = Field(
+    max_epochs: StrictInt | None = Field(
         default=None,
         ge=1,
         le=100_000,
@@ -76,7 +77,7 @@ class PatternSetCreate(BaseModel):
         default_factory=dict,
         description="Further hyper-parameters of the identifier by name (e.g. the template kind's window [samples]).",
     )
-    effects: dict[str, FiniteFloat] = Field(
+    effects: Effects = Field(
         default_factory=dict, description="Unmodelled effects (catalogue name -> value) applied to every training case."
     )
 

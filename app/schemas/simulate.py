@@ -2,11 +2,25 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, field_validator
+from typing import Annotated
 
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, field_validator
+
+from app.core.config import MAX_BATCH_CASES_LIMIT
 from app.records_io import ACCEPTED_UNITS_DOC
-from app.schemas.common import ChannelName, RecordPublic
-from app.services.simulation import MAX_RENDERED_SAMPLES, Rendering
+from app.schemas.common import (
+    ChannelName,
+    DiscontinuityC1,
+    InertiaJ1,
+    Interval,
+    Number,
+    Positive,
+    RecordPublic,
+    ViscosityC,
+    WidthK,
+    stated_range,
+)
+from app.services.simulation import MAX_RENDERED_SAMPLES, SIMULATED_EFFECTS, Rendering
 from engine.constants import (
     C1_NOMINAL,
     C_NOMINAL,
@@ -33,20 +47,36 @@ _EFFECTS_DOC = (
 MAX_SPAN = MAX_RENDERED_SAMPLES * MAX_SAMPLE_INTERVAL
 
 
+def _effects_schema() -> dict[str, object]:
+    """The simulator's effects (catalogue and held-back family) by name, each with its range and unit, stated in
+    the schema; the engine checks names and values (its message lists the known effects)."""
+    return {
+        "properties": {
+            e.name: {"type": "number", "minimum": e.bounds[0], "maximum": e.bounds[1], "description": f"[{e.unit}]"}
+            for e in SIMULATED_EFFECTS.values()
+        },
+        "additionalProperties": False,
+    }
+
+
+#: Unmodelled effects of a simulated case: name -> value, the names and ranges stated in the schema.
+Effects = Annotated[dict[str, Number], Field(json_schema_extra=_effects_schema())]
+
+
 class SimulateCase(BaseModel):
     """One case of the backlash test; omitted values take MODEL.md's defaults."""
 
     model_config = ConfigDict(extra="forbid")
 
-    K: FiniteFloat = Field(description=f"Backlash zone width [m] (paper grid {K_GRID[0]:g} .. {K_GRID[-1]:g}).")
-    J1: FiniteFloat | None = Field(default=None, description=f"Motor-side inertia [kg m^2]; default {J1_NOMINAL:g}.")
-    c: FiniteFloat | None = Field(
+    K: WidthK = Field(description=f"Backlash zone width [m] (paper grid {K_GRID[0]:g} .. {K_GRID[-1]:g}).")
+    J1: InertiaJ1 | None = Field(default=None, description=f"Motor-side inertia [kg m^2]; default {J1_NOMINAL:g}.")
+    c: ViscosityC | None = Field(
         default=None, description=f"Apparent viscosity of the absorber [pu]; default {C_NOMINAL:g}."
     )
-    c1: FiniteFloat | None = Field(
+    c1: DiscontinuityC1 | None = Field(
         default=None, description=f"Absorber discontinuity at zero speed [pu]; default {C1_NOMINAL:g}."
     )
-    effects: dict[str, FiniteFloat] = Field(default_factory=dict, description=_EFFECTS_DOC)
+    effects: Effects = Field(default_factory=dict, description=_EFFECTS_DOC)
 
 
 class RenderIn(BaseModel):
@@ -54,17 +84,17 @@ class RenderIn(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    sample_interval: FiniteFloat = Field(
+    sample_interval: Interval = Field(
         default=SAMPLE_INTERVAL,
         description=f"Ts [s] of the rendered record, {MIN_SAMPLE_INTERVAL:g} to {MAX_SAMPLE_INTERVAL:g}.",
     )
-    before: FiniteFloat = Field(
+    before: Annotated[Number, stated_range(PRE_EVENT_TIME)] = Field(
         default=PRE_EVENT_TIME,
         le=MAX_SPAN,
         description=f"Time rendered before the event [s]; at least {PRE_EVENT_TIME * 1e3:g} ms (MODEL.md's window), "
         f"at most {MAX_SPAN:g} s.",
     )
-    after: FiniteFloat = Field(
+    after: Annotated[Number, stated_range(POST_EVENT_TIME)] = Field(
         default=POST_EVENT_TIME,
         le=MAX_SPAN,
         description=f"Time rendered from the event on [s]; at least {POST_EVENT_TIME * 1e3:g} ms (MODEL.md's "
@@ -79,12 +109,12 @@ class RenderIn(BaseModel):
     channels: list[ChannelName] | None = Field(
         default=None, min_length=1, description="Channels to keep (default all five)."
     )
-    include_event_index: bool = Field(
+    include_event_index: StrictBool = Field(
         default=True,
         description="false leaves event_index out of the answer (and the X-Event-Index header of the CSV form): "
         "the reader has to locate the event from the data, as with a bench record.",
     )
-    base_torque: FiniteFloat | None = Field(
+    base_torque: Positive | None = Field(
         default=None,
         description="The motor's base torque [N*m], stated in the record's conditions; needed for m_el in N*m.",
     )
@@ -132,7 +162,7 @@ class SimulateCreate(SimulateCase, RenderIn):
         },
     )
 
-    time_column: bool = Field(
+    time_column: StrictBool = Field(
         default=False,
         description="CSV form (Accept: text/csv): add a first column t, the time of each sample [s] from the "
         "first sample, which carries the sample interval.",
@@ -156,7 +186,23 @@ class SimulateBatchCreate(RenderIn):
         },
     )
 
-    cases: list[SimulateCase] = Field(min_length=1, description="The cases, simulated in this order.")
+    cases: list[SimulateCase] = Field(
+        min_length=1,
+        max_length=MAX_BATCH_CASES_LIMIT,
+        description="The cases, simulated in this order (at most BACKLASH_MAX_BATCH_CASES, which is at most "
+        f"{MAX_BATCH_CASES_LIMIT}).",
+    )
+
+    @field_validator("cases", mode="before")
+    @classmethod
+    def _count_cases(cls, value: object) -> object:
+        """Refuse too many cases before validating each (a huge list of models would hold the interpreter)."""
+        if isinstance(value, list) and len(value) > MAX_BATCH_CASES_LIMIT:
+            raise ValueError(
+                f"the batch has {len(value)} cases; the service allows at most BACKLASH_MAX_BATCH_CASES, which is "
+                f"at most {MAX_BATCH_CASES_LIMIT}: split it into several requests"
+            )
+        return value
 
 
 class SimulationPublic(RecordPublic):

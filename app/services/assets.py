@@ -114,7 +114,13 @@ def trend_figure(store: PatternStore, asset: str, limit: float | None, out: Path
     """The history, the fitted trend (when there is enough history) and the limit, as PNG at ``out``."""
     from engine.history.plots import plot_history
 
-    points = _width_points(store, asset)
+    points = _width_points(store, asset)  # NotFoundError (404) for an unknown asset
+    if not points:
+        raise NotFoundError(
+            f"asset {asset!r} has no identified width to draw (its history holds only diagnoses, or "
+            "identifications without a continuous width); identify one of its records with POST /v1/identify "
+            "(the record naming the asset), then the figure shows it"
+        )
     fitted: Trend | None = None
     if limit is not None:
         try:

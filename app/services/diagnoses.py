@@ -1,8 +1,8 @@
 """Diagnoses as stored jobs: submit one (record stored, job queued), run it in a worker process, read it back.
 
-A submitted diagnosis is three rows written before the answer (202): the record as sent
-(:mod:`app.db.records`), the diagnosis without a result (:mod:`app.db.diagnoses`) and its job
-(:mod:`app.db.jobs`). The job runs :func:`run_job` in a worker process, which stores the result
+A submitted diagnosis is three rows written in one transaction before the answer (202), once the
+queue has room: the record as sent (:mod:`app.db.records`), the diagnosis without a result
+(:mod:`app.db.diagnoses`) and its job (:mod:`app.db.jobs`). The job runs :func:`run_job` in a worker process, which stores the result
 and the figures in one transaction. A diagnosis is therefore either complete or has none of its
 result; a retried job computes it again from the stored record.
 """
@@ -10,14 +10,17 @@ result; a retried job computes it again from the stored record.
 from __future__ import annotations
 
 import logging
+import sqlite3
+import uuid
 from pathlib import Path
 from typing import Any
 
 from app.db.codec import now
 from app.db.diagnoses import DiagnosisRepository, StoredDiagnosis
 from app.db.jobs import JobState
-from app.db.records import RecordRepository, StoredRecord
+from app.db.records import NewRecord, RecordRepository, StoredRecord
 from app.jobs import Job, JobKind, JobManager, ProgressFn
+from app.jobs.manager import RowsFn
 from app.services.diagnosis_requests import DiagnosisRequest, compute, n_samples, parse
 from app.services.errors import NotFoundError
 from engine.storage import PatternStore
@@ -65,10 +68,10 @@ POOL = "diagnosis"
 JOB_KIND = JobKind(DIAGNOSE_JOB, "process", run_job, pool=POOL)
 
 
-def store_record(store: PatternStore, request: DiagnosisRequest) -> StoredRecord:
-    """Read and check the request (raises with what to fix), then store its record as sent."""
+def new_record(request: DiagnosisRequest) -> NewRecord:
+    """Read and check the request (raises with what to fix); its record as it will be stored, not stored yet."""
     parsed = parse(request)
-    return RecordRepository(store).add(
+    return RecordRepository.new(
         request.body,
         media=request.media,
         params=request.params,
@@ -83,28 +86,42 @@ def store_record(store: PatternStore, request: DiagnosisRequest) -> StoredRecord
 def submit(store: PatternStore, jobs: JobManager, request: DiagnosisRequest) -> tuple[Job, str, StoredRecord]:
     """Check and store the record, create the diagnosis and queue its job; return (job, diagnosis id, record).
 
-    Nothing is left behind when the queue is full (``QueueFullError``) or the request is invalid.
+    The record, the diagnosis and the job are stored in one transaction, once the queue has room: nothing is
+    left behind when the queue is full (``QueueFullError``) or the request is invalid.
     """
-    record = store_record(store, request)
-    return (*submit_stored(store, jobs, record), record)
+    new = new_record(request)
+
+    def store_record(conn: sqlite3.Connection, job: Job) -> None:
+        RecordRepository.insert(conn, new)
+
+    job, diagnosis_id = _queue(store, jobs, new.record, store_record)
+    return job, diagnosis_id, new.record
 
 
 def submit_stored(store: PatternStore, jobs: JobManager, record: StoredRecord) -> tuple[Job, str]:
-    """Diagnose a stored record: create the diagnosis and queue its job; return (job, diagnosis id)."""
-    diagnoses = DiagnosisRepository(store)
-    diagnosis_id = diagnoses.create(
-        job_id="", record_id=record.id, plant=record.plant, asset=record.asset, measured_at=record.measured_at
-    )
-    try:
-        job = jobs.submit(
-            DIAGNOSE_JOB,
-            {"diagnosis_id": diagnosis_id, "record_id": record.id},
-            meta={"diagnosis_id": diagnosis_id, "record_id": record.id},
+    """Diagnose a stored record: create the diagnosis and queue its job (one transaction); return (job, diagnosis id)."""
+    return _queue(store, jobs, record, None)
+
+
+def _queue(store: PatternStore, jobs: JobManager, record: StoredRecord, rows: RowsFn | None) -> tuple[Job, str]:
+    """Queue the diagnosis job of ``record``; its diagnosis row (and ``rows``) in the job's transaction."""
+    diagnosis_id = uuid.uuid4().hex
+
+    def add_rows(conn: sqlite3.Connection, job: Job) -> None:
+        if rows is not None:
+            rows(conn, job)
+        DiagnosisRepository(store).create(
+            job_id=job.id,
+            record_id=record.id,
+            plant=record.plant,
+            asset=record.asset,
+            measured_at=record.measured_at,
+            diagnosis_id=diagnosis_id,
+            conn=conn,
         )
-    except BaseException:
-        diagnoses.delete(diagnosis_id)
-        raise
-    diagnoses.set_job(diagnosis_id, job.id)
+
+    ids = {"diagnosis_id": diagnosis_id, "record_id": record.id}
+    job = jobs.submit(DIAGNOSE_JOB, ids, meta=dict(ids), with_rows=add_rows)
     return job, diagnosis_id
 
 

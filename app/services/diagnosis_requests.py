@@ -9,7 +9,6 @@ retried job, a record picked in the report page) by exactly the reading that acc
 
 from __future__ import annotations
 
-import json
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -18,6 +17,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from pydantic import TypeAdapter, ValidationError
+from pydantic_core import from_json
 
 from app.records_io import RecordFormatError, decode_csv_body, parse_units, record_from_csv
 from app.schemas.assets import AssetName, MeasuredAt
@@ -96,9 +96,14 @@ class DiagnosisOutcome:
 
 
 def named_plant(raw: bytes) -> str | None:
-    """The plant a JSON body names when it is not the default one (malformed bodies are left to the validation)."""
+    """The plant a JSON body names when it is not the default one (malformed bodies are left to the validation).
+
+    Read with pydantic's JSON parser, which refuses nesting deeper than the validation supports (a
+    ``ValueError``, left to the validation's 400 like any malformed body) where ``json.loads`` would raise
+    ``RecursionError``.
+    """
     try:
-        body = json.loads(raw)
+        body = from_json(raw)
     except ValueError:
         return None
     if isinstance(body, dict) and body.get("plant", DEFAULT_PLANT) != DEFAULT_PLANT:

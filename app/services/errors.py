@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
+#: How many names a message lists before "and N more".
+NAMES_SHOWN = 5
+
 
 class ServiceError(Exception):
     """Base class; the message says what happened and what to do."""
@@ -41,3 +46,11 @@ class TimeLimitError(ServiceError):
 
 class InvalidInputError(ServiceError, ValueError):
     """A value in the request is not acceptable; the message says which and why."""
+
+
+def some_names(names: Iterable[str], shown: int = NAMES_SHOWN) -> str:
+    """The first ``shown`` of ``names`` (sorted, quoted) and how many more: a message stays short however many
+    names a request sends."""
+    ordered = sorted(set(names))
+    listed = ", ".join(repr(n[:100]) for n in ordered[:shown])
+    return listed if len(ordered) <= shown else f"{listed} and {len(ordered) - shown} more"

@@ -7,9 +7,10 @@ service's and describes stored sets as JSON.
 
 from __future__ import annotations
 
+import inspect
 from typing import Any
 
-from app.services.errors import IncompatibleError, InvalidInputError
+from app.services.errors import IncompatibleError, InvalidInputError, some_names
 from engine.identification import training as engine_training
 from engine.storage import PatternSet, PatternSetSummary
 
@@ -17,6 +18,14 @@ from engine.storage import PatternSet, PatternSetSummary
 def check_identifier(kind: str, channel: str, params: dict[str, Any]) -> None:
     """Raise :class:`InvalidInputError` if the engine cannot build this identifier (unknown kind or parameter, or a
     value it would refuse only once training: a wavelet PyWavelets lacks, a network too large, ...)."""
+    cls = engine_training.IDENTIFIERS.get(kind)
+    if cls is not None:  # the engine's message would list every unknown name, however many a request sends
+        accepted = set(inspect.signature(cls).parameters) - {"channel"}
+        unknown = set(params) - accepted
+        if unknown:
+            raise InvalidInputError(
+                f"identifier {kind!r} has no parameter(s) {some_names(unknown)}; accepted: {', '.join(sorted(accepted))}"
+            )
     try:
         engine_training.make_identifier(kind, channel, **params).validate_params()
     except (TypeError, ValueError) as exc:

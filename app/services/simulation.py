@@ -114,8 +114,11 @@ def prepare(cases: Sequence[Case], effects: Sequence[Mapping[str, float] | None]
     """
     if len(cases) != len(effects):
         raise ValueError(f"got {len(effects)} effect mappings for {len(cases)} cases")
+    # each case is checked before its effects too: a value out of its range stays refused when an effect would
+    # overwrite it (the schema states the ranges of both)
     return [
-        apply_effects(case, eff or {}, SIMULATED_EFFECTS).validate() for case, eff in zip(cases, effects, strict=True)
+        apply_effects(case.validate(), eff or {}, SIMULATED_EFFECTS).validate()
+        for case, eff in zip(cases, effects, strict=True)
     ]
 
 

@@ -120,7 +120,7 @@ def test_pattern_sets_list_show_delete(env: Path, capsys: pytest.CaptureFixture[
         (["train", "--channel", "v2", "--c", "1.0", "--J1", "0.87", "0.87"], "repeat a value"),
         (
             ["train", "--channel", "v2", "--c", "1.0", "--kind", "template", "--max-epochs", "3"],
-            "has no parameter(s) ['max_epochs']",
+            "has no parameter(s) 'max_epochs'",
         ),
         (["identify", "missing.csv", "--channel", "v2"], "cannot read record file"),
         (["identify", "record.txt", "--channel", "v2"], "must end in .json or .csv"),

@@ -101,7 +101,8 @@ def test_dockerignore_keeps_local_state_out() -> None:
 def test_the_images_command_serves_and_passes_its_health_check(
     dockerfile: list[tuple[str, str]], tmp_path: Path
 ) -> None:
-    """Run the CMD (with a free port for 8000) and the HEALTHCHECK command as they are written."""
+    """Run the CMD (with a free port for 8000) and the HEALTHCHECK command as they are written: without an API key
+    the CMD refuses to serve its 0.0.0.0; with one it serves, and the health check (no key) passes."""
     port = free_port()
     cmd = [
         str(Path(sys.executable).with_name(a)) if i == 0 else a
@@ -113,9 +114,13 @@ def test_the_images_command_serves_and_passes_its_health_check(
         sys.executable if a == "python" else a.replace(":8000/", f":{port}/")
         for a in _exec_form(health[health.index("CMD") + 3 :].strip())
     ]
+    db = tmp_path / "data" / "patterns.sqlite3"
+    refused = subprocess.run(cmd, env=clean_env(BACKLASH_DB_PATH=str(db)), capture_output=True, text=True, timeout=120)
+    assert refused.returncode == 2, refused.stderr  # 0.0.0.0 without an API key: the image needs one (README)
+    assert "BACKLASH_API_KEY" in refused.stderr and "BACKLASH_ALLOW_NO_KEY=1" in refused.stderr
     server = Server(
         cmd,
-        clean_env(BACKLASH_DB_PATH=str(tmp_path / "data" / "patterns.sqlite3")),
+        clean_env(BACKLASH_DB_PATH=str(db), BACKLASH_API_KEY="image-test-key"),
         port,
         tmp_path / "server.log",
         tmp_path,

@@ -531,7 +531,7 @@ CASES: list[tuple[str, str, str, Callable[[Rec], dict[str, Any]], int, str]] = [
         "/v1/pattern-sets",
         lambda r: {"json": {"channel": "v2", "c": 1.0, "kind": "template", "l": 0.5}},
         422,
-        "has no parameter(s) ['learning_rate']",
+        "has no parameter(s) 'learning_rate'",
     ),
     (
         "train parameter given twice",
@@ -618,7 +618,14 @@ CASES: list[tuple[str, str, str, Callable[[Rec], dict[str, Any]], int, str]] = [
         "unknown unit 'knots' for channel 'v2'",
     ),
     ("unknown path", "GET", "/v1/nothing", lambda r: {}, 404, "Not Found"),
-    ("wrong method", "PUT", "/v1/simulate", lambda r: {"json": {"K": 0.005}}, 405, "Method Not Allowed"),
+    (
+        "wrong method",
+        "PUT",
+        "/v1/simulate",
+        lambda r: {"json": {"K": 0.005}},
+        405,
+        "PUT is not allowed on /v1/simulate; allowed: POST",
+    ),
 ]
 
 

@@ -68,6 +68,8 @@ HEALTH_OPTIONS = ["--health-interval=1s", "--health-timeout=5s", "--health-start
 HEALTH_TIMEOUT = 180.0
 #: ``docker restart`` sends SIGTERM, then SIGKILL after this many seconds.
 STOP_TIMEOUT = 30
+#: The container's API key (the image refuses to serve its 0.0.0.0 without one).
+API_KEY = "container-test-key"
 #: Access-log lines of successful polls (health checks, job states), left out of the logs shown on failures.
 POLL = re.compile(r'"GET /(healthz|v1/jobs/\w+) HTTP/1\.1" 200')
 #: The Dockerfile's step that installs the dependencies, and the tag that keeps its layer between runs.
@@ -162,7 +164,7 @@ class Container:
         return f"http://127.0.0.1:{self.port}"
 
     def client(self) -> httpx.Client:
-        return httpx.Client(base_url=self.base_url, timeout=120)
+        return httpx.Client(base_url=self.base_url, timeout=120, headers={"X-API-Key": API_KEY})
 
     def state(self) -> dict[str, Any]:
         return json.loads(docker("inspect", "--format", "{{json .State}}", self.name).stdout)
@@ -291,6 +293,8 @@ def container() -> Iterator[Container]:
             f"127.0.0.1:{box.port}:8000",
             "--volume",
             f"{box.volume}:/data",
+            "--env",  # the image listens on 0.0.0.0: it serves only with an API key (or BACKLASH_ALLOW_NO_KEY=1)
+            f"BACKLASH_API_KEY={API_KEY}",
             *HEALTH_OPTIONS,
             image,
         )

@@ -57,12 +57,13 @@ def read_trend(asset: AssetPath, limit: LimitQuery, store: StoreDep) -> Any:
             "content": {"image/png": {"schema": {"type": "string", "format": "binary"}}},
             "description": "The figure",
         },
-        **_NOT_FOUND,
+        404: {"model": ErrorPublic, "description": "No such asset, or no identified width of it to draw"},
     },
 )
 async def read_trend_figure(asset: AssetPath, store: StoreDep, limit: LimitQuery | None = None) -> Response:
-    """The trend is drawn when ``limit`` is given and the history is long enough; the history always."""
-    asset_service.history(store, asset)  # 404 before drawing
+    """The trend is drawn when ``limit`` is given and the history is long enough; the history always. An asset
+    with no identified width (diagnoses only, or identifications without a continuous width) has nothing to
+    draw: 404 saying so."""
 
     def draw() -> bytes:
         with tempfile.TemporaryDirectory(prefix="backlash-trend-") as tmp:

@@ -5,9 +5,11 @@ For long records or many at once, ``POST /v1/diagnoses`` runs the same diagnosis
 
 from __future__ import annotations
 
+import asyncio
+import logging
 from typing import Any
 
-from fastapi import APIRouter, Request
+from fastapi import APIRouter, Request, Response
 from pydantic import ValidationError
 from starlette.concurrency import run_in_threadpool
 
@@ -15,9 +17,16 @@ from app.api.deps import CSVRecordDep, SyncDiagnosesDep, body_errors, diagnosis_
 from app.api.openapi import body_schema
 from app.schemas.common import ErrorPublic
 from app.schemas.diagnose import DiagnoseCreate, DiagnosisAnswer
-from app.services.diagnosis_requests import PLANT_SCHEMAS, parse
+from app.services.diagnosis_requests import PLANT_SCHEMAS, DiagnosisRequest, parse
+
+logger = logging.getLogger(__name__)
 
 router = APIRouter(prefix="/diagnose", tags=["diagnose"])
+
+#: How often [s] a running synchronous diagnosis checks whether its client is still there.
+DISCONNECT_POLL = 0.25
+#: Status logged for a request whose client disconnected before the answer (nginx's "client closed request").
+CLIENT_CLOSED_REQUEST = 499
 
 
 @router.post(
@@ -49,12 +58,27 @@ async def diagnose(request: Request, csv_params: CSVRecordDep, sync: SyncDiagnos
     in its units.
 
     At most ``BACKLASH_MAX_SYNC_DIAGNOSES`` run at once (429 with ``Retry-After`` beyond), each within
-    ``BACKLASH_SYNC_DIAGNOSE_TIMEOUT`` seconds (504 beyond, the work stopped). Nothing is stored: submit to
+    ``BACKLASH_SYNC_DIAGNOSE_TIMEOUT`` seconds (504 beyond, the work stopped); a client that disconnects
+    stops its diagnosis and frees its place at once. Nothing is stored: submit to
     ``POST /v1/diagnoses`` to keep the result, follow its progress, or cancel it.
     """
     sent = await diagnosis_request(request, csv_params)
+    await run_in_threadpool(check, sent)  # every input error answered here (422/400), before a worker is used
+    future = sync.start(sent)  # QueueFullError (429) when every slot is taken
+    waiting = asyncio.wrap_future(future)
+    while not (await asyncio.wait({waiting}, timeout=DISCONNECT_POLL))[0]:
+        if await request.is_disconnected():  # the client gave up: its slot and its worker's core are freed now
+            future.cancel()
+            logger.info("POST %s: the client disconnected; its synchronous diagnosis was stopped", request.url.path)
+            return Response(status_code=CLIENT_CLOSED_REQUEST)
+    if not waiting.cancelled():
+        waiting.exception()  # marks it retrieved: sync.result raises it as the service's error
+    return sync.result(future)
+
+
+def check(sent: DiagnosisRequest) -> None:
+    """Read the request as the worker will (in a thread: a large body must not hold the event loop)."""
     try:
-        parse(sent)  # every input error answered here (422/400), before a worker is used
+        parse(sent)
     except ValidationError as exc:
         raise body_errors(exc) from None
-    return await run_in_threadpool(sync.run, sent)

@@ -78,12 +78,8 @@ async def identify(
     width as a continuous parameter with its 95 % interval, or not identifiable with the reason, and the
     seed's W3/D/argmin width beside it.
     """
-    if body_kind(request) != "csv" and named_plant(await request.body()) is not None:
-        reject_query(request, (*CSV_QUERY, "channel", "pattern_set", "kind", "continuous", "any_set"))
-        other = await json_body(request, PlantIdentifyCreate)
-        records = [other.record.to_record(), *(r.to_record() for r in other.joint)]
-        answer = await run_in_threadpool(plant_identification.identify_records, other.plant, records)
-        return await _keep(store, answer, other.record.asset, other.record.measured_at, None)
+    # every body is parsed off the event loop (json_body, csv_record, the threads below): a large record must
+    # not hold the requests that arrive meanwhile
     if body_kind(request) == "csv":
         if channel is None:
             raise InvalidInputError("with a CSV body, give the channel to identify from as query parameter ?channel=")
@@ -92,10 +88,19 @@ async def identify(
         args = (record, channel, pattern_set, kind, continuous or asset is not None, any_set)
     else:
         reject_query(request, (*CSV_QUERY, "channel", "pattern_set", "kind", "continuous", "any_set"))
+        if await run_in_threadpool(named_plant, await request.body()) is not None:
+            other = await json_body(request, PlantIdentifyCreate)
+
+            def identify_plant() -> dict[str, Any]:
+                records = [other.record.to_record(), *(r.to_record() for r in other.joint)]
+                return plant_identification.identify_records(other.plant, records)
+
+            answer = await run_in_threadpool(identify_plant)
+            return await _keep(store, answer, other.record.asset, other.record.measured_at, None)
         body = await json_body(request, IdentifyCreate)
         asset, measured_at = body.record.asset, body.record.measured_at
         args = (
-            body.record.to_record(),
+            await run_in_threadpool(body.record.to_record),
             body.channel,
             body.pattern_set,
             body.kind,

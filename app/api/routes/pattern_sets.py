@@ -5,9 +5,10 @@ from __future__ import annotations
 import uuid
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Query, Response, status
+from fastapi import APIRouter, Depends, Query, Response, status
 
-from app.api.deps import JobsDep, StoreDep
+from app.api.deps import JobsDep, StoreDep, json_model
+from app.api.openapi import body_schema
 from app.core.config import API_V1_STR
 from app.jobs import JobManager, JobState
 from app.schemas.common import ChannelName, ErrorPublic
@@ -52,13 +53,16 @@ def _missing(jobs: JobManager, set_id: str) -> NotFoundError:
     status_code=status.HTTP_202_ACCEPTED,
     response_model=TrainingAccepted,
     summary="Train a pattern set (background job)",
+    openapi_extra=body_schema(PatternSetCreate),
     responses={
         422: {"model": ErrorPublic},
         429: {"model": ErrorPublic, "description": "Too many jobs pending"},
         **_STORE_BUSY,
     },
 )
-def create_pattern_set(body: PatternSetCreate, jobs: JobsDep, response: Response) -> Any:
+def create_pattern_set(
+    body: Annotated[PatternSetCreate, Depends(json_model(PatternSetCreate))], jobs: JobsDep, response: Response
+) -> Any:
     """Queue the training of one pattern set and answer at once with the job's and the set's ids.
 
     The job simulates the six widths x ``J1_values`` at ``c`` (with ``effects``),

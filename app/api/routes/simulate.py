@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any
 
-from fastapi import APIRouter, Request, Response
+from fastapi import APIRouter, Depends, Request, Response
 
-from app.api.deps import SettingsDep
+from app.api.deps import SettingsDep, json_model
+from app.api.openapi import body_schema
 from app.records_io import format_units, record_to_csv
 from app.schemas.common import ErrorPublic
 from app.schemas.simulate import SimulateBatchCreate, SimulateCase, SimulateCreate, SimulationPublic, SimulationsPublic
@@ -42,6 +43,7 @@ def _wants_csv(request: Request) -> bool:
     response_model=SimulationPublic,
     response_model_exclude_none=True,
     summary="Simulate one case",
+    openapi_extra=body_schema(SimulateCreate),
     responses={
         **_ERRORS,
         200: {
@@ -52,7 +54,7 @@ def _wants_csv(request: Request) -> bool:
         },
     },
 )
-def simulate(body: SimulateCreate, request: Request) -> Any:
+def simulate(body: Annotated[SimulateCreate, Depends(json_model(SimulateCreate))], request: Request) -> Any:
     """Run the backlash test of MODEL.md for one case and return its record plus ``event_time``.
 
     The record is rendered on the grid ``sample_interval`` [s], from ``before`` [s] before the
@@ -80,9 +82,12 @@ def simulate(body: SimulateCreate, request: Request) -> Any:
     response_model=SimulationsPublic,
     response_model_exclude_none=True,
     summary="Simulate several cases",
+    openapi_extra=body_schema(SimulateBatchCreate),
     responses=_ERRORS,
 )
-def simulate_batch(body: SimulateBatchCreate, settings: SettingsDep) -> Any:
+def simulate_batch(
+    body: Annotated[SimulateBatchCreate, Depends(json_model(SimulateBatchCreate))], settings: SettingsDep
+) -> Any:
     """Run the backlash test for every case, in order, all rendered the same way (the same options as
     ``POST /v1/simulate``, given once beside ``cases``); at most BACKLASH_MAX_BATCH_CASES cases.
     """

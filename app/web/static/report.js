@@ -721,7 +721,8 @@
       await showImage($("trend-image"), `${path}/trend/figure${query}`);
     } catch (e) {
       figure.hidden = true;
-      throw e;
+      // 404: no identified width to draw (a drive with diagnoses only); the history table says so
+      if (!(e instanceof ApiError) || e.status !== 404) throw e;
     }
   }
 
