@@ -1,12 +1,12 @@
-# Two commands on a fresh machine: `make run` (set-up + main job) and `make test` (set-up + linters + tests).
-# Set-up installs the exact versions pinned in constraints.txt (see README, "Dependencies").
+# Two commands on a fresh machine: `make run` (set-up + main job) and `make test` (set-up + linters + docs + tests).
+# Set-up installs the exact versions pinned in constraints.txt (see docs/development.md, "Dependencies and linters").
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 LOCK := constraints.txt
 
-.PHONY: run test lint system-deps test-slow bench serve lock clean
+.PHONY: run test lint docs system-deps test-slow bench serve lock clean
 
 $(STAMP): pyproject.toml $(LOCK)
 	$(PY) -m venv $(VENV)
@@ -22,11 +22,17 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy
 
+# The documentation site (mkdocs.yml, docs/): every generated figure up to date, then a strict build
+# (warnings are errors) into out/site. Open out/site/index.html, or `$(BIN)/mkdocs serve` while writing.
+docs: $(STAMP)
+	$(BIN)/python docs/gen.py --check
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
+
 # Docker engine, debootstrap and chromium for the system-level tests, when root on Debian (never fails)
 system-deps:
 	sh .ci/system-deps.sh
 
-test: lint system-deps
+test: lint docs system-deps
 	$(BIN)/python -m pytest -q
 
 test-slow: $(STAMP)
@@ -45,7 +51,7 @@ lock:
 	$(PY) -m venv .lock-venv
 	.lock-venv/bin/pip install --quiet --upgrade pip
 	.lock-venv/bin/pip install --quiet ".[test]"
-	{ echo "# Resolved dependency versions for CI and set-up; regenerate with 'make lock' (README, Dependencies)."; \
+	{ echo "# Resolved dependency versions for CI and set-up; regenerate with 'make lock' (docs/development.md, Dependencies)."; \
 	  .lock-venv/bin/pip freeze --all --exclude-editable | grep -v -i -E '^(backlash|setuptools|wheel)( @|==)' | LC_ALL=C sort -f; } > $(LOCK)
 	rm -rf .lock-venv build *.egg-info
 

@@ -1,4 +1,4 @@
-"""Loading the development scripts of ``bench/`` in tests, as running them does."""
+"""Loading the scripts of ``bench/`` (benchmarks) and ``lab/scripts/`` (development replays) in tests, as running them does."""
 
 from __future__ import annotations
 
@@ -9,13 +9,19 @@ from types import ModuleType
 
 ROOT = Path(__file__).resolve().parents[1]
 
+#: Where the scripts live: the benchmarks proper, then the lab's replays of validation cases.
+FOLDERS = (ROOT / "bench", ROOT / "lab" / "scripts")
+
 
 def load_bench(name: str) -> ModuleType:
-    """The module of ``bench/<name>.py``, with ``bench/`` on the path (the scripts import their
-    neighbour ``bench/_runs.py``, as when run from the repository root)."""
-    if str(ROOT / "bench") not in sys.path:
-        sys.path.insert(0, str(ROOT / "bench"))
-    spec = importlib.util.spec_from_file_location(name, ROOT / "bench" / f"{name}.py")
+    """The module of ``bench/<name>.py`` or ``lab/scripts/<name>.py``, with its folder on the path
+    (the lab's scripts import their neighbour ``lab/scripts/_runs.py``, as when run from the
+    repository root)."""
+    folder = next((f for f in FOLDERS if (f / f"{name}.py").is_file()), None)
+    assert folder is not None, f"no script {name}.py in {', '.join(str(f.relative_to(ROOT)) for f in FOLDERS)}"
+    if str(folder) not in sys.path:
+        sys.path.insert(0, str(folder))
+    spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

@@ -1,4 +1,4 @@
-"""bench/quantum_flips.py: the rounded model's samples in the wrong cell, on simulated records."""
+"""lab/scripts/quantum_flips.py: the rounded model's samples in the wrong cell, on simulated records."""
 
 from __future__ import annotations
 

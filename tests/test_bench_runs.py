@@ -1,5 +1,5 @@
-"""The helpers the development scripts of ``bench/`` share (``bench/_runs.py``) and the argument
-checks of ``bench/case_times.py``."""
+"""The helpers the development scripts of ``lab/scripts/`` share (``lab/scripts/_runs.py``) and the argument
+checks of ``lab/scripts/case_times.py``."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""bench/summarise_rows.py: the summary that reproduces the time and accuracy figures of the rows in docs/."""
+"""lab/scripts/summarise_rows.py: the summary that reproduces the time and accuracy figures of the rows in lab/validation/."""
 
 from __future__ import annotations
 
