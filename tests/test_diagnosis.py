@@ -318,6 +318,31 @@ def test_plots_are_written(rotor_case, tmp_path):
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
 
 
+def test_residual_maps_before_and_after_share_one_colour_scale(rotor_case, tmp_path, monkeypatch):
+    """The maps before and after the fix are drawn with the same colour limits (issue 53): a closed gap looks
+    cold next to the open one, instead of both being scaled to their own maximum."""
+    from matplotlib.figure import Figure
+
+    from engine.diagnosis.plots import plot_residual_map, residual_map_limits
+
+    _, res = rotor_case
+    limits = []
+    save = Figure.savefig
+
+    def spy(fig, *args, **kwargs):
+        limits.append({im.get_clim() for ax in fig.axes for im in ax.get_images()})
+        return save(fig, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", spy)
+    plot_residual_map(res, tmp_path / "map.png")
+    plot_residual_map(res, tmp_path / "after.png", after=True)
+    assert res.cells_after  # an explained record: the map after exists
+    lo, hi = residual_map_limits(res)
+    assert limits == [{(lo, hi)}, {(lo, hi)}]
+    own_after = max(float(np.log10(max(c.energy, 1e-12) / max(c.noise_energy, 1e-12))) for c in res.cells_after)
+    assert hi > own_after + 1  # the after map is not stretched to its own, much smaller, maximum
+
+
 def test_gap_budget_plot_needs_a_named_effect(rotor_case, tmp_path):
     """A verdict that names no effect has no budget to draw: a clear error, no file."""
     from engine.diagnosis.plots import plot_gap_budget

@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 
 from engine.constants import CHANNELS, WAVELET_LEVEL
 from engine.diagnosis.diagnose import DiagnosisResult
-from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, level_band
+from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, level_band
 from engine.records import Record
 from engine.records.units import factor
 
@@ -28,6 +28,16 @@ def _level_names(level: int = WAVELET_LEVEL) -> list[str]:
 def _map_level(cells: list) -> int:
     """Decomposition level of a residual map (its approximation ``A<level>``; it follows the record's interval)."""
     return max((int(c.level[1:]) for c in cells if c.level.startswith("A")), default=WAVELET_LEVEL)
+
+
+def _log_excess(cell: Cell) -> float:
+    """log10 of a cell's residual energy over its noise energy (the residual map's colour)."""
+    return float(np.log10(max(cell.energy, 1e-12) / max(cell.noise_energy, 1e-12)))
+
+
+def residual_map_limits(result: DiagnosisResult) -> tuple[float, float]:
+    """The colour limits both residual maps of ``result`` share (before and after the fix)."""
+    return -1.0, max(1.0, *(_log_excess(c) for c in (*result.cells, *result.cells_after)))
 
 
 def plot_residual_map(result: DiagnosisResult, path: str | Path, after: bool = False) -> Path:
@@ -55,20 +65,19 @@ def plot_residual_map(result: DiagnosisResult, path: str | Path, after: bool = F
     fig = Figure(figsize=(3.2 * len(channels) + 1.5, 5.5), constrained_layout=True)
     axes = fig.subplots(1, len(channels), squeeze=False)[0]
     ts = result.before.sample_interval
-    vmax = 1.0
+    # one colour scale for the maps before and after the fix, so that a gap closed looks cold: the
+    # scale spans the larger of the two (both maps of a diagnosis are drawn with the same limits)
+    vmin, vmax = residual_map_limits(result)
     grids = {}
     for ch in channels:
         g = np.zeros((len(levels), len(windows)))
         for c in cells:
             if c.channel == ch and c.window in windows:
-                g[levels.index(c.level), windows.index(c.window)] = np.log10(
-                    max(c.energy, 1e-12) / max(c.noise_energy, 1e-12)
-                )
+                g[levels.index(c.level), windows.index(c.window)] = _log_excess(c)
         grids[ch] = g
-        vmax = max(vmax, float(np.max(g)))
     im = None
     for ax, ch in zip(axes, channels, strict=True):
-        im = ax.imshow(grids[ch], aspect="auto", cmap="magma", vmin=-1.0, vmax=vmax, origin="upper")
+        im = ax.imshow(grids[ch], aspect="auto", cmap="magma", vmin=vmin, vmax=vmax, origin="upper")
         ax.set_title(ch)
         ax.set_xticks(range(len(windows)))
         ax.set_xticklabels(windows, rotation=60, fontsize=7)

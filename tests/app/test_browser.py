@@ -224,6 +224,19 @@ def test_report_page_diagnoses_uploaded_records(start_server: ServerFactory, bro
         names = {f["name"] for f in figures}
         assert {"residual_map_before", "residual_map_after", "overlays", "gap_budget"} <= names, figures
         assert all(f["width"] > 100 and f["alt"] for f in figures), figures
+        # every figure opens full size: a click on it opens the very PNG in a new tab at its own size
+        link = page.locator('#figures a.full-size:has(img[data-figure="overlays"])')
+        with page.expect_popup() as popup_info:
+            link.click()
+        popup = popup_info.value
+        popup.wait_for_load_state()
+        full = popup.evaluate("() => document.images[0].naturalWidth")
+        shown_width = page.evaluate(
+            "() => document.querySelector('#figures img[data-figure=\"overlays\"]').getBoundingClientRect().width"
+        )
+        natural = next(f["width"] for f in figures if f["name"] == "overlays")
+        assert full == natural > shown_width, (full, natural, shown_width)
+        popup.close()
 
         candidates = table_rows(page, "#candidates")
         assert len(candidates) > 5, candidates

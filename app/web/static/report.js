@@ -61,6 +61,7 @@
   }
 
   // Show a PNG of the API in an <img>: fetched with the key, then shown from a blob URL.
+  // A link around the <img> (if any) opens the figure full size in a new tab.
   async function showImage(img, path) {
     const blob = await (await request(path)).blob();
     if (img.dataset.objectUrl) URL.revokeObjectURL(img.dataset.objectUrl);
@@ -71,6 +72,8 @@
       img.onerror = () => reject(new Error(`the figure ${path} could not be shown`));
       img.src = url;
     });
+    const link = img.closest("a.full-size");
+    if (link) link.href = url;
   }
 
   function askForKey() {
@@ -594,7 +597,14 @@
       const [alt, caption] = figureText(name);
       const figure = el("figure", null, { "data-figure": name });
       const img = el("img", null, { alt, "data-figure": name });
-      figure.appendChild(img);
+      const link = el("a", null, {
+        class: "full-size",
+        target: "_blank",
+        rel: "noopener",
+        title: "open the figure full size (new tab)",
+      });
+      link.appendChild(img);
+      figure.appendChild(link);
       figure.appendChild(el("figcaption", caption));
       box.appendChild(figure);
       shown.push(showImage(img, `/diagnoses/${encodeURIComponent(d.id)}/figures/${encodeURIComponent(name)}`));
