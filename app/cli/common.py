@@ -130,7 +130,7 @@ def add_db_option(p: argparse.ArgumentParser) -> None:
     """``--db``: the pattern-store file."""
     from engine.storage import DEFAULT_STORE_PATH, STORE_PATH_ENV
 
-    p.add_argument("--db", type=Path, help=f"pattern-store file (default ${STORE_PATH_ENV} or ./{DEFAULT_STORE_PATH})")
+    p.add_argument("--db", type=Path, help=f"pattern-store file (default ${STORE_PATH_ENV} or {DEFAULT_STORE_PATH})")
 
 
 # -- what commands read -------------------------------------------------------------

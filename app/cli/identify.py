@@ -15,6 +15,7 @@ from app.cli.common import (
     examples,
     open_store,
     read_record,
+    settings,
 )
 from engine.constants import CHANNELS
 from engine.identification.training import IDENTIFIERS
@@ -34,6 +35,12 @@ def cmd_identify(args: argparse.Namespace) -> int:
     if args.channel is None:
         raise CommandError("give --channel (one of " + ", ".join(CHANNELS) + ")")
     record = read_record(args)
+    path = settings(args).db_path
+    if not path.exists():  # no empty store left behind, and the CLI's way to fill one
+        raise CommandError(
+            f"no pattern store at {path}: train a pattern set first (backlash train --channel {args.channel} "
+            "--c 1.0; `make run` trains all of them), or point --db or $BACKLASH_DB_PATH at a store"
+        )
     answer = identify_from_store(
         open_store(args),
         record,

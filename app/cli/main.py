@@ -52,7 +52,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         setup_logging(settings(args).log_level)
         return int(args.func(args))
     except user_errors() as exc:
-        output.error(str(exc))
+        output.error(getattr(exc, "cli_message", None) or str(exc))  # the CLI's wording where it differs
         return EXIT_USAGE
     except KeyboardInterrupt:
         output.error("interrupted")

@@ -3,7 +3,7 @@
 =========================  =====================================  ==========================
 environment variable        meaning                                default
 =========================  =====================================  ==========================
-``BACKLASH_DB_PATH``        pattern-store SQLite file              ``./data/patterns.sqlite3``
+``BACKLASH_DB_PATH``        pattern-store SQLite file              the user's data directory
 ``BACKLASH_API_KEY``        if set, every request but ``/healthz``  unset (no key needed)
                             needs the header ``X-API-Key``
 ``BACKLASH_ALLOW_NO_KEY``   1: serve on a non-loopback address     0 (refuse to start so)

@@ -9,7 +9,19 @@ NAMES_SHOWN = 5
 
 
 class ServiceError(Exception):
-    """Base class; the message says what happened and what to do."""
+    """Base class; the message says what happened and what to do.
+
+    Parameters
+    ----------
+    message : str
+        The message, naming HTTP routes where it says what to do (the API's answer).
+    cli : str, optional
+        The same message naming CLI commands instead, for the ``backlash`` command line.
+    """
+
+    def __init__(self, message: str, cli: str | None = None) -> None:
+        super().__init__(message)
+        self.cli_message = cli
 
 
 class NotFoundError(ServiceError, LookupError):

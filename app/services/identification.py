@@ -107,9 +107,13 @@ def select_pattern_set(
             if others
             else ""
         )
-        raise NotFoundError(
+        head = (
             f"no pattern set for {what} (model version {MODEL_VERSION}) trained as the paper trains (no effects, "
-            f"its J1 grid) is stored{skipped}; train one first, e.g. {train}, or allow any set (any_set)"
+            f"its J1 grid) is stored{skipped}; train one first, e.g. "
+        )
+        raise NotFoundError(
+            f"{head}{train}, or allow any set (any_set)",
+            cli=f"{head}backlash train --channel {channel} --c {c_used:g}, or allow any set (--any-set)",
         )
     distance = abs(ps.c - c_used)
     if distance > MAX_C_DISTANCE + 1e-12:

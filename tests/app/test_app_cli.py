@@ -126,7 +126,10 @@ def test_pattern_sets_list_show_delete(env: Path, capsys: pytest.CaptureFixture[
         (["identify", "record.txt", "--channel", "v2"], "must end in .json or .csv"),
         (["identify", "short.csv", "--channel", "v2", "--event-index", "1"], "4.7 ms before the event and 199.8"),
         (["identify", "full.csv", "--channel", "v2"], "holds neither m_el nor a1"),
-        (["identify", "full.csv", "--channel", "v2", "--event-index", "48"], "no pattern set for channel 'v2'"),
+        (
+            ["identify", "full.csv", "--channel", "v2", "--event-index", "48"],
+            "train a pattern set first (backlash train",
+        ),
         (
             ["identify", "full.csv", "--channel", "v2", "--event-index", "48", "--unit", "v2=knots"],
             "unknown unit 'knots' for channel 'v2'; accepted units: m/s, mm/s",
@@ -167,6 +170,23 @@ def test_user_errors_exit_2_with_a_message(
     assert code == 2, err
     assert message in err and err.startswith("backlash: error:")
     assert out == ""
+
+
+def test_identify_without_a_store_creates_none_and_messages_name_cli_commands(
+    env: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Outside the repository, identify leaves no empty store behind; the CLI's messages name CLI commands."""
+    from engine.storage import PatternStore
+
+    monkeypatch.chdir(tmp_path)
+    Path("full.csv").write_text("v2\n" + "0.5\n" * N_SAMPLES)
+    code, _, err = run(capsys, "identify", "full.csv", "--channel", "v2", "--event-index", "48")
+    assert code == 2 and f"no pattern store at {env}" in err and "backlash train --channel v2" in err
+    assert not env.exists() and not (tmp_path / "data").exists()  # nothing created
+    PatternStore(env)  # an empty store (created on opening): now the set is missing
+    code, _, err = run(capsys, "identify", "full.csv", "--channel", "v2", "--event-index", "48")
+    assert code == 2 and "no pattern set for channel 'v2'" in err
+    assert "backlash train --channel v2 --c 1" in err and "--any-set" in err and "POST" not in err
 
 
 def test_bad_usage_is_argparse_exit_2(env: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import platformdirs
 import pytest
 from pydantic import ValidationError
 
@@ -20,7 +21,7 @@ def no_backlash_env(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_defaults() -> None:
     s = Settings()
-    assert s.db_path == Path("data") / "patterns.sqlite3"
+    assert s.db_path == platformdirs.user_data_path("backlash") / "patterns.sqlite3"  # wherever the CLI runs
     assert s.api_key is None
     assert (s.max_body_bytes, s.max_batch_cases, s.workers, s.log_level) == (32 << 20, 64, 1, "INFO")
 
