@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from app.cli.common import EXIT_OK, add_db_option, settings
+from app.cli.common import EXIT_OK, add_db_option, examples, settings
 from app.core.config import ENV_PREFIX, Settings
 
 
@@ -36,7 +36,15 @@ def cmd_serve(args: argparse.Namespace) -> int:
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``serve`` to the subcommands."""
     workers = Settings.model_fields["workers"].default
-    p = sub.add_parser("serve", help="serve the HTTP API")
+    p = sub.add_parser(
+        "serve",
+        help="serve the HTTP API and the report page",
+        **examples(
+            "backlash serve                      # http://127.0.0.1:8000/ (page), /docs (API)",
+            "BACKLASH_API_KEY=secret backlash serve --host 0.0.0.0 --port 8000",
+            "backlash serve --workers 2 --db /srv/backlash/patterns.sqlite3",
+        ),
+    )
     p.add_argument(
         "--host",
         default="127.0.0.1",
@@ -45,7 +53,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     p.add_argument("--port", type=int, default=8000, help="port (default 8000)")
     p.add_argument(
-        "--workers", type=int, help=f"background training threads (default ${ENV_PREFIX}WORKERS or {workers})"
+        "--workers",
+        type=int,
+        help=f"pattern sets trained at once, each in a worker process (threads with ${ENV_PREFIX}TRAINING_RUNS_IN=thread; "
+        f"default ${ENV_PREFIX}WORKERS or {workers})",
     )
     add_db_option(p)
     p.set_defaults(func=cmd_serve)

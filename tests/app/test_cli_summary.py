@@ -51,7 +51,17 @@ def test_diagnose_prints_a_summary_and_writes_the_full_answer_to_out(
 
 
 def test_help_pages_show_examples_and_choices(capsys: pytest.CaptureFixture[str]) -> None:
-    for command in ("simulate", "diagnose", "identify", "train", "pattern-sets", "diagnose-batch", "validate", "run"):
+    for command in (
+        "simulate",
+        "diagnose",
+        "identify",
+        "train",
+        "pattern-sets",
+        "diagnose-batch",
+        "validate",
+        "run",
+        "serve",
+    ):
         with pytest.raises(SystemExit):
             main([command, "--help"])
         out = capsys.readouterr().out
