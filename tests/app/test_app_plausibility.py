@@ -98,7 +98,10 @@ def test_the_cli_logs_each_warning(
     caplog: pytest.LogCaptureFixture,
 ) -> None:
     """``backlash identify`` writes the answer's warnings to the log at WARNING level, where a person sees them."""
+    from engine.storage import PatternStore
+
     monkeypatch.setenv("BACKLASH_DB_PATH", str(tmp_path / "patterns.sqlite3"))
+    PatternStore(tmp_path / "patterns.sqlite3")  # a store (empty: identify refuses to run without one)
     record = simulate(PlantParameters())
     data = record.to_dict()
     data["channels"]["v2"] = [v * 1000.0 for v in data["channels"]["v2"]]  # mm/s, read as m/s
