@@ -5,7 +5,7 @@
 # Settings are BACKLASH_* environment variables (see app/core/config.py); the database (pattern
 # sets, jobs, records, diagnoses) lives on the /data volume. Other commands: docker run backlash backlash --help
 # Without access to a container registry, build a local stand-in for the base from Debian's packages
-# (README, "Container"): docker build --network host --build-arg BASE_IMAGE=local/python:3.11-slim -t backlash .
+# (docs/container.md): docker build --network host --build-arg BASE_IMAGE=local/python:3.11-slim -t backlash .
 # Any base works that has Debian's apt-get and a Python 3.11 whose `python` and `pip` are on PATH.
 ARG BASE_IMAGE=python:3.11-slim
 FROM ${BASE_IMAGE}

@@ -28,8 +28,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-#: Defaults of ``backlash validate`` per protocol: number of cases and seed (protocol 1: the README's
-#: blind run of its code; protocol 2: 300 cases, the mix of docs/validation-v2.md).
+#: Defaults of ``backlash validate`` per protocol: number of cases and seed (protocol 1: the
+#: blind run of its code in docs/validation-protocol-1.md; protocol 2: 300 cases, the mix of docs/validation-v2.md).
 VALIDATE_DEFAULTS: dict[int, tuple[int, int]] = {1: (200, 53), 2: (300, 97)}
 
 
@@ -161,7 +161,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         description="Blind validation of the gap diagnosis. Protocol 2 (default; docs/validation-v2.md): every "
         "case gets the whole catalogue; single, pair, triple, held-back and clean cases across the plausible "
         "box, white or coloured noise, some with a drive's own sensors only. Run again on the same --out with "
-        "the same settings to resume an interrupted run (either protocol). Protocol 1: the issue-4 protocol (README).",
+        "the same settings to resume an interrupted run (either protocol). Protocol 1: the issue-4 protocol (docs/validation-protocol-1.md).",
         **examples(
             "backlash validate --cases 150 --seed 239 --workers 2 --out out/validation-v2-seed239",
             "backlash validate --held-back held_out --mix held_back=1 --cases 35 --seed 241 --out out/held-out",
@@ -183,7 +183,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         type=int,
         default=None,
         help=f"seed of the case generator (default {VALIDATE_DEFAULTS[2][1]}; protocol 1: {VALIDATE_DEFAULTS[1][1]}, "
-        "the README's blind run of its code)",
+        "the blind run of its code in docs/validation-protocol-1.md)",
     )
     add_dask_options(p)
     p.add_argument(

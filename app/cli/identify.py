@@ -13,7 +13,6 @@ from app.cli.common import (
     add_db_option,
     add_record_options,
     examples,
-    open_store,
     read_record,
     settings,
 )
@@ -27,6 +26,7 @@ logger = logging.getLogger(__name__)
 def cmd_identify(args: argparse.Namespace) -> int:
     """Identify the record's backlash width and write the outcome as JSON."""
     from app.services.identification import identify_from_store
+    from engine.storage import PatternStore
 
     if args.plant != DEFAULT_PLANT:
         return _identify_plant(args)
@@ -42,7 +42,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
             "--c 1.0; `make run` trains all of them), or point --db or $BACKLASH_DB_PATH at a store"
         )
     answer = identify_from_store(
-        open_store(args),
+        PatternStore(path),
         record,
         args.channel,
         args.pattern_set,

@@ -133,8 +133,8 @@ class PlantDiagnoseCreate(BaseModel):
 class DiagnosisAnswer(BaseModel):
     """A diagnosis: the shape of issues 4 and 10 (backlash drive) or of the plant interface (``emps``, ``brfd``).
 
-    Only the fields every diagnosis has are declared; the others are described in the README's
-    gap-diagnosis sections and kept as they come (``extra="allow"``).
+    Only the fields every diagnosis has are declared; the others are described in docs/gap-diagnosis.md and
+    docs/diagnosis.md and kept as they come (``extra="allow"``).
     """
 
     model_config = ConfigDict(extra="allow")

@@ -188,7 +188,7 @@ def continuous_width(record: Record, channel: str) -> dict:
 
     The simulator is fitted to that one channel (K free, J1 and c free unless the
     record's conditions give them, c1 likewise; a K condition is ignored), as in
-    the README's "calibrated K as a continuous width estimate". The warnings about the fit
+    docs/identification.md, "The calibrated K as a continuous width". The warnings about the fit
     are :func:`continuous_width_checked`'s.
     """
     return continuous_width_checked(record, channel)[0]

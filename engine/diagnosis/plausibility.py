@@ -105,7 +105,7 @@ __all__ = [
 
 #: chi2 per sample of a channel above which the calibrated model is said not to reproduce it: the
 #: residual's RMS is then 5 times the noise. A fit to the noise gives 1 (0.9-1.1 measured on clean
-#: records at 30-50 dB, coloured noise included); the README's misfits that gave a width without a
+#: records at 30-50 dB, coloured noise included); the issue's misfits that gave a width without a
 #: warning sat at 172-1105, unit and interval mistakes at 1e3-1e5 (measured here).
 MISFIT_CHI2: Final[float] = 25.0
 #: How far outside the range of peaks the plant produces (:func:`peak_envelope`) a channel's peak

@@ -27,7 +27,7 @@ where it lowers the chi-square of the *rounded* model, the one every fit is judg
 answer is never worse than without it. On 38 quantised development records (seed-151 and
 seed-97 cases, the true set fitted from the nominal plant; ``docs/diagnosis.md`` 8b) it
 brought 3 true sets under chi2/n 1.05 that were not and one from 5.1 to 1.6. Cost, one
-diagnosis at a time on 2 idle cores (``bench/case_times.py``, the 75 seed-151 singles, 5 of them
+diagnosis at a time on 2 idle cores (``lab/scripts/case_times.py``, the 75 seed-151 singles, 5 of them
 quantised): median 5.9 s and p90 14.0 s with it, 5.9 s and 13.6 s before (median ratio per record
 1.01); two quantised singles it made right took 4.2 and 6.1 s (9.9 and 11.9 s before). Pairs and
 triples not measured.

@@ -47,7 +47,7 @@ it honest off the ideal record (:func:`width_sigma`, one rule for every answer):
 The two constants were chosen on the development blind runs (protocol 2, seeds 97-223, 1800
 cases): the floor as the smallest round value covering at least 90 % of every verdict group there,
 the structure factor as the smallest of its grid covering the nominal 95 % of the unexplained
-answers there (:data:`STRUCTURE_FACTOR`), and scored on held-out runs (``bench/width_coverage.py``; README, "The width
+answers there (:data:`STRUCTURE_FACTOR`), and scored on held-out runs (``bench/width_coverage.py``; docs/width.md, "The width
 after a diagnosis"). ``interval_95`` is ``K +- 1.96 sigma_K``.
 """
 

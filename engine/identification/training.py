@@ -25,7 +25,7 @@ from engine.storage import PatternSet
 logger = logging.getLogger(__name__)
 
 #: Identifier kinds by name. ``template`` is the default: it beats the paper's
-#: method on every held-out evaluation (see README, "Evaluation").
+#: method on every held-out evaluation (see docs/identification.md, "Evaluation").
 IDENTIFIERS: dict[str, type[TemplateIdentifier] | type[PaperIdentifier]] = {
     "template": TemplateIdentifier,
     "paper": PaperIdentifier,

@@ -44,7 +44,7 @@ section 9). The interval is read from chi2 itself instead:
   jumps by several units where a model impact crosses a sample instant (the
   sampled acceleration is discontinuous in the parameters), and on the
   development records the statistic at the truth ran about 1.4 times
-  chi2_1's quantiles there (README, "The calibrated K as a continuous width
+  chi2_1's quantiles there (docs/identification.md, "The calibrated K as a continuous width
   estimate").
 - **Edges.** From the optimum, K steps outwards on each side (first by the
   Gauss-Newton half-width 1.96 sd, at least :data:`MIN_STEP_REL` of K; the
@@ -102,7 +102,7 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 #: Search settings of the continuous width estimate (two or three free parameters): the ones
-#: README's "calibrated K as a continuous width" table was measured with (with the optimiser's
+#: docs/identification.md's "calibrated K as a continuous width" table was measured with (with the optimiser's
 #: difference step of that time, 2e-3; the diagnosis's default is smaller since 2026-11-24).
 WIDTH_SETTINGS = CalibrationSettings(n_global=128, n_starts=2, fd_step=2e-3)
 #: Confidence of the interval.

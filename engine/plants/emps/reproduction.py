@@ -5,7 +5,7 @@ loop and compare its raw states with the measured channels (``Simulation_EMPS.m`
 ``100 ||y - y_sim|| / ||y||`` (eq. 11) from sample 50 on. :func:`reproduce` does the same with our
 kernel (:meth:`~engine.plants.emps.model.EmpsPlant.states`).
 
-Where ours differs (measured on the shipped records, see the README's "Real data" section):
+Where ours differs (measured on the shipped records, see docs/emps.md, "The published errors, reproduced"):
 
 - velocity, acceleration and force agree within :data:`TOLERANCE` (the largest difference is the
   pulse record's velocity, 0.40 % against 0.48 %: ours lower); the acceleration is sensitive, as the raw simulated acceleration chatters where the sign(v) of the Coulomb term
