@@ -32,6 +32,7 @@ from app.core.logging import setup_logging
 from app.jobs import JobManager
 from app.services import diagnoses, training
 from app.services.diagnoses import DIAGNOSE_JOB
+from app.services.retention import RetentionScheduler
 from app.services.sync_diagnosis import SyncDiagnoses
 from app.services.training import TRAIN_JOB
 from app.web.docs import install_docs
@@ -102,6 +103,9 @@ def create_app(settings: Settings | None = None, *, database_lock: IO[bytes] | N
             )
             taken.callback(lambda: app.state.jobs.shutdown(wait=True))  # first at shutdown: the jobs stop
             app.state.jobs.recover()
+            app.state.retention = RetentionScheduler(store, settings.retention_days, settings.retention_interval_hours)
+            taken.callback(app.state.retention.stop)  # before the jobs stop: a run under way finishes first
+            app.state.retention.start()  # after recover(): a run sees the interrupted jobs as finished
             logger.info(
                 "store %s (%d pattern sets); %d training %s(es), %d diagnosis process(es); API key %s",
                 app.state.store.path,

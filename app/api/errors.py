@@ -25,6 +25,7 @@ from app.services.errors import (
     InvalidInputError,
     NotFoundError,
     QueueFullError,
+    StorageFullError,
     TimeLimitError,
 )
 from engine.diagnosis import CalibrationError
@@ -58,6 +59,7 @@ USER_ERRORS: dict[type[Exception], int] = {
     QueueFullError: 429,
     ConflictError: 409,
     TimeLimitError: 504,
+    StorageFullError: 507,
 }
 
 #: Server-side errors: exception type -> (status, public message); details go to the log.

@@ -7,7 +7,7 @@ import logging
 from collections.abc import Sequence
 
 from app import output
-from app.cli import batch, diagnose, evaluation, identify, pattern_sets, serve, simulate
+from app.cli import batch, diagnose, evaluation, identify, pattern_sets, serve, simulate, store
 from app.cli.common import EXIT_FAILURE, EXIT_INTERRUPTED, EXIT_USAGE, settings, user_errors
 
 logger = logging.getLogger(__name__)
@@ -29,7 +29,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="log level (default $BACKLASH_LOG_LEVEL or INFO)",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for group in (simulate, pattern_sets, identify, diagnose, batch, serve, evaluation):
+    for group in (simulate, pattern_sets, identify, diagnose, batch, serve, store, evaluation):
         group.register(sub)
     return parser
 

@@ -20,7 +20,19 @@ environment variable        meaning                                default
 ``BACKLASH_READ_TIMEOUT``   longest wait for a request's headers,  30
                             or between pieces of its body [s]
 ``BACKLASH_LOG_LEVEL``      DEBUG, INFO, WARNING, ERROR            INFO
+``BACKLASH_RETENTION_DAYS`` age [days] past which a retention run  unset (keep everything)
+                            deletes finished jobs, diagnoses,
+                            identifications, unreferenced records
+``BACKLASH_RETENTION_INTERVAL_HOURS`` hours between the service's   24 (0: never)
+                            retention runs (deletion, compaction)
+``BACKLASH_MAX_PATTERN_SETS`` stored plus training pattern sets     500
+                            before training is refused (507)
+``BACKLASH_HISTORY_POINTS`` points of an asset's history per       1000
+                            answer (newest first; ``before`` pages)
 =========================  =====================================  ==========================
+
+Retention (:mod:`app.services.retention`) never deletes pattern sets: they are refused beyond
+``BACKLASH_MAX_PATTERN_SETS`` instead, and deleted by a person (``DELETE /v1/pattern-sets/{id}``).
 """
 
 from __future__ import annotations
@@ -41,6 +53,9 @@ API_V1_STR = "/v1"
 
 #: The most cases ``BACKLASH_MAX_BATCH_CASES`` may allow (also the schema's bound on a batch's cases).
 MAX_BATCH_CASES_LIMIT = 10_000
+#: The most points one answer of an asset's history may hold (the ``limit`` query's bound, and what the trend
+#: fits at most: the newest identifications).
+MAX_HISTORY_POINTS = 10_000
 
 LogLevel = Literal["DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL"]
 
@@ -109,6 +124,29 @@ class Settings(BaseSettings):
         "answer; the connection is then closed) and between two pieces of its body (408).",
     )
     log_level: LogLevel = Field(default="INFO", description="Log level of the service and the engine.")
+    retention_days: Annotated[float | None, Field(ge=0, le=36_500)] = Field(
+        default=None,
+        description="Age [days] past which a retention run deletes finished jobs, diagnoses (with their figures), "
+        "identifications and the records nothing refers to any more (app/services/retention.py has the rules). "
+        "Unset or 0: keep everything (the default: no data is lost unless this is set). Pattern sets are never "
+        "deleted by age.",
+    )
+    retention_interval_hours: Annotated[float, Field(ge=0, le=8760)] = Field(
+        default=24.0,
+        description="Hours between the service's retention runs (the first one when it starts): the deletions of "
+        "retention_days, then the compaction that gives freed pages back to the file system. 0: no periodic run "
+        "(POST /v1/maintenance/retention and `backlash store prune` still run one).",
+    )
+    max_pattern_sets: Annotated[int, Field(ge=1, le=100_000)] = Field(
+        default=500,
+        description="Stored pattern sets plus the ones being trained beyond which a new training is refused (507): "
+        "a set is about 0.5 MB, so the default bounds them near 250 MB. Delete unused sets to make room.",
+    )
+    history_points: Annotated[int, Field(ge=1, le=MAX_HISTORY_POINTS)] = Field(
+        default=1000,
+        description="Points of an asset's history one answer holds when the request gives no limit (the newest; "
+        "the answer says how to read older ones).",
+    )
     dask_scheduler: str | None = Field(
         default=None,
         description="Address of a Dask scheduler (tcp://host:port; the same variable as the CLI's, "
@@ -121,6 +159,11 @@ class Settings(BaseSettings):
         if value is not None and "://" not in value:
             raise ValueError(f"dask_scheduler must be an address such as tcp://host:8786, got {value!r}")
         return value
+
+    @field_validator("retention_days")
+    @classmethod
+    def _zero_keeps_forever(cls, value: float | None) -> float | None:
+        return None if value is not None and value == 0 else value
 
     @field_validator("log_level", mode="before")
     @classmethod

@@ -133,6 +133,19 @@ class DiagnosisRepository:
             rows = conn.execute(sql + " ORDER BY seq DESC LIMIT ?", (*args, int(limit))).fetchall()
         return [self._row(r, None, ()) for r in rows]
 
+    def newest(self, asset: str, *, limit: int, before: datetime | None = None) -> builtins.list[StoredDiagnosis]:
+        """The asset's ``limit`` most recently measured diagnoses (when the record was taken, else when it was
+        stored; before ``before`` if given), newest first, without their results."""
+        when = "coalesce(measured_at, created_at)"
+        sql = f"SELECT {_COLUMNS} FROM diagnoses WHERE asset = ?"
+        args: builtins.list[str] = [asset]
+        if before is not None:
+            sql += f" AND {when} < ?"
+            args.append(str(to_text(before)))
+        with self.store.reading() as conn:
+            rows = conn.execute(sql + f" ORDER BY {when} DESC, seq DESC LIMIT ?", (*args, int(limit))).fetchall()
+        return [self._row(r, None, ()) for r in rows]
+
     def asset_spans(self) -> dict[str, tuple[int, datetime | None, datetime | None]]:
         """Per named asset: how many rows, the first and the last ``measured_at`` (one query)."""
         with self.store.reading() as conn:

@@ -73,6 +73,18 @@ class IdentificationRepository:
             rows = conn.execute(sql + " ORDER BY measured_at, seq LIMIT ?", (*args, int(limit))).fetchall()
         return [self._row(r) for r in rows]
 
+    def newest(self, asset: str, *, limit: int, before: datetime | None = None) -> builtins.list[StoredIdentification]:
+        """The asset's ``limit`` most recently measured identifications (measured before ``before`` if given),
+        newest first, without their answers (index ``identifications_asset``)."""
+        sql = f"SELECT {_COLUMNS} FROM identifications WHERE asset = ?"
+        args: builtins.list[str] = [asset]
+        if before is not None:
+            sql += " AND measured_at < ?"
+            args.append(str(to_text(before)))
+        with self.store.reading() as conn:
+            rows = conn.execute(sql + " ORDER BY measured_at DESC, seq DESC LIMIT ?", (*args, int(limit))).fetchall()
+        return [self._row(r) for r in rows]
+
     def asset_spans(self) -> dict[str, tuple[int, datetime | None, datetime | None]]:
         """Per named asset: how many rows, the first and the last ``measured_at`` (one query)."""
         with self.store.reading() as conn:
@@ -88,6 +100,12 @@ class IdentificationRepository:
                 f"SELECT {_COLUMNS}, result_z FROM identifications WHERE id = ?", (identification_id,)
             ).fetchone()
         return None if row is None else self._row(row[:7], unpack(row[7]))
+
+    def delete(self, identification_id: str) -> bool:
+        """Remove the identification (nothing else refers to one); False if there was none."""
+        with self.store.writing() as conn:
+            cur = conn.execute("DELETE FROM identifications WHERE id = ?", (identification_id,))
+            return cur.rowcount == 1
 
     @staticmethod
     def _row(row: tuple[Any, ...], result: dict[str, Any] | None = None) -> StoredIdentification:

@@ -53,7 +53,13 @@ class HistoryPointPublic(BaseModel):
 
 class HistoryPublic(BaseModel):
     asset: str
-    points: list[HistoryPointPublic] = Field(description="Oldest measurement first.")
+    points: list[HistoryPointPublic] = Field(
+        description="Oldest measurement first: the newest `limit` points (measured before `before`, if given)."
+    )
+    more: bool = Field(default=False, description="Whether older points exist than these.")
+    next_before: datetime | None = Field(
+        default=None, description="When `more`: the `before` query that reads the next (older) points."
+    )
 
 
 class TrendPublic(BaseModel):

@@ -10,10 +10,12 @@ record with an unexplained gap biases its calibrated width. The method itself is
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from app.core.config import MAX_HISTORY_POINTS
 from app.db.codec import now
 from app.db.diagnoses import DiagnosisRepository
 from app.db.identifications import IdentificationRepository
@@ -21,7 +23,7 @@ from app.services.errors import InvalidInputError, NotFoundError
 from engine.history.trend import Trend, TrendError, WidthPoint, fit_trend
 from engine.storage import PatternStore
 
-__all__ = ["assets", "history", "store_identification", "trend", "trend_figure"]
+__all__ = ["HistoryPage", "assets", "history", "store_identification", "trend", "trend_figure"]
 
 
 def store_identification(
@@ -63,8 +65,35 @@ def assets(store: PatternStore) -> list[dict[str, Any]]:
     return out
 
 
-def history(store: PatternStore, asset: str) -> list[dict[str, Any]]:
-    """The asset's identifications and diagnoses, oldest measurement first; 404 for an unknown asset."""
+@dataclass(frozen=True)
+class HistoryPage:
+    """One page of an asset's history.
+
+    Attributes
+    ----------
+    points : list of dict
+        Oldest measurement first: the newest ``limit`` points measured before the page's ``before``.
+    more : bool
+        Whether older points exist than the page holds.
+    next_before : datetime or None
+        When ``more``: the ``before`` that reads the next (older) page, the oldest measurement of this one.
+    """
+
+    points: list[dict[str, Any]]
+    more: bool
+    next_before: datetime | None
+
+
+def history(store: PatternStore, asset: str, limit: int, before: datetime | None = None) -> HistoryPage:
+    """The asset's newest ``limit`` identifications and diagnoses (measured before ``before`` if given), oldest
+    measurement first; 404 for an unknown asset.
+
+    Each table is read newest first with ``limit + 1`` rows at most (indexed by asset and measurement time), so an
+    answer costs what it holds, however long the history. A page never ends inside a group of points measured at
+    the same instant when older ones follow: that group moves to the next page (unless it alone fills the page),
+    so that ``before`` = ``next_before`` reads every point once.
+    """
+    n = int(limit)
     points: list[dict[str, Any]] = [
         {
             "measured_at": i.measured_at,
@@ -76,7 +105,7 @@ def history(store: PatternStore, asset: str) -> list[dict[str, Any]]:
             "effect": None,
             "used_in_trend": i.width is not None,
         }
-        for i in IdentificationRepository(store).list(asset=asset)
+        for i in IdentificationRepository(store).newest(asset, limit=n + 1, before=before)
     ]
     points += [
         {
@@ -89,16 +118,35 @@ def history(store: PatternStore, asset: str) -> list[dict[str, Any]]:
             "effect": d.effect,
             "used_in_trend": False,
         }
-        for d in DiagnosisRepository(store).list(asset=asset, limit=1_000_000)
+        for d in DiagnosisRepository(store).newest(asset, limit=n + 1, before=before)
     ]
     if not points:
+        if before is not None and _known(store, asset):
+            return HistoryPage([], False, None)
         raise NotFoundError(f"no identification or diagnosis of asset {asset!r} is stored; GET /v1/assets lists them")
-    return sorted(points, key=lambda p: p["measured_at"])
+    points.sort(key=lambda p: p["measured_at"], reverse=True)  # newest first
+    page, left = points[:n], points[n:]
+    if left and page[-1]["measured_at"] == left[0]["measured_at"]:
+        cut = [p for p in page if p["measured_at"] != left[0]["measured_at"]]
+        page = cut or page  # a group larger than the page stays whole on it
+    more = bool(left)
+    return HistoryPage(page[::-1], more, page[-1]["measured_at"] if more else None)
+
+
+def _known(store: PatternStore, asset: str) -> bool:
+    """Whether anything of ``asset`` is stored."""
+    return bool(
+        IdentificationRepository(store).newest(asset, limit=1) or DiagnosisRepository(store).newest(asset, limit=1)
+    )
 
 
 def _width_points(store: PatternStore, asset: str) -> list[WidthPoint]:
-    pts = [p for p in history(store, asset) if p["used_in_trend"]]
-    return [WidthPoint(p["measured_at"], float(p["K"]), p["K_sigma"]) for p in pts]
+    """The identified widths the trend fits: the newest :data:`~app.core.config.MAX_HISTORY_POINTS`
+    identifications of the asset with a width, oldest first; 404 for an unknown asset."""
+    found = IdentificationRepository(store).newest(asset, limit=MAX_HISTORY_POINTS)
+    if not found and not _known(store, asset):
+        raise NotFoundError(f"no identification or diagnosis of asset {asset!r} is stored; GET /v1/assets lists them")
+    return [WidthPoint(i.measured_at, float(i.width), i.width_sigma) for i in reversed(found) if i.width is not None]
 
 
 def trend(store: PatternStore, asset: str, limit: float) -> Trend:

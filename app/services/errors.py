@@ -52,6 +52,11 @@ class ConflictError(ServiceError):
     """The request does not fit the current state of what it names (e.g. cancelling a finished job): 409."""
 
 
+class StorageFullError(ServiceError):
+    """A configured bound on what the service stores is reached (e.g. ``BACKLASH_MAX_PATTERN_SETS``): 507; the
+    message says what to delete or which setting to raise."""
+
+
 class TimeLimitError(ServiceError):
     """A synchronous computation ran past its time limit and was stopped (504); the message says what to use."""
 

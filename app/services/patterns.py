@@ -8,9 +8,12 @@ service's and describes stored sets as JSON.
 from __future__ import annotations
 
 import inspect
+import sqlite3
+from collections.abc import Callable
 from typing import Any
 
-from app.services.errors import IncompatibleError, InvalidInputError, some_names
+from app.db.jobs import UNFINISHED, Job
+from app.services.errors import IncompatibleError, InvalidInputError, StorageFullError, some_names
 from engine.identification import training as engine_training
 from engine.storage import PatternSet, PatternSetSummary
 
@@ -58,3 +61,33 @@ def describe(pattern_set: PatternSet | PatternSetSummary) -> dict[str, Any]:
         "created_at": pattern_set.created_at,
         "arrays": shapes,
     }
+
+
+def pattern_set_room(limit: int) -> Callable[[sqlite3.Connection, Job], None]:
+    """A ``with_rows`` of :meth:`app.jobs.JobManager.submit` that refuses a training beyond ``limit`` sets.
+
+    Inside the transaction that adds the training job, the stored pattern sets plus the unfinished jobs that
+    will store one (this new job among them) are counted; beyond ``limit`` (``BACKLASH_MAX_PATTERN_SETS``) a
+    :class:`StorageFullError` (507) rolls the transaction back, so nothing is queued. Counting in the same write
+    transaction makes two concurrent requests unable to pass the bound together.
+    """
+    unfinished = ", ".join(f"'{s.value}'" for s in sorted(UNFINISHED))
+
+    def check(conn: sqlite3.Connection, job: Job) -> None:
+        stored = int(conn.execute("SELECT count(*) FROM pattern_sets").fetchone()[0])
+        training = int(
+            conn.execute(
+                f"SELECT count(*) FROM jobs WHERE state IN ({unfinished}) "
+                "AND json_extract(meta, '$.pattern_set_id') IS NOT NULL"
+            ).fetchone()[0]
+        )
+        if stored + training > limit:
+            raise StorageFullError(
+                f"{stored} pattern sets are stored and {training - 1} more are being trained; the service keeps at "
+                f"most {limit} (BACKLASH_MAX_PATTERN_SETS): delete unused ones (DELETE /v1/pattern-sets/{{id}}) "
+                "or raise the limit",
+                cli=f"{stored} pattern sets are stored; the store keeps at most {limit} "
+                "(BACKLASH_MAX_PATTERN_SETS): delete unused ones (backlash pattern-sets delete ID) or raise the limit",
+            )
+
+    return check

@@ -19,13 +19,14 @@ from engine.storage.errors import (
 from engine.storage.models import PatternSet, PatternSetSummary
 from engine.storage.paths import DEFAULT_STORE_PATH, STORE_PATH_ENV, default_store_path
 from engine.storage.schema import MIGRATIONS, SCHEMA_VERSION
-from engine.storage.store import PatternStore
+from engine.storage.store import Compaction, PatternStore
 
 __all__ = [
     "DEFAULT_STORE_PATH",
     "MIGRATIONS",
     "SCHEMA_VERSION",
     "STORE_PATH_ENV",
+    "Compaction",
     "CorruptPatternSet",
     "InvalidPatternSet",
     "PatternSet",

@@ -16,7 +16,15 @@
   (bit-exact, dtype and shape preserved, never pickle) stored next to its
   SHA-256, which is checked on every read;
 * the schema carries a version (``PRAGMA user_version``) and an application id;
-  :data:`~engine.storage.schema.MIGRATIONS` upgrade older files when a store is opened.
+  :data:`~engine.storage.schema.MIGRATIONS` upgrade older files when a store is opened;
+* deleting rows frees pages inside the file but does not shrink it; :meth:`PatternStore.compact`
+  gives them back to the file system. A new file is created with ``PRAGMA auto_vacuum =
+  INCREMENTAL``, so compacting it is an ``incremental_vacuum`` (cheap: it moves only the pages
+  it frees). A file created before that has ``auto_vacuum = NONE``, which SQLite can only change
+  by rewriting the whole file: its first compaction that has free pages to give back runs
+  ``VACUUM`` once (it then holds the write lock for the rewrite and needs free disk space of the
+  file's size) and leaves the file incremental, so later compactions are cheap too. Either way a
+  ``wal_checkpoint(TRUNCATE)`` follows, so that the database file and its ``-wal`` file shrink.
 
 WAL needs shared memory between the processes using the file, so the database
 must live on a local file system (not NFS/SMB).
@@ -36,6 +44,7 @@ import sqlite3
 import time
 import uuid
 from collections.abc import Iterator
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -49,7 +58,43 @@ from engine.storage.validation import prepare, require_c, require_channel
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["PatternStore"]
+__all__ = ["Compaction", "PatternStore"]
+
+#: ``PRAGMA auto_vacuum`` value of incremental vacuuming (0 none, 1 full, 2 incremental).
+AUTO_VACUUM_INCREMENTAL = 2
+
+
+@dataclass(frozen=True)
+class Compaction:
+    """What :meth:`PatternStore.compact` did.
+
+    Attributes
+    ----------
+    method : {"incremental_vacuum", "vacuum", "none"}
+        ``incremental_vacuum`` (an incremental file), ``vacuum`` (the one rewrite of a file created with
+        ``auto_vacuum = NONE``, which also makes it incremental) or ``none`` (no free page to give back).
+    bytes_before, bytes_after : int
+        Size of the database file plus its ``-wal`` file before and after [bytes].
+    free_pages_before : int
+        Pages that were free inside the file (``PRAGMA freelist_count``) before.
+    page_size : int
+        SQLite's page size [bytes].
+    checkpointed : bool
+        Whether the closing ``wal_checkpoint(TRUNCATE)`` completed; if a reader held it back, the file shrinks
+        at a later checkpoint.
+    """
+
+    method: str
+    bytes_before: int
+    bytes_after: int
+    free_pages_before: int
+    page_size: int
+    checkpointed: bool
+
+    @property
+    def bytes_freed(self) -> int:
+        """``bytes_before - bytes_after`` [bytes] (negative if the file grew meanwhile)."""
+        return self.bytes_before - self.bytes_after
 
 
 def _utc_now() -> str:
@@ -154,11 +199,14 @@ class PatternStore:
         """Called inside a write transaction just before ``COMMIT`` (a no-op; tests override it)."""
 
     def _initialise(self) -> None:
-        """Switch to WAL, check the application id and run pending migrations."""
+        """Make a new file incremental-vacuum, switch to WAL, check the application id and run pending migrations."""
         deadline = time.monotonic() + self.busy_timeout
         while True:
             try:
                 with self._connect() as conn:
+                    if conn.execute("PRAGMA page_count").fetchone()[0] == 0:
+                        # a new (empty) file: only now, before its header is written, can auto_vacuum be chosen
+                        conn.execute(f"PRAGMA auto_vacuum = {AUTO_VACUUM_INCREMENTAL}")
                     mode = conn.execute("PRAGMA journal_mode").fetchone()[0]
                     if str(mode).lower() != "wal":
                         mode = conn.execute("PRAGMA journal_mode = WAL").fetchone()[0]
@@ -426,3 +474,67 @@ class PatternStore:
                 if sha256(bytes(blob)) != sha:
                     problems.append(f"pattern set {set_id!r}: arrays fail their SHA-256 check")
         return problems
+
+    # -- size and compaction ---------------------------------------------------------------
+    def size_bytes(self) -> int:
+        """Size of the database file plus its ``-wal`` file [bytes] (what the store takes on disk, but ``-shm``)."""
+        total = 0
+        for path in (self.path, self.path.with_name(self.path.name + "-wal")):
+            with contextlib.suppress(FileNotFoundError):
+                total += path.stat().st_size
+        return total
+
+    def compact(self) -> Compaction:
+        """Give the pages that deletions freed back to the file system, so that the file shrinks.
+
+        An incremental file (every file this code creates) runs ``PRAGMA incremental_vacuum``; a file created
+        with ``auto_vacuum = NONE`` is rewritten once by ``VACUUM``, which also makes it incremental (see the
+        module docstring). A ``wal_checkpoint(TRUNCATE)`` follows. Nothing is done when no page is free.
+
+        Returns
+        -------
+        Compaction
+            The method used and the sizes before and after [bytes].
+
+        Raises
+        ------
+        PatternStoreError
+            The write lock was not obtained within ``busy_timeout`` (another writer held it), or SQLite failed
+            (e.g. no disk space for the ``VACUUM``'s copy; the file is then unchanged).
+
+        Notes
+        -----
+        Neither statement may run inside a transaction: this connection runs them in autocommit, and other
+        connections' writes wait for them (up to their busy timeout), as for any write. A ``VACUUM`` of a large
+        file takes the time of copying it.
+        """
+        before = self.size_bytes()
+        with self._connect() as conn:
+            page_size = int(conn.execute("PRAGMA page_size").fetchone()[0])
+            free = int(conn.execute("PRAGMA freelist_count").fetchone()[0])
+            auto_vacuum = int(conn.execute("PRAGMA auto_vacuum").fetchone()[0])
+            if free == 0:
+                method = "none"
+            elif auto_vacuum == AUTO_VACUUM_INCREMENTAL:
+                method = "incremental_vacuum"
+                # executescript steps the pragma to its end (execute() would free one page per call)
+                conn.executescript("PRAGMA incremental_vacuum;")
+            else:
+                method = "vacuum"
+                conn.execute(f"PRAGMA auto_vacuum = {AUTO_VACUUM_INCREMENTAL}")  # takes effect with the VACUUM
+                conn.execute("VACUUM")
+            busy = conn.execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchone()[0]
+        result = Compaction(
+            method=method,
+            bytes_before=before,
+            bytes_after=self.size_bytes(),
+            free_pages_before=free,
+            page_size=page_size,
+            checkpointed=busy == 0,
+        )
+        logger.info(
+            "compacted %s (%s): %d free pages of %d bytes; %d -> %d bytes%s",
+            self.path, method, free, page_size, result.bytes_before, result.bytes_after,
+            "" if result.checkpointed else " (checkpoint held back by a reader: the file shrinks later)",
+        )  # fmt: skip
+        return result

@@ -180,9 +180,9 @@ def test_jobs_and_results_survive_a_crash_and_an_interrupted_job_can_be_retried(
         # cancel a running diagnosis; a finished job cannot be cancelled
         third = submit(c, record)
         wait_until(lambda: c.get(third["job_url"]).json()["state"] == "running", what="the third diagnosis to run")
-        cancelled = c.delete(third["job_url"])
+        cancelled = c.post(f"{third['job_url']}/cancel")
         assert cancelled.status_code == 200 and cancelled.json()["state"] == "cancelled"
-        again = c.delete(third["job_url"])
+        again = c.post(f"{third['job_url']}/cancel")
         assert again.status_code == 409 and "already finished" in again.json()["detail"]
         assert c.get("/v1/jobs", params={"state": "cancelled"}).json()["items"][0]["id"] == third["job_id"]
     with pytest.raises(RuntimeError, match="another backlash service"):  # one service per database file

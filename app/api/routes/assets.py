@@ -8,9 +8,11 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Response
 from fastapi import Path as PathParam
+from pydantic import AwareDatetime
 from starlette.concurrency import run_in_threadpool
 
-from app.api.deps import StoreDep
+from app.api.deps import SettingsDep, StoreDep
+from app.core.config import MAX_HISTORY_POINTS
 from app.schemas.assets import ASSET_PATTERN, AssetPublic, AssetsPublic, HistoryPointPublic, HistoryPublic, TrendPublic
 from app.schemas.common import ErrorPublic
 from app.services import assets as asset_service
@@ -28,10 +30,38 @@ def list_assets(store: StoreDep) -> Any:
 
 
 @router.get("/{asset}/history", response_model=HistoryPublic, summary="An asset's width history", responses=_NOT_FOUND)
-def read_history(asset: AssetPath, store: StoreDep) -> Any:
+def read_history(
+    asset: AssetPath,
+    store: StoreDep,
+    settings: SettingsDep,
+    limit: Annotated[
+        int | None,
+        Query(
+            ge=1,
+            le=MAX_HISTORY_POINTS,
+            description="At most this many points, the newest (default BACKLASH_HISTORY_POINTS, 1000 unless set).",
+        ),
+    ] = None,
+    before: Annotated[
+        AwareDatetime | None,
+        Query(
+            description="Only points measured before this instant (ISO 8601 with a UTC offset): the previous "
+            "answer's `next_before` reads the next, older points."
+        ),
+    ] = None,
+) -> Any:
     """Identifications (continuous width K with its 1-sigma uncertainty) and diagnoses (verdict, and the width
-    their calibration found), oldest measurement first. The trend uses the identifications (``used_in_trend``)."""
-    return HistoryPublic(asset=asset, points=[HistoryPointPublic(**p) for p in asset_service.history(store, asset)])
+    their calibration found), oldest measurement first. The trend uses the identifications (``used_in_trend``).
+
+    One answer holds the newest ``limit`` points; ``more`` says whether older ones exist, and ``next_before``
+    reads them."""
+    page = asset_service.history(store, asset, limit or settings.history_points, before)
+    return HistoryPublic(
+        asset=asset,
+        points=[HistoryPointPublic(**p) for p in page.points],
+        more=page.more,
+        next_before=page.next_before,
+    )
 
 
 @router.get(

@@ -12,6 +12,7 @@ from app.jobs import Job, JobState
 from app.schemas.common import ErrorPublic
 from app.schemas.jobs import JobPublic, JobsPublic, JobStateName
 from app.services import jobs as job_service
+from app.services import retention
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
@@ -53,15 +54,16 @@ def read_job(job_id: str, jobs: JobsDep) -> JobPublic:
     return job_public(jobs.get(job_id))
 
 
-@router.delete(
-    "/{job_id}",
+@router.post(
+    "/{job_id}/cancel",
     response_model=JobPublic,
     summary="Cancel a queued or running job",
     responses={**_NOT_FOUND, 409: {"model": ErrorPublic, "description": "The job has already finished"}},
 )
 def cancel_job(job_id: str, jobs: JobsDep) -> JobPublic:
     """A queued job never starts; a running diagnosis's worker process is stopped at once (its core is free); a
-    running training stops at its next progress report. The job's record stays, in state ``cancelled``."""
+    running training stops at its next progress report. The job's record stays, in state ``cancelled``
+    (``DELETE /v1/jobs/{id}`` then removes it)."""
     return job_public(jobs.cancel(job_id))
 
 
@@ -82,3 +84,26 @@ def retry_job(job_id: str, jobs: JobsDep, store: StoreDep, response: Response) -
     job = job_service.retry(store, jobs, job_id)
     response.headers["Location"] = f"{API_V1_STR}/jobs/{job.id}"
     return job_public(job)
+
+
+@router.delete(
+    "/{job_id}",
+    status_code=status.HTTP_204_NO_CONTENT,
+    response_class=Response,
+    summary="Delete a finished job",
+    responses={
+        **_NOT_FOUND,
+        409: {
+            "model": ErrorPublic,
+            "description": "The job is queued or running (cancel it first: POST /v1/jobs/{id}/cancel), or another "
+            "row needs it (a diagnosis without a result follows it, or a later job re-runs it); the message says "
+            "which",
+        },
+    },
+)
+def delete_job(job_id: str, store: StoreDep) -> Response:
+    """Remove a done, failed, interrupted or cancelled job. A diagnosis with a result keeps it (its state reads
+    ``done``); one without a result needs its job (delete the diagnosis first, or retry the job); a job that a
+    retry names (``retry_of``) goes after the retry."""
+    retention.delete_job(store, job_id)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)

@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Query, Response, status
 
-from app.api.deps import JobsDep, StoreDep, json_model
+from app.api.deps import JobsDep, SettingsDep, StoreDep, json_model
 from app.api.openapi import body_schema
 from app.core.config import API_V1_STR
 from app.jobs import JobManager, JobState
@@ -16,7 +16,7 @@ from app.schemas.pattern_sets import PatternSetCreate, PatternSetPublic, Pattern
 from app.services import training
 from app.services.errors import NotFoundError
 from app.services.identification import not_found_message
-from app.services.patterns import describe
+from app.services.patterns import describe, pattern_set_room
 from app.services.training import TRAIN_JOB
 from engine.constants import J1_GRID
 from engine.storage import PatternSetNotFound
@@ -57,11 +57,15 @@ def _missing(jobs: JobManager, set_id: str) -> NotFoundError:
     responses={
         422: {"model": ErrorPublic},
         429: {"model": ErrorPublic, "description": "Too many jobs pending"},
+        507: {"model": ErrorPublic, "description": "BACKLASH_MAX_PATTERN_SETS sets are stored or being trained"},
         **_STORE_BUSY,
     },
 )
 def create_pattern_set(
-    body: Annotated[PatternSetCreate, Depends(json_model(PatternSetCreate))], jobs: JobsDep, response: Response
+    body: Annotated[PatternSetCreate, Depends(json_model(PatternSetCreate))],
+    jobs: JobsDep,
+    settings: SettingsDep,
+    response: Response,
 ) -> Any:
     """Queue the training of one pattern set and answer at once with the job's and the set's ids.
 
@@ -71,6 +75,9 @@ def create_pattern_set(
     fail (the job then ends ``failed`` with the reason, and nothing is stored). With
     ``BACKLASH_DASK_SCHEDULER`` set, the simulation and the fit run on that Dask cluster and the set is
     stored here; the job and its API are the same.
+
+    The service keeps at most ``BACKLASH_MAX_PATTERN_SETS`` sets, counting the ones being trained: beyond,
+    507 (delete unused ones first; nothing is queued).
     """
     spec = training.TrainingSpec(
         channel=body.channel,
@@ -83,7 +90,12 @@ def create_pattern_set(
     training.check(spec)
     set_id = uuid.uuid4().hex
 
-    job = jobs.submit(TRAIN_JOB, training.job_spec(spec, set_id), meta={"pattern_set_id": set_id})
+    job = jobs.submit(
+        TRAIN_JOB,
+        training.job_spec(spec, set_id),
+        meta={"pattern_set_id": set_id},
+        with_rows=pattern_set_room(settings.max_pattern_sets),
+    )
     job_url = f"{API_V1_STR}/jobs/{job.id}"
     response.headers["Location"] = job_url
     return {

@@ -373,7 +373,7 @@
   async function cancel() {
     if (!currentJob) return;
     try {
-      await request(`/jobs/${encodeURIComponent(currentJob)}`, { method: "DELETE" });
+      await request(`/jobs/${encodeURIComponent(currentJob)}/cancel`, { method: "POST" });
     } catch (e) {
       say(e.message, "error");
     }
