@@ -3,11 +3,11 @@ generalised PaperIdentifier it needs (any width grid of six, any channel with an
 
 Measured robustness (calibration Fc 9000 N, sigma0 3e6 N/m; seeds of the force noise of
 ``plant.synthesize``): with a 3 mm play, 9 of 20 noise seeds (1..20) give 0.003 on the 1 Hz record
-(seed 1, the one asserted below, is among them; the others give 0.002 or 0.004), 17 of 20 on the
-2 Hz record (the others 0.004). Noise-free simulations at the calibration: the 2 Hz record gives
-all six grid widths back, the 1 Hz record only 0 and 5 mm (0, 0, 4, 2, 1, 5 mm for 0..5 mm). The
-1 Hz assertion is therefore a single draw the method gets right, not evidence of robustness; the
-2 Hz test below asserts the rates, with floors under the measured values. The D values of the
+and the other 11 give 0.002 or 0.004 (one grid step off), 17 of 20 on the 2 Hz record (the others
+0.004). Noise-free simulations at the calibration: the 2 Hz record gives all six grid widths back,
+the 1 Hz record only 0 and 5 mm (0, 0, 4, 2, 1, 5 mm for 0..5 mm). Both records' tests assert these
+rates over the 20 seeds, with floors under the measured values; a method that picked among the six
+widths at random would be right on about 3 and within a step on about 10 of 20. The D values of the
 six widths differ by about 1e-6.
 """
 
@@ -60,14 +60,23 @@ def training(plant) -> tuple[np.ndarray, np.ndarray]:
 # --- paper_width ------------------------------------------------------------------------------
 
 
-def test_identifies_the_play_of_a_synthetic_record(plant) -> None:
+def test_identifies_the_play_of_synthetic_records_at_the_measured_rate(plant) -> None:
+    """A 3 mm play on the 1 Hz record, over the 20 noise seeds of the module's measurement: the width
+    is right on at least 7 (measured 9) and never more than one grid step (1 mm) off (measured 20 of 20)."""
     rec = plant.example(RECORD_1HZ)
-    synthetic = plant.synthesize(rec, {**CALIBRATION, "backlash": 0.003}, np.random.default_rng(1))
-    res = paper_width(plant, synthetic, CALIBRATION)
+    answers = [
+        paper_width(
+            plant, plant.synthesize(rec, {**CALIBRATION, "backlash": 0.003}, np.random.default_rng(s)), CALIBRATION
+        )
+        for s in range(1, 21)
+    ]
+    steps = [abs(a.index - WIDTH_GRID.index(0.003)) for a in answers]
+    assert sum(s == 0 for s in steps) >= 7, [a.width for a in answers]
+    assert max(steps) <= 1, [a.width for a in answers]
+    res = answers[0]  # the answer's shape and its window (seed 1)
     assert isinstance(res, PaperWidth)
     assert res.widths == WIDTH_GRID and len(res.D) == len(WIDTH_GRID)
-    assert res.index == WIDTH_GRID.index(0.003) == int(np.argmin(res.D))
-    assert res.width == 0.003
+    assert res.index == int(np.argmin(res.D)) and res.width == WIDTH_GRID[res.index]
     assert res.n_training == len(WIDTH_GRID) * N_VARIATIONS == 42
     # window: 2048 samples from LEAD_TIME before the first reversal after SETTLE (0.3555 s)
     first = float(plant.events(rec)[plant.events(rec) > 0.25][0])

@@ -120,13 +120,15 @@ LOAD_INERTIA_RIVALS = ("resilient_stiffness", "absorber_discontinuity", "sensor_
 @pytest.mark.parametrize(
     "whole_catalogue",
     [
-        pytest.param(False, id="rivals", marks=pytest.mark.slow),  # 37 s; tests/test_locus.py covers held-back
-        pytest.param(True, id="catalogue", marks=pytest.mark.slow),  # effects in the default run
+        pytest.param(False, id="rivals", marks=pytest.mark.slow),  # 40-60 s
+        pytest.param(True, id="catalogue", marks=pytest.mark.slow),
     ],
 )
 def test_left_out_effect_is_unexplained(whole_catalogue: bool) -> None:
-    """An effect outside the library is not named as one inside it (default run: its closest rivals
-    only, with single, pair and triple search; ``make test-slow``: the whole rest of the catalogue)."""
+    """An effect outside the library is not named as one inside it (both under ``make test-slow``: its
+    closest rivals only, with single, pair and triple search, and the whole rest of the catalogue). The
+    default run's left-out effect is tests/test_headline.py's (a held-back effect, its locus and missing
+    term), beside the held-back loci of tests/test_locus.py."""
     rec = noisy(simulate(PlantParameters(K=0.0075, J1=0.78, c=1.3), effects={"load_inertia": 1.6}), 40.0, seed=13)
     library = (
         CATALOGUE.without("load_inertia")
@@ -245,7 +247,7 @@ def test_scorer_counts_what_it_should(tmp_path):
     assert "top-1" in rep.table() and "truth" in rep.confusion_table()
 
 
-@pytest.mark.slow  # 2.5 min; protocol 2's end to end run is tests/test_validation_v2.py::test_tiny_end_to_end_run_with_the_real_diagnosis
+@pytest.mark.slow  # 2.5 min; protocol 2's (also slow): tests/test_validation_v2.py::test_tiny_end_to_end_run_with_the_real_diagnosis
 def test_small_blind_validation(tmp_path):
     """A small blind run of protocol 1 end to end: generate, diagnose without the key, score."""
     rep = run_validation(

@@ -114,7 +114,7 @@ def in_process(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     return _answers(root)
 
 
-@pytest.mark.slow  # the default run covers two workers with a separate scheduler, below
+@pytest.mark.slow  # as are the two below; the default run keeps the refusal of an unreachable scheduler
 @pytest.mark.parametrize("workers", [1, 2])
 def test_a_validation_gives_the_same_answers_on_local_clusters_of_any_size(
     in_process: dict[str, Any], tmp_path: Path, workers: int

@@ -348,11 +348,10 @@ def identify(client: httpx.Client, record: dict[str, Any], set_id: str) -> dict[
 
 
 @pytest.fixture(scope="module")
-def diagnosed(container: Container, paths: set[str]) -> dict[str, Any] | None:
+def diagnosed(container: Container, paths: set[str]) -> dict[str, Any]:
     """A diagnosis job of a record with a hidden effect (load inertia x 1.4), finished: the accepted answer, the
-    job, the stored diagnosis and its figures. None while the image has no /v1/diagnoses."""
-    if "/v1/diagnoses" not in paths:
-        return None
+    job, the stored diagnosis and its figures. An image without /v1/diagnoses fails the tests that use it."""
+    assert "/v1/diagnoses" in paths, f"the image serves no /v1/diagnoses (issue 12); its paths: {sorted(paths)}"
     rng = np.random.default_rng(11)
     truth = simulate(PlantParameters(K=0.006, J1=0.82, c=1.2), effects={"load_inertia": 1.4})
     record = Record({k: add_white_noise(v, 40.0, rng) for k, v in truth.channels.items()}, conditions={"c1": 0.2})
@@ -372,12 +371,6 @@ def figures(container: Container, diagnosis: dict[str, Any]) -> dict[str, httpx.
     """The diagnosis's figures, by name."""
     with container.client() as c:
         return {name: c.get(f"/v1/diagnoses/{diagnosis['id']}/figures/{name}") for name in diagnosis["figures"]}
-
-
-def need(diagnosed: dict[str, Any] | None) -> dict[str, Any]:
-    if diagnosed is None:
-        pytest.skip("the image has no /v1/diagnoses yet (issue 12): the diagnosis checks run once it has")
-    return diagnosed
 
 
 @pytest.fixture(scope="module")
@@ -417,7 +410,9 @@ def test_the_container_is_healthy_runs_as_app_and_keeps_its_database_on_the_volu
 
 def test_openapi_and_docs_are_served(container: Container, paths: set[str]) -> None:
     with container.logs_on_failure():
-        assert {"/healthz", "/v1/simulate", "/v1/pattern-sets", "/v1/jobs/{job_id}", "/v1/identify"} <= paths
+        expected = {"/healthz", "/v1/simulate", "/v1/pattern-sets", "/v1/identify"}
+        expected |= {"/v1/jobs", "/v1/jobs/{job_id}", "/v1/diagnoses", "/v1/diagnoses/{diagnosis_id}"}
+        assert expected <= paths, sorted(expected - paths)
         with container.client() as c:
             assert c.get("/docs").status_code == 200
 
@@ -446,8 +441,8 @@ def test_training_job_stores_a_pattern_set_that_identifies(trained: dict[str, An
     assert trained["identified"]["width"] == 0.005  # the simulated width
 
 
-def test_diagnosis_job_names_the_hidden_effect(container: Container, diagnosed: dict[str, Any] | None) -> None:
-    done = need(diagnosed)
+def test_diagnosis_job_names_the_hidden_effect(container: Container, diagnosed: dict[str, Any]) -> None:
+    done = diagnosed
     with container.logs_on_failure():
         assert done["location"] == f"/v1/diagnoses/{done['diagnosis_id']}"
         job = done["job"]
@@ -488,8 +483,7 @@ def test_the_pattern_set_survives_a_restart(
 
 
 def test_the_training_job_survives_a_restart(restarted: Container, trained: dict[str, Any], paths: set[str]) -> None:
-    if "/v1/jobs" not in paths:
-        pytest.skip("the image does not persist jobs yet (no GET /v1/jobs, issue 12): this check runs once it does")
+    assert "/v1/jobs" in paths, f"the image lists no jobs (GET /v1/jobs, issue 12); its paths: {sorted(paths)}"
     job_id = trained["job_id"]
     with restarted.client() as c, restarted.logs_on_failure():
         r = c.get(f"/v1/jobs/{job_id}")
@@ -500,8 +494,8 @@ def test_the_training_job_survives_a_restart(restarted: Container, trained: dict
         assert job_id in {j["id"] for j in listed.json()["items"]}
 
 
-def test_the_diagnosis_survives_a_restart(restarted: Container, diagnosed: dict[str, Any] | None) -> None:
-    done = need(diagnosed)
+def test_the_diagnosis_survives_a_restart(restarted: Container, diagnosed: dict[str, Any]) -> None:
+    done = diagnosed
     with restarted.client() as c, restarted.logs_on_failure():
         r = c.get(f"/v1/diagnoses/{done['diagnosis_id']}")
         assert r.status_code == 200, r.text
