@@ -2,7 +2,8 @@
 
 A diagnosis row is written when the job is queued (no result yet) and completed by the job
 (:meth:`DiagnosisRepository.complete`: the result, its verdict's summary columns and the
-figures in one transaction), so that a diagnosis is either whole or absent.
+figures in one transaction, the one that also marks the job done), so that a diagnosis is either
+whole or absent.
 """
 
 from __future__ import annotations
@@ -80,10 +81,16 @@ class DiagnosisRepository:
             )
         return diagnosis_id
 
-    def set_job(self, diagnosis_id: str, job_id: str) -> None:
-        """The job that now computes the diagnosis (a retry)."""
-        with self.store.writing() as conn:
+    def set_job(self, diagnosis_id: str, job_id: str, conn: sqlite3.Connection | None = None) -> None:
+        """The job that now computes the diagnosis (a retry; in the write transaction ``conn`` when given)."""
+        with self.store.writing() if conn is None else contextlib.nullcontext(conn) as conn:
             conn.execute("UPDATE diagnoses SET job_id = ? WHERE id = ?", (job_id, diagnosis_id))
+
+    @staticmethod
+    def has_result(conn: sqlite3.Connection, diagnosis_id: str) -> bool:
+        """Whether the diagnosis exists with its result stored (read in ``conn``, e.g. a retry's transaction)."""
+        row = conn.execute("SELECT 1 FROM diagnoses WHERE id = ? AND result_z IS NOT NULL", (diagnosis_id,)).fetchone()
+        return row is not None
 
     def complete(
         self,
@@ -95,9 +102,11 @@ class DiagnosisRepository:
         width: float | None,
         width_sigma: float | None,
         figures: dict[str, bytes],
+        conn: sqlite3.Connection | None = None,
     ) -> bool:
-        """Store the result and figures in one transaction; False if the diagnosis was deleted meanwhile."""
-        with self.store.writing() as conn:
+        """Store the result and figures in one transaction (``conn`` when given: the caller's, which also marks the
+        job done, :func:`app.jobs.manager.finish_job`); False if the diagnosis was deleted meanwhile."""
+        with self.store.writing() if conn is None else contextlib.nullcontext(conn) as conn:
             cur = conn.execute(
                 "UPDATE diagnoses SET result_z = ?, status = ?, effect = ?, width = ?, width_sigma = ? WHERE id = ?",
                 (pack(result), status, effect, width, width_sigma, diagnosis_id),

@@ -117,18 +117,23 @@ class JobRepository:
         spec: dict[str, Any],
         retry_of: str | None = None,
         conn: sqlite3.Connection | None = None,
+        done: str | None = None,
     ) -> Job:
-        """Insert a new ``queued`` job and return it (in the write transaction ``conn`` when given)."""
+        """Insert a new ``queued`` job and return it (in the write transaction ``conn`` when given).
+
+        ``done``: insert it ``done`` at once, with this stage (a retry whose result is already stored).
+        """
+        created = now()
         job = Job(
             id=uuid.uuid4().hex,
             kind=kind,
-            state=JobState.queued,
-            progress=0.0,
-            stage="queued",
+            state=JobState.queued if done is None else JobState.done,
+            progress=0.0 if done is None else 1.0,
+            stage="queued" if done is None else done,
             error=None,
-            created_at=now(),
-            started_at=None,
-            finished_at=None,
+            created_at=created,
+            started_at=None if done is None else created,
+            finished_at=None if done is None else created,
             meta=dict(meta),
             spec=dict(spec),
             retry_of=retry_of,
@@ -144,8 +149,8 @@ class JobRepository:
                     job.stage,
                     None,
                     to_text(job.created_at),
-                    None,
-                    None,
+                    to_text(job.started_at),
+                    to_text(job.finished_at),
                     json.dumps(job.meta),
                     json.dumps(job.spec, allow_nan=False),
                     retry_of,
@@ -153,9 +158,25 @@ class JobRepository:
             )
         return job
 
-    def get(self, job_id: str) -> Job | None:
-        with self.store.reading() as conn:
+    def get(self, job_id: str, conn: sqlite3.Connection | None = None) -> Job | None:
+        """The job, or None (read in ``conn`` when given)."""
+        with self.store.reading() if conn is None else contextlib.nullcontext(conn) as conn:
             row = conn.execute(f"SELECT {_COLUMNS} FROM jobs WHERE id = ?", (job_id,)).fetchone()
+        return None if row is None else _row(row)
+
+    def latest_retry(self, job_id: str, conn: sqlite3.Connection | None = None) -> Job | None:
+        """The newest job that re-runs ``job_id``, directly or through retries of its retries; None if none does.
+
+        A retry re-runs the newest job of its chain (:meth:`app.jobs.JobManager.retry`), so the chain is a line
+        and its newest job carries the work on (read in ``conn`` when given).
+        """
+        with self.store.reading() if conn is None else contextlib.nullcontext(conn) as conn:
+            row = conn.execute(
+                "WITH RECURSIVE chain(id) AS (SELECT id FROM jobs WHERE retry_of = ? "
+                "UNION SELECT jobs.id FROM jobs JOIN chain ON jobs.retry_of = chain.id) "
+                f"SELECT {_COLUMNS} FROM jobs WHERE id IN (SELECT id FROM chain) ORDER BY seq DESC LIMIT 1",
+                (job_id,),
+            ).fetchone()
         return None if row is None else _row(row)
 
     def list(
@@ -197,9 +218,10 @@ class JobRepository:
             )
             return cur.rowcount == 1
 
-    def finish(self, job_id: str, **meta: Any) -> bool:
-        """``running`` -> ``done`` (progress 1), merging ``meta`` into the job's."""
-        with self.store.writing() as conn:
+    def finish(self, job_id: str, *, conn: sqlite3.Connection | None = None, **meta: Any) -> bool:
+        """``running`` -> ``done`` (progress 1), merging ``meta`` into the job's (in the write transaction ``conn``
+        when given: the one that stores the job's result, :func:`app.jobs.manager.finish_job`)."""
+        with self.store.writing() if conn is None else contextlib.nullcontext(conn) as conn:
             row = conn.execute("SELECT meta FROM jobs WHERE id = ?", (job_id,)).fetchone()
             merged = {**(json.loads(row[0]) if row else {}), **meta}
             cur = conn.execute(

@@ -14,7 +14,15 @@ places run jobs:
   (:class:`JobCancelled` is raised inside it).
 
 The process that runs a job writes its progress into the database, so the service reads
-progress the same way for both places. When the service starts, jobs that were queued or
+progress the same way for both places. A runner that produces stored rows (a pattern set, a
+diagnosis's result) returns them as a :class:`JobResult`: they are written in the same transaction
+that moves the job to ``done`` (:func:`finish_job`), so a process killed at any moment leaves both
+or neither, and a cancelled job stores nothing.
+
+A retry (:meth:`JobManager.retry`) is idempotent: it re-runs the newest job of the retry chain, at
+most one retry of a job is ever queued or running, and asking again returns that retry instead of
+running the work twice; a job whose result is already stored is not run again (its retry is
+``done`` at once). When the service starts, jobs that were queued or
 running when it last stopped are marked ``interrupted`` with a message
 (:meth:`JobManager.recover`): nothing else would ever finish them.
 """
@@ -50,9 +58,13 @@ __all__ = [
     "JobCancelled",
     "JobKind",
     "JobManager",
+    "JobResult",
     "ProgressFn",
+    "Retried",
     "RowsFn",
+    "StoredFn",
     "die_with_parent",
+    "finish_job",
     "new_process_pool",
     "run_in_process",
 ]
@@ -60,10 +72,35 @@ __all__ = [
 ProgressFn = Callable[[float, str], None]
 #: ``with_rows(conn, job)`` of :meth:`JobManager.submit`: writes the rows that belong with a new job, in its transaction.
 RowsFn = Callable[[sqlite3.Connection, Job], None]
-#: ``run(spec, progress)`` of a thread kind; returns items merged into the job's meta.
-ThreadRunner = Callable[[dict[str, Any], ProgressFn], dict[str, Any] | None]
+#: ``stored(conn, spec)`` of a :class:`JobKind`: the meta of a spec whose result is already stored, else None.
+StoredFn = Callable[[sqlite3.Connection, dict[str, Any]], dict[str, Any] | None]
+
+
+@dataclass(frozen=True)
+class JobResult:
+    """What a runner returns when its job stores rows: written with the job's move to ``done``, in one transaction.
+
+    Attributes
+    ----------
+    meta : dict
+        Items merged into the job's meta.
+    write : callable or None
+        ``write(conn)`` writes the job's result in the write transaction ``conn`` (not committed by it). If it
+        raises, or the job is no longer ``running`` (cancelled, interrupted), nothing of it is stored.
+    """
+
+    meta: dict[str, Any]
+    write: Callable[[sqlite3.Connection], None] | None = None
+
+
+#: What a runner returns: items merged into the job's meta, a :class:`JobResult`, or None.
+RunnerResult = dict[str, Any] | JobResult | None
+#: ``run(spec, progress)`` of a thread kind.
+ThreadRunner = Callable[[dict[str, Any], ProgressFn], RunnerResult]
 #: ``run(db_path, spec, progress)`` of a process kind: a module-level function (it is pickled by name).
-ProcessRunner = Callable[[Path, dict[str, Any], ProgressFn], dict[str, Any] | None]
+ProcessRunner = Callable[[Path, dict[str, Any], ProgressFn], RunnerResult]
+#: Stage of a retry that found its job's result already stored (it is ``done`` at once, nothing is run).
+ALREADY_STORED = "done: the result was already stored"
 
 #: ``prctl`` option: the signal a process gets when its parent ends (linux/prctl.h).
 PR_SET_PDEATHSIG = 1
@@ -94,12 +131,32 @@ class JobKind:
     pool : str
         The process pool a ``process`` kind runs in (the manager's ``pools`` give their sizes), so that
         kinds of work do not queue behind each other.
+    stored : callable or None
+        :data:`StoredFn`: whether a spec's result is already stored (a retry then does not run it again).
     """
 
     name: str
     runs_in: Literal["thread", "process"]
-    run: Callable[..., dict[str, Any] | None]
+    run: Callable[..., RunnerResult]
     pool: str = "default"
+    stored: StoredFn | None = None
+
+
+@dataclass(frozen=True)
+class Retried:
+    """The answer of :meth:`JobManager.retry`: the job that carries the work on, and whether the call queued it.
+
+    Attributes
+    ----------
+    job : Job
+        The new retry, or the retry that was already queued, running or done.
+    created : bool
+        True if this call created ``job`` (queued, or done at once when the result was already stored); False if
+        an earlier retry is returned.
+    """
+
+    job: Job
+    created: bool
 
 
 def die_with_parent(parent: int) -> None:
@@ -141,8 +198,41 @@ def new_process_pool(workers: int) -> ProcessPool:
     return pool
 
 
+def finish_job(jobs: JobRepository, job_id: str, result: RunnerResult) -> bool:
+    """Store a runner's ``result`` and move its job ``running`` -> ``done`` in one write transaction.
+
+    The result's rows are written first, then the job moves; a process killed between the two commits
+    neither. If the job is no longer ``running`` (a client cancelled it, a restart interrupted it), the
+    transaction is rolled back: nothing of the result is stored.
+
+    Returns
+    -------
+    bool
+        Whether the job is now ``done`` with its result.
+    """
+    if isinstance(result, JobResult):
+        meta, write = result.meta, result.write
+    else:
+        meta, write = result or {}, None
+    try:
+        with jobs.store.writing() as conn:
+            if write is not None:
+                write(conn)
+            if not jobs.finish(job_id, conn=conn, **meta):
+                raise _NotRunning(job_id)
+    except _NotRunning:
+        logger.info("job %s is no longer running; its result is dropped", job_id)
+        return False
+    return True
+
+
+class _NotRunning(Exception):
+    """Rolls back :func:`finish_job`'s transaction when the job has left ``running``."""
+
+
 def run_in_process(db_path: Path, job_id: str, run: ProcessRunner, spec: dict[str, Any]) -> None:
-    """Entry point of a job in a worker process: mark it running, run it, store ``done`` (or raise)."""
+    """Entry point of a job in a worker process: mark it running, run it, store its result and ``done`` together
+    (:func:`finish_job`; or raise)."""
     jobs = JobRepository(PatternStore(db_path))
     if not jobs.start(job_id):
         return  # cancelled (or interrupted) before it started
@@ -151,10 +241,10 @@ def run_in_process(db_path: Path, job_id: str, run: ProcessRunner, spec: dict[st
         jobs.progress(job_id, fraction, stage)
 
     try:
-        meta = run(db_path, spec, progress) or {}
+        result = run(db_path, spec, progress)
+        finish_job(jobs, job_id, result)
     except Exception as exc:  # sent back as text: not every exception survives pickling
         raise JobError(f"{type(exc).__name__}: {exc}") from None
-    jobs.finish(job_id, **meta)
 
 
 class JobManager:
@@ -261,27 +351,11 @@ class JobManager:
             if self._closed:
                 raise QueueFullError("the server is shutting down and accepts no new jobs")
             with self.store.writing() as conn:
-                pending = self.repo.count_unfinished(conn)
-                if pending >= self._max_pending:
-                    raise QueueFullError(
-                        f"{pending} jobs are queued or running (the limit is {self._max_pending}); "
-                        "wait for some to finish and retry"
-                    )
+                self._check_room(conn)
                 job = self.repo.create(kind, meta=meta or {}, spec=spec, retry_of=retry_of, conn=conn)
                 if with_rows is not None:
                     with_rows(conn, job)
-            future: Future[Any]
-            try:
-                if job_kind.runs_in == "thread":
-                    future = self._threads.submit(self._run_thread, job.id, job_kind, spec)
-                else:
-                    future = self._pools[job_kind.pool].schedule(
-                        run_in_process, args=(self.store.path, job.id, job_kind.run, spec)
-                    )
-            except Exception as exc:  # a job no worker will ever run must not stay queued
-                self.repo.fail(job.id, self.public_error(f"the job could not be started: {type(exc).__name__}: {exc}"))
-                raise
-            self._futures[job.id] = future
+            future = self._schedule(job, job_kind)
         future.add_done_callback(functools.partial(self._settle, job.id))
         logger.info("job %s (%s) queued", job.id, kind)
         return job
@@ -334,22 +408,67 @@ class JobManager:
         logger.info("job %s (%s) cancelled while %s", job_id, job.kind, job.state.value)
         return self.get(job_id)
 
-    def retry(self, job_id: str) -> Job:
-        """Run a job that did not finish well (failed, interrupted, cancelled) again, as a new job.
+    def retry(self, job_id: str, *, with_rows: RowsFn | None = None) -> Retried:
+        """Run a job that did not finish well (failed, interrupted, cancelled) again, as a new job; idempotent.
+
+        The retry re-runs the newest job of the retry chain (``retry_of`` names it), so that a job has at
+        most one retry and at most one of the chain is ever queued or running. In one write transaction:
+
+        * if a retry of the job (or of its retries) is queued, running or done, that one is returned
+          (``created`` False) and nothing is run: retrying twice runs the work once;
+        * else, if the kind's ``stored`` finds the result already stored (e.g. a crash after the result
+          was written), the new job is ``done`` at once (stage :data:`ALREADY_STORED`) and nothing is run;
+        * else a new job is queued (within the queue's limit) and ``with_rows(conn, job)`` runs in that
+          transaction (a diagnosis then follows the new job).
 
         Raises
         ------
+        NotFoundError
+            No such job.
         ConflictError
-            The job is still queued or running, or it is done.
+            The job itself is queued, running or done (nothing to retry), or of a kind this service does not run.
+        QueueFullError
+            A new job is needed and too many jobs are queued or running, or the service is shutting down.
         """
         job = self.get(job_id)
         if job.state in (JobState.queued, JobState.running, JobState.done):
             raise ConflictError(
                 f"job {job_id} is {job.state.value}; only failed, interrupted or cancelled jobs can be retried"
             )
-        if job.kind not in self._kinds:
+        job_kind = self._kinds.get(job.kind)
+        if job_kind is None:
             raise ConflictError(f"job {job_id} is of kind {job.kind!r}, which this service does not run")
-        return self.submit(job.kind, job.spec, meta=job.meta, retry_of=job.id)
+        with self._lock:
+            if self._closed:
+                raise QueueFullError("the server is shutting down and accepts no new jobs")
+            with self.store.writing() as conn:
+                latest = self.repo.latest_retry(job_id, conn)
+                if latest is not None and latest.state in (JobState.queued, JobState.running, JobState.done):
+                    logger.info("job %s: its retry %s is %s; not run again", job_id, latest.id, latest.state.value)
+                    return Retried(latest, created=False)
+                target = latest or job
+                stored = job_kind.stored(conn, target.spec) if job_kind.stored is not None else None
+                if stored is None:
+                    self._check_room(conn)
+                new = self.repo.create(
+                    target.kind,
+                    meta={**target.meta, **(stored or {})},
+                    spec=target.spec,
+                    retry_of=target.id,
+                    conn=conn,
+                    done=None if stored is None else ALREADY_STORED,
+                )
+                if with_rows is not None:
+                    with_rows(conn, new)
+            if stored is not None:
+                logger.info(
+                    "job %s: the result of %s was already stored; its retry %s is done", job_id, target.id, new.id
+                )
+                return Retried(new, created=True)
+            future = self._schedule(new, job_kind)
+        future.add_done_callback(functools.partial(self._settle, new.id))
+        logger.info("job %s (%s) queued, a retry of %s", new.id, new.kind, target.id)
+        return Retried(new, created=True)
 
     def public_error(self, error: str) -> str:
         """A job's error as clients read it: the database's file and folder named, not shown (the log has them).
@@ -365,6 +484,31 @@ class JobManager:
 
     # -- internals ---------------------------------------------------------------------------
 
+    def _check_room(self, conn: sqlite3.Connection) -> None:
+        """Raise :class:`QueueFullError` if the queue is full (read in the write transaction that adds a job)."""
+        pending = self.repo.count_unfinished(conn)
+        if pending >= self._max_pending:
+            raise QueueFullError(
+                f"{pending} jobs are queued or running (the limit is {self._max_pending}); "
+                "wait for some to finish and retry"
+            )
+
+    def _schedule(self, job: Job, job_kind: JobKind) -> Future[Any]:
+        """Hand a stored, queued job to its thread pool or process pool (under ``self._lock``); its future."""
+        future: Future[Any]
+        try:
+            if job_kind.runs_in == "thread":
+                future = self._threads.submit(self._run_thread, job.id, job_kind, job.spec)
+            else:
+                future = self._pools[job_kind.pool].schedule(
+                    run_in_process, args=(self.store.path, job.id, job_kind.run, job.spec)
+                )
+        except Exception as exc:  # a job no worker will ever run must not stay queued
+            self.repo.fail(job.id, self.public_error(f"the job could not be started: {type(exc).__name__}: {exc}"))
+            raise
+        self._futures[job.id] = future
+        return future
+
     def _run_thread(self, job_id: str, kind: JobKind, spec: dict[str, Any]) -> None:
         if job_id in self._cancelled or not self.repo.start(job_id):
             return
@@ -375,10 +519,10 @@ class JobManager:
                 raise JobCancelled(job_id)
             self.repo.progress(job_id, fraction, stage)
 
-        meta = kind.run(spec, progress) or {}
+        result = kind.run(spec, progress)
         if job_id in self._cancelled:
             return
-        self.repo.finish(job_id, **meta)
+        finish_job(self.repo, job_id, result)
 
     def _settle(self, job_id: str, future: Future[Any]) -> None:
         """Record how a job's future ended, unless the job already has its final state."""

@@ -3,8 +3,9 @@
 A submitted diagnosis is three rows written in one transaction before the answer (202), once the
 queue has room: the record as sent (:mod:`app.db.records`), the diagnosis without a result
 (:mod:`app.db.diagnoses`) and its job (:mod:`app.db.jobs`). The job runs :func:`run_job` in a worker process, which stores the result
-and the figures in one transaction. A diagnosis is therefore either complete or has none of its
-result; a retried job computes it again from the stored record.
+and the figures in the transaction that marks the job ``done`` (:class:`app.jobs.JobResult`). A diagnosis
+is therefore either complete with a done job or has none of its result; a retried job computes it again
+from the stored record, unless the result is already stored (:func:`stored_result`: the retry is done at once).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from app.db.codec import now
 from app.db.diagnoses import DiagnosisRepository, StoredDiagnosis
 from app.db.jobs import JobState
 from app.db.records import NewRecord, RecordRepository, StoredRecord
-from app.jobs import Job, JobKind, JobManager, ProgressFn
+from app.jobs import Job, JobKind, JobManager, JobResult, ProgressFn
 from app.jobs.manager import RowsFn
 from app.services.diagnosis_requests import DiagnosisRequest, compute, n_samples, parse
 from app.services.errors import NotFoundError
@@ -33,8 +34,9 @@ __all__ = ["DIAGNOSE_JOB", "JOB_KIND", "delete", "get", "run_job", "submit"]
 DIAGNOSE_JOB = "diagnose"
 
 
-def run_job(db_path: Path, spec: dict[str, Any], progress: ProgressFn) -> dict[str, Any]:
-    """A diagnosis job, in a worker process: read the stored record, diagnose it, store the result and figures."""
+def run_job(db_path: Path, spec: dict[str, Any], progress: ProgressFn) -> JobResult:
+    """A diagnosis job, in a worker process: read the stored record, diagnose it; the result and figures are stored
+    with the job's move to ``done``, in one transaction."""
     store = PatternStore(db_path)
     progress(0.02, "reading the stored record")
     stored = RecordRepository(store).get(spec["record_id"])
@@ -48,24 +50,36 @@ def run_job(db_path: Path, spec: dict[str, Any], progress: ProgressFn) -> dict[s
 
     outcome = compute(parsed, figures=True, progress=stage)
     progress(0.95, f"storing the result and {len(outcome.figures)} figures")
-    kept = DiagnosisRepository(store).complete(
-        spec["diagnosis_id"],
-        outcome.result,
-        status=outcome.status,
-        effect=outcome.effect,
-        width=outcome.width,
-        width_sigma=outcome.width_sigma,
-        figures=outcome.figures,
-    )
-    if not kept:
-        logger.info("diagnosis %s was deleted while it ran; its result is dropped", spec["diagnosis_id"])
-    return {"diagnosis_id": spec["diagnosis_id"]}
+
+    def write(conn: sqlite3.Connection) -> None:
+        kept = DiagnosisRepository(store).complete(
+            spec["diagnosis_id"],
+            outcome.result,
+            status=outcome.status,
+            effect=outcome.effect,
+            width=outcome.width,
+            width_sigma=outcome.width_sigma,
+            figures=outcome.figures,
+            conn=conn,
+        )
+        if not kept:
+            logger.info("diagnosis %s was deleted while it ran; its result is dropped", spec["diagnosis_id"])
+
+    return JobResult({"diagnosis_id": spec["diagnosis_id"]}, write=write)
+
+
+def stored_result(conn: sqlite3.Connection, spec: dict[str, Any]) -> dict[str, Any] | None:
+    """The job's meta if the diagnosis of the job's ``spec`` already has its result (its retry then runs nothing)."""
+    diagnosis_id = spec.get("diagnosis_id")
+    if diagnosis_id is None or not DiagnosisRepository.has_result(conn, diagnosis_id):
+        return None
+    return {"diagnosis_id": diagnosis_id}
 
 
 #: The process pool of diagnosis jobs (``Settings.diagnosis_workers`` processes).
 POOL = "diagnosis"
 #: Diagnosis as a job kind: in a worker process, so that cancelling it frees its core at once.
-JOB_KIND = JobKind(DIAGNOSE_JOB, "process", run_job, pool=POOL)
+JOB_KIND = JobKind(DIAGNOSE_JOB, "process", run_job, pool=POOL, stored=stored_result)
 
 
 def new_record(request: DiagnosisRequest) -> NewRecord:

@@ -4,17 +4,21 @@ The orchestration (the paper's grid at one c -> simulate -> fit -> ``PatternSet`
 is the engine's :func:`engine.identification.training.train_pattern_set`; this
 module validates the request before a job is queued (so that a job can only fail
 in the simulation or the fit), simulates the validated cases and saves the set
-under the id announced to the client.
+under the id announced to the client. A training job saves its set in the transaction
+that marks the job ``done`` (:class:`app.jobs.JobResult`), and a retry of a job whose set is
+already stored does not train again (:func:`stored_result`).
 """
 
 from __future__ import annotations
 
+import functools
+import sqlite3
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from app.jobs import JobKind, ProgressFn
+from app.jobs import JobKind, JobResult, ProgressFn
 from app.services import simulation
 from app.services.errors import InvalidInputError
 from app.services.patterns import check_identifier
@@ -91,11 +95,20 @@ def train_pattern_set(
     set_id: str | None = None,
     progress: ProgressFn = _no_progress,
     cluster: Any = None,
+    save: bool = True,
 ) -> PatternSet:
     """Train the pattern set (here, or on the Dask cluster of ``cluster``), save it; return it as stored.
 
     On a cluster the job's progress shows its stage (sent, running there, saving); the fraction
     moves only when the result is back (the worker reports no finer progress).
+
+    Parameters
+    ----------
+    store : PatternStore
+        Where to save it.
+    save : bool
+        False: return it unsaved, with ``id`` = ``set_id`` (a job saves it in the transaction that marks the
+        job done: :func:`run_job`).
     """
     if cluster is None:
         pattern_set = compute_pattern_set(spec, progress)
@@ -107,6 +120,9 @@ def train_pattern_set(
         progress(0.05, "training on the Dask cluster")
         pattern_set = future.result()
     pattern_set.id = set_id
+    if not save:
+        progress(0.99, "storing the pattern set")
+        return pattern_set
     saved = store.save(pattern_set)
     progress(1.0, "done")
     return saved
@@ -140,10 +156,29 @@ def _spec_of(stored: dict[str, Any]) -> TrainingSpec:
     )
 
 
-def run_job(db_path: Path, stored: dict[str, Any], progress: ProgressFn) -> dict[str, Any]:
-    """A training job in a worker process: train the set and store it under the announced id."""
-    set_id = stored["pattern_set_id"]
-    train_pattern_set(_spec_of(stored), PatternStore(db_path), set_id=set_id, progress=progress)
+def _save(store: PatternStore, pattern_set: PatternSet, conn: sqlite3.Connection) -> None:
+    store.save(pattern_set, conn=conn)
+
+
+def _result(store: PatternStore, pattern_set: PatternSet) -> JobResult:
+    """The job's result: the set, saved in the transaction that marks the job done."""
+    return JobResult({"pattern_set_id": pattern_set.id}, write=functools.partial(_save, store, pattern_set))
+
+
+def run_job(db_path: Path, stored: dict[str, Any], progress: ProgressFn) -> JobResult:
+    """A training job in a worker process: train the set; it is stored under the announced id with the job's end."""
+    store = PatternStore(db_path)
+    pattern_set = train_pattern_set(
+        _spec_of(stored), store, set_id=stored["pattern_set_id"], progress=progress, save=False
+    )
+    return _result(store, pattern_set)
+
+
+def stored_result(conn: sqlite3.Connection, stored: dict[str, Any]) -> dict[str, Any] | None:
+    """The job's meta if the set of the job's spec ``stored`` is already stored (its retry then trains nothing)."""
+    set_id = stored.get("pattern_set_id")
+    if set_id is None or conn.execute("SELECT 1 FROM pattern_sets WHERE id = ?", (set_id,)).fetchone() is None:
+        return None
     return {"pattern_set_id": set_id}
 
 
@@ -151,11 +186,12 @@ def job_kind(store: PatternStore, cluster: Any = None, runs_in: str = "process")
     """Training as a job kind: in a worker process (``runs_in="process"``, the default), or on a thread of the
     service (``"thread"``; always so with a Dask ``cluster``, where the thread only waits for it)."""
     if cluster is None and runs_in == "process":
-        return JobKind(TRAIN_JOB, "process", run_job, pool="training")
+        return JobKind(TRAIN_JOB, "process", run_job, pool="training", stored=stored_result)
 
-    def run(stored: dict[str, Any], progress: ProgressFn) -> dict[str, Any]:
-        set_id = stored["pattern_set_id"]
-        train_pattern_set(_spec_of(stored), store, set_id=set_id, progress=progress, cluster=cluster)
-        return {"pattern_set_id": set_id}
+    def run(stored: dict[str, Any], progress: ProgressFn) -> JobResult:
+        pattern_set = train_pattern_set(
+            _spec_of(stored), store, set_id=stored["pattern_set_id"], progress=progress, cluster=cluster, save=False
+        )
+        return _result(store, pattern_set)
 
-    return JobKind(TRAIN_JOB, "thread", run)
+    return JobKind(TRAIN_JOB, "thread", run, stored=stored_result)

@@ -230,7 +230,7 @@ class PatternStore:
                 raise
 
     # -- writes ---------------------------------------------------------------------
-    def save(self, pattern_set: PatternSet) -> PatternSet:
+    def save(self, pattern_set: PatternSet, *, conn: sqlite3.Connection | None = None) -> PatternSet:
         """Store a pattern set in one transaction.
 
         Parameters
@@ -238,6 +238,10 @@ class PatternStore:
         pattern_set : PatternSet
             The set to store. ``id`` may be ``None`` (a uuid4 hex is assigned);
             ``created_at`` is always set by the store.
+        conn : sqlite3.Connection or None
+            A write transaction of this file (:meth:`writing`) to write the set in, with the caller's other
+            rows (a service's job that moves to ``done`` with it): the caller then commits, and the set is
+            stored only if everything is. ``None``: a transaction of its own.
 
         Returns
         -------
@@ -257,8 +261,9 @@ class PatternStore:
         """
         prep = prepare(pattern_set)
         set_id = pattern_set.id or uuid.uuid4().hex
+        own = conn is None
         try:
-            with self._write() as conn:
+            with self._write() if conn is None else contextlib.nullcontext(conn) as conn:
                 created_at = _utc_now()  # taken under the write lock: agrees with commit order
                 conn.execute(
                     "INSERT INTO pattern_sets (id, kind, channel, c, j1_values, wavelet, params, model_version, "
@@ -285,7 +290,8 @@ class PatternStore:
                 "leave id None to get a new one, or delete the old set first"
             ) from exc
         logger.info(
-            "saved pattern set %s (kind=%s channel=%s c=%g model=%s, %d bytes) to %s",
+            "%s pattern set %s (kind=%s channel=%s c=%g model=%s, %d bytes) to %s",
+            "saved" if own else "wrote (committed with the caller's transaction)",
             set_id, prep.kind, prep.channel, prep.c, prep.model_version, len(prep.blob), self.path,
         )  # fmt: skip
         return PatternSet(

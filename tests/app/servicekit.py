@@ -187,7 +187,14 @@ class GatedTraining:
         self.real, self.gates, self.calls = real, [Gate() for _ in range(gates)], 0
 
     def __call__(
-        self, spec: Any, store: Any, *, set_id: str | None = None, progress: Any = None, cluster: Any = None
+        self,
+        spec: Any,
+        store: Any,
+        *,
+        set_id: str | None = None,
+        progress: Any = None,
+        cluster: Any = None,
+        **more: Any,
     ) -> Any:
         gate = self.gates[self.calls]
         self.calls += 1
@@ -195,7 +202,7 @@ class GatedTraining:
         gate.started.set()
         if not gate.release.wait(TIMEOUT):
             raise TimeoutError("the test never released the training")
-        return self.real(spec, store, set_id=set_id, progress=progress, cluster=cluster)
+        return self.real(spec, store, set_id=set_id, progress=progress, cluster=cluster, **more)
 
     def release_all(self) -> None:
         for gate in self.gates:

@@ -142,7 +142,7 @@ def test_a_restart_marks_unfinished_jobs_interrupted_and_a_retry_runs_them_again
     assert manager.get(finished.id).state is JobState.done
     with pytest.raises(ConflictError, match="only failed, interrupted or cancelled"):
         manager.retry(finished.id)
-    again = manager.wait(manager.retry(running.id).id, TIMEOUT)
+    again = manager.wait(manager.retry(running.id).job.id, TIMEOUT)
     assert (again.state, again.retry_of, again.meta) == (JobState.done, running.id, {"ran": 2})
     manager.shutdown()
 

@@ -71,19 +71,36 @@ def cancel_job(job_id: str, jobs: JobsDep) -> JobPublic:
     "/{job_id}/retry",
     status_code=status.HTTP_202_ACCEPTED,
     response_model=JobPublic,
-    summary="Run a failed, interrupted or cancelled job again",
+    summary="Run a failed, interrupted or cancelled job again (idempotent)",
     responses={
         **_NOT_FOUND,
-        409: {"model": ErrorPublic, "description": "The job is queued, running or done"},
+        200: {
+            "model": JobPublic,
+            "description": "A retry of this job (or of its retries) is already queued, running or done: that job, "
+            "nothing new is run",
+        },
+        202: {
+            "model": JobPublic,
+            "description": "A new job (queued; or done at once when the result was already stored)",
+        },
+        409: {"model": ErrorPublic, "description": "The job itself is queued, running or done: nothing to retry"},
         429: {"model": ErrorPublic, "description": "Too many jobs pending"},
     },
 )
 def retry_job(job_id: str, jobs: JobsDep, store: StoreDep, response: Response) -> JobPublic:
-    """A new job with the same request (``retry_of`` names the old one); a diagnosis keeps its id and now follows
-    the new job; a training stores its set under the id announced the first time."""
-    job = job_service.retry(store, jobs, job_id)
-    response.headers["Location"] = f"{API_V1_STR}/jobs/{job.id}"
-    return job_public(job)
+    """A new job with the same request (``retry_of`` names the job it re-runs); a diagnosis keeps its id and now
+    follows the new job; a training stores its set under the id announced the first time.
+
+    Idempotent: a job has at most one retry queued or running. Asking again while a retry of it (or of its
+    retries) is queued, running or done answers **200** with that job and runs nothing; after that retry ends
+    failed, interrupted or cancelled, asking again retries *it* (the newest of the chain). A job whose result is
+    already stored (a pattern set, a diagnosis's result) is not run again: its retry is ``done`` at once (202, stage
+    says so). A job that is itself queued, running or done cannot be retried (**409**)."""
+    retried = job_service.retry(store, jobs, job_id)
+    response.headers["Location"] = f"{API_V1_STR}/jobs/{retried.job.id}"
+    if not retried.created:
+        response.status_code = status.HTTP_200_OK
+    return job_public(retried.job)
 
 
 @router.delete(
