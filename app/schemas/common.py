@@ -18,6 +18,7 @@ from engine.constants import (
     SAMPLE_INTERVAL,
 )
 from engine.records import Record, record_from_data
+from engine.records.limits import MAX_SAMPLES
 
 if TYPE_CHECKING:
     ChannelName = str
@@ -31,6 +32,11 @@ Number = Annotated[float, Strict(), AllowInfNan(False)]
 #: A sample of a record: a number as JSON writes one, never a string or a boolean (NaN and infinities are let
 #: through, for the record's reader to say which sample is not finite).
 Sample = Annotated[float, Strict()]
+#: A series of a record: at most :data:`engine.records.limits.MAX_SAMPLES` samples (stated in the schema as
+#: ``maxItems`` and checked as the body is validated, before any record is built; the engine checks it again).
+Samples = Annotated[list[Sample], Field(max_length=MAX_SAMPLES)]
+#: A series of numbers (never strings or booleans, all finite) of at most ``MAX_SAMPLES`` samples.
+NumberSeries = Annotated[list[Number], Field(max_length=MAX_SAMPLES)]
 
 
 def stated_range(minimum: float | None = None, maximum: float | None = None, *, exclusive: bool = False) -> Any:
@@ -114,7 +120,7 @@ class RecordIn(BaseModel):
         "located from the data (m_el, else a1; a record with neither needs it) and the answer's record "
         "carries `event_location`.",
     )
-    channels: dict[str, list[Sample]] = Field(
+    channels: dict[str, Samples] = Field(
         description=f"Non-empty subset of the channels {_CHANNELS_DOC} (in those units unless `units` says "
         f"otherwise); finite numbers, the same number for every channel, covering at least "
         f"{PRE_EVENT_TIME * 1e3:g} ms before the event and {POST_EVENT_TIME * 1e3:g} ms from it on "
@@ -123,7 +129,7 @@ class RecordIn(BaseModel):
     units: dict[str, str] | None = Field(
         default=None, description="Unit of each channel not in its model unit; accepted: " + ACCEPTED_UNITS_DOC + "."
     )
-    t: list[Sample] | None = Field(
+    t: Samples | None = Field(
         default=None,
         description="Time of each sample [s] (uniform, increasing; any origin), one per sample: defines the "
         "sample interval.",

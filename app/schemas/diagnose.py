@@ -8,12 +8,13 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from app.schemas.assets import AssetName, MeasuredAt
-from app.schemas.common import Number, RecordIn, Sample
+from app.schemas.common import Number, NumberSeries, RecordIn, Sample
 from engine.diagnosis.space import DEFAULT_BOUNDS
 from engine.plants.brfd import BrfdRecord
 from engine.plants.brfd.record import from_json_object
 from engine.plants.emps import EmpsRecord
 from engine.plants.emps.record import record_from_arrays
+from engine.records.limits import MAX_SAMPLES
 from engine.simulation import CATALOGUE
 
 
@@ -54,11 +55,11 @@ class EmpsRecordIn(BaseModel):
     name: str = Field(default="record", max_length=200, description="Name of the record (echoed in the answer).")
     asset: AssetName | None = None
     measured_at: MeasuredAt | None = None
-    t: list[Number] = Field(description="Sample instants [s], uniform at 1 ms.")
-    qm: list[Number] = Field(description="Measured motor position, load side [m].")
-    qg: list[Number] = Field(description="Reference position [m].")
-    vir: list[Number] = Field(description="Controller output as measured [V].")
-    pulses_N: list[Number] | None = Field(default=None, description="Pulse signal added to the command [V].")
+    t: NumberSeries = Field(description="Sample instants [s], uniform at 1 ms.")
+    qm: NumberSeries = Field(description="Measured motor position, load side [m].")
+    qg: NumberSeries = Field(description="Reference position [m].")
+    vir: NumberSeries = Field(description="Controller output as measured [V].")
+    pulses_N: NumberSeries | None = Field(default=None, description="Pulse signal added to the command [V].")
     kp: Number = Field(description="Position gain [1/s].")
     kv: Number = Field(description="Velocity gain [V/(m/s)].")
     gtau: Number = Field(description="Drive gain [N/V].")
@@ -83,7 +84,7 @@ class BrfdRecordIn(BaseModel):
     name: str = Field(default="record", max_length=200, description="Name of the record (echoed in the answer).")
     asset: AssetName | None = None
     measured_at: MeasuredAt | None = None
-    data: list[list[Number]] = Field(
+    data: Annotated[list[list[Number]], Field(max_length=MAX_SAMPLES)] = Field(
         description="One row per sample: time [s], displacement, friction force (then velocity and the actuator "
         "forces, which are not used)."
     )

@@ -1,7 +1,8 @@
 """Service hardening (issue 51), over HTTP against real servers (uvicorn on a loopback port).
 
 Each test names the item of the issue it checks: large bodies parsed off the event loop (1), a refused
-submission stores nothing (3), deep JSON and an empty trend answered with a 4xx (6), abandoned synchronous
+submission stores nothing (3), one cap on samples per
+record stated in the schema (2), deep JSON and an empty trend answered with a 4xx (6), abandoned synchronous
 diagnoses give their slots back (7), one service per database file, whatever its path (9), leaks and exposure
 (10), the schema's contract (11).
 """
@@ -44,6 +45,7 @@ from app.schemas.common import PLANT_RANGES
 from app.services import training
 from app.services.simulation import SIMULATED_EFFECTS, make_case, prepare
 from engine.constants import CHANNELS, MAX_SAMPLE_INTERVAL, MIN_SAMPLE_INTERVAL
+from engine.records.limits import MAX_SAMPLES
 from engine.simulation import ParameterError
 from engine.storage import PatternStoreError
 from engine.storage.schema import APPLICATION_ID, MIGRATIONS
@@ -120,6 +122,31 @@ def test_large_bodies_do_not_hold_other_requests(start_server: ServerFactory) ->
             assert r.status_code in (400, 404, 413, 422), (path, r.status_code, r.text[:300])
             assert max(latencies) < HEALTHZ_BUDGET, (path, f"GET /healthz took {max(latencies):.2f} s")
         assert c.get("/v1/records").json()["items"] == []  # nothing refused was stored
+
+
+# -- 2. one cap on samples per record, stated in the schema ----------------------------------------------
+
+
+def test_the_schema_caps_every_series_at_the_engines_limit(client: httpx.Client) -> None:
+    """Issue 51, item 2: every series of every record format states ``maxItems`` = the engine's ``MAX_SAMPLES``
+    (the drive's channels and time column, EMPS's signals, BRFD's rows), and a record one sample over it is
+    refused with a 422 that names the limit, before any record is built."""
+    schemas = client.get("/openapi.json").json()["components"]["schemas"]
+
+    def array(schema: dict[str, Any]) -> dict[str, Any]:  # the array of a series that may be null
+        return next(s for s in schema.get("anyOf", [schema]) if s.get("type") == "array")
+
+    record = schemas["RecordIn"]["properties"]
+    assert record["channels"]["additionalProperties"]["maxItems"] == MAX_SAMPLES
+    assert array(record["t"])["maxItems"] == MAX_SAMPLES
+    emps = schemas["EmpsRecordIn"]["properties"]
+    for name in ("t", "qm", "qg", "vir", "pulses_N"):
+        assert array(emps[name])["maxItems"] == MAX_SAMPLES, name
+    assert schemas["BrfdRecordIn"]["properties"]["data"]["maxItems"] == MAX_SAMPLES
+
+    r = client.post("/v1/diagnose", json={"record": {"channels": {"a1": [0] * (MAX_SAMPLES + 1)}}})
+    assert r.status_code == 422, (r.status_code, r.text[:300])
+    assert str(MAX_SAMPLES) in r.json()["detail"], r.text[:300]
 
 
 # -- 3. a refused submission stores nothing ----------------------------------------------------------
