@@ -11,6 +11,8 @@ from collections.abc import AsyncIterator
 from contextlib import ExitStack, asynccontextmanager
 from typing import IO
 
+import anyio
+import anyio.to_thread
 from fastapi import FastAPI
 from fastapi.routing import APIRoute
 
@@ -26,7 +28,7 @@ from app.api.middleware import (
 from app.api.openapi import install_openapi
 from app.api.routes import health
 from app.api.routes.health import package_version
-from app.core.config import API_V1_STR, Settings, get_settings
+from app.core.config import API_V1_STR, HEALTH_THREADS, Settings, get_settings
 from app.core.instance import hold_database
 from app.core.logging import setup_logging
 from app.jobs import JobManager
@@ -75,6 +77,10 @@ def create_app(settings: Settings | None = None, *, database_lock: IO[bytes] | N
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         setup_logging(settings.log_level)
+        # One pool of threads for every sync route and run_in_threadpool call, as small as the setting says.
+        anyio.to_thread.current_default_thread_limiter().total_tokens = settings.request_threads
+        # ... and two of its own for GET /healthz, which reads the store: it never waits behind those.
+        app.state.health_threads = anyio.CapacityLimiter(HEALTH_THREADS)
         # Whatever the start took is given back in reverse order at shutdown, and also when a later
         # step of the start fails (the service lock, above all: a retry in this process must get it).
         with ExitStack() as taken:

@@ -31,23 +31,26 @@ from engine.storage import PatternStore
 M = TypeVar("M", bound=BaseModel)
 
 
-def get_settings(request: Request) -> Settings:
+# The accessors of the application's state are coroutines: FastAPI runs a plain function dependency in its
+# thread pool, and these need no thread (a hop through the pool per dependency and request, queued behind
+# the requests that compute when BACKLASH_REQUEST_THREADS are all busy).
+async def get_settings(request: Request) -> Settings:
     return request.app.state.settings
 
 
-def get_store(request: Request) -> PatternStore:
+async def get_store(request: Request) -> PatternStore:
     return request.app.state.store
 
 
-def get_jobs(request: Request) -> JobManager:
+async def get_jobs(request: Request) -> JobManager:
     return request.app.state.jobs
 
 
-def get_sync_diagnoses(request: Request) -> SyncDiagnoses:
+async def get_sync_diagnoses(request: Request) -> SyncDiagnoses:
     return request.app.state.sync_diagnoses
 
 
-def get_dask(request: Request) -> Any:
+async def get_dask(request: Request) -> Any:
     """The Dask client of ``BACKLASH_DASK_SCHEDULER``'s cluster, or None (jobs run in this process)."""
     return getattr(request.app.state, "dask", None)
 

@@ -16,6 +16,8 @@ environment variable        meaning                                default
 ``BACKLASH_DIAGNOSIS_WORKERS`` worker processes of diagnosis jobs    1
 ``BACKLASH_MAX_SYNC_DIAGNOSES`` synchronous diagnoses at once (429)  2
 ``BACKLASH_SYNC_DIAGNOSE_TIMEOUT`` time limit of one [s] (504)       120
+``BACKLASH_REQUEST_THREADS`` requests computed at once (the rest  2 per core
+                            wait; ``/healthz`` never does)
 ``BACKLASH_KEEP_ALIVE_TIMEOUT`` idle keep-alive connection [s]     5
 ``BACKLASH_READ_TIMEOUT``   longest wait for a request's headers,  30
                             or between pieces of its body [s]
@@ -37,9 +39,10 @@ Retention (:mod:`app.services.retention`) never deletes pattern sets: they are r
 
 from __future__ import annotations
 
+import os
 from functools import lru_cache
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Final, Literal
 
 from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -58,6 +61,10 @@ MAX_BATCH_CASES_LIMIT = 10_000
 MAX_HISTORY_POINTS = 10_000
 
 LogLevel = Literal["DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL"]
+
+
+#: Threads of ``GET /healthz`` (it reads the store), apart from the ``request_threads`` that compute answers.
+HEALTH_THREADS: Final[int] = 2
 
 
 class Settings(BaseSettings):
@@ -114,6 +121,14 @@ class Settings(BaseSettings):
         default=False,
         description="Serve on an address other than loopback without an API key (otherwise `backlash serve` "
         "refuses to start so): for a network where every client is trusted.",
+    )
+    request_threads: Annotated[int, Field(ge=1, le=256)] = Field(
+        default_factory=lambda: 2 * (os.cpu_count() or 1),
+        description="Threads that compute answers at once (simulations, identifications, figures, parsing of "
+        "bodies, the store's reads); further requests wait for one. Few threads keep the event loop, which "
+        "answers GET /healthz and accepts connections, from waiting behind many threads for the GIL: with 40 "
+        "(the default of Starlette's pool) and 20 busy clients on 2 cores, /healthz's p99 exceeded 1 s "
+        "(bench/bench_load.py; 4 threads brought it to 0.18 s at the same throughput). Default: two per core.",
     )
     keep_alive_timeout: Annotated[int, Field(ge=1, le=300)] = Field(
         default=5, description="Seconds an idle keep-alive connection stays open after an answer."

@@ -577,9 +577,14 @@ def simulate_one(P, out):
     return OK, t_e
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, nogil=True)
 def simulate_many(P_mat, out, t_e, status):
-    """Run :func:`simulate_one` for every row of ``P_mat`` in parallel."""
+    """Run :func:`simulate_one` for every row of ``P_mat`` in parallel, without the GIL.
+
+    The calling thread gives the GIL up while the batch runs, so the service's event loop and its other
+    threads go on (with the GIL held, a batch of a few hundred ms stalled every request: bench/bench_load.py).
+    Launches stay serialised by the caller (``_KERNEL_LOCK``): the threading layer takes one at a time.
+    """
     for i in prange(P_mat.shape[0]):
         s, te = simulate_one(P_mat[i], out[i])
         status[i] = s

@@ -124,6 +124,60 @@ def test_large_bodies_do_not_hold_other_requests(start_server: ServerFactory) ->
         assert c.get("/v1/records").json()["items"] == []  # nothing refused was stored
 
 
+def test_healthz_does_not_wait_for_the_threads_that_compute(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 51's load limit (``GET /healthz`` p99 under 1 s with 20 busy clients): the requests that compute
+    share ``BACKLASH_REQUEST_THREADS`` threads, and ``/healthz`` (which reads the store) never waits for one.
+    With both of two threads held by simulations, ``/healthz`` answers at once while a ``GET /v1/records``
+    waits for a thread, and is answered once one is free."""
+    from app.api.routes import simulate as simulate_route
+
+    release = threading.Event()
+    entered = threading.Semaphore(0)
+    real = simulate_route._simulate
+
+    def held(*args: Any, **kwargs: Any) -> Any:
+        entered.release()
+        release.wait(TIMEOUT)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(simulate_route, "_simulate", held)
+    settings = Settings(db_path=tmp_path / "p.sqlite3", request_threads=2, log_level="WARNING")
+    server = InProcessServer(create_app(settings)).start()
+    answers: dict[str, int] = {}
+
+    def post(name: str) -> None:
+        with server.client() as c:
+            answers[name] = c.post("/v1/simulate", json={"K": 0.005}).status_code
+
+    def get_records() -> None:
+        with server.client() as c:
+            answers["records"] = c.get("/v1/records").status_code
+
+    try:
+        workers = [threading.Thread(target=post, args=(f"simulate {i}",)) for i in range(2)]
+        for w in workers:
+            w.start()
+        for _ in workers:  # both threads are held
+            assert entered.acquire(timeout=TIMEOUT)
+        waiting = threading.Thread(target=get_records)
+        waiting.start()
+        with server.client() as c:
+            for _ in range(5):
+                started = time.monotonic()
+                assert c.get("/healthz").status_code == 200
+                assert time.monotonic() - started < HEALTHZ_BUDGET
+        waiting.join(0.5)
+        assert waiting.is_alive() and "records" not in answers  # it waits for a thread
+        release.set()
+        for t in (*workers, waiting):
+            t.join(TIMEOUT)
+        assert answers == {"simulate 0": 200, "simulate 1": 200, "records": 200}
+    finally:
+        release.set()
+        server.request_stop()
+        server.join()
+
+
 # -- 2. one cap on samples per record, stated in the schema ----------------------------------------------
 
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from importlib.metadata import PackageNotFoundError, version
 
+import anyio.to_thread
 from fastapi import APIRouter, Request
-from starlette.concurrency import run_in_threadpool
 
 from app.api.deps import SettingsDep, StoreDep
 from app.api.middleware import API_KEY_HEADER, key_matches
@@ -35,7 +35,8 @@ async def healthz(request: Request, store: StoreDep, settings: SettingsDep) -> H
     """``ok`` when the service runs and its pattern store answers (503 otherwise). Never needs the API key; without
     it (when the service has one) the answer is ``{"status": "ok"}`` alone, with it also the versions and the
     number of stored pattern sets."""
-    count = await run_in_threadpool(len, store)
+    # its own threads (app.main's lifespan): never queued behind the requests that compute
+    count = await anyio.to_thread.run_sync(len, store, limiter=request.app.state.health_threads)
     key = settings.api_key
     if key is not None and not key_matches(request.headers.get(API_KEY_HEADER), key.get_secret_value()):
         return HealthPublic(status="ok")
