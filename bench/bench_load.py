@@ -308,9 +308,9 @@ class Fixture:
 def large_record(record: dict[str, Any], size: int = LARGE_BODY) -> dict[str, Any]:
     """``record`` with its pre-event stretch lengthened (its first samples repeated) until its JSON is about
     ``size`` bytes: a valid record of the same event whose diagnosis reads the same test window."""
-    n = len(next(iter(record["channels"].values())))
-    per_sample = len(json.dumps(record["channels"])) / n
-    extra = max(0, int(size / per_sample) - n)
+    first = [values[0] for values in record["channels"].values()]
+    per_sample = sum(len(json.dumps(v)) + 2 for v in first)  # a repeated sample's bytes ("value, " per channel)
+    extra = max(0, int((size - len(json.dumps(record))) / per_sample))
     channels = {name: [values[0]] * extra + list(values) for name, values in record["channels"].items()}
     return {**record, "channels": channels, "event_index": record["event_index"] + extra}
 

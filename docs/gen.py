@@ -760,6 +760,104 @@ def render_validation_summary(page: Page) -> str:
     return table(head, rows) + note + sources(page, paths)
 
 
+# --- the service ----------------------------------------------------------------------------------
+
+#: The load benchmark's committed summary (``bench/bench_load.py --out``).
+LOAD_REPORT = f"{VALIDATION}/service/load.json"
+#: The long schemathesis run's committed counts (``FUZZ_REPORT`` of tests/app/test_schema_fuzz.py).
+FUZZ_REPORT = f"{VALIDATION}/service/fuzz.json"
+LOAD_COMMAND = "python bench/bench_load.py --clients 20 --seconds 60 --out docs/validation/service/load.json"
+FUZZ_COMMAND = (
+    "FUZZ_EXAMPLES=100 FUZZ_REPORT=docs/validation/service/fuzz.json python -m pytest -q tests/app/test_schema_fuzz.py"
+)
+
+
+def _ms_cell(x: float | None) -> str:
+    return "-" if x is None else f"{x:.0f}"
+
+
+def retention_words(report: str | dict[str, Any] | None) -> str:
+    """What a retention run (``backlash store prune``'s JSON, or its text) deleted and how it compacted."""
+    if report is None:
+        return "no retention run"
+    r = json.loads(report) if isinstance(report, str) else report
+    deleted = ", ".join(f"{n} {what}" for what, n in r["deleted"].items())
+    return f"`backlash store prune` deleted {deleted}, then {r['compaction']}"
+
+
+def render_service_load(page: Page) -> str:
+    """The load benchmark: every route under 20 clients, 20 MB bodies and abandoned diagnoses among them."""
+    r = read_json(LOAD_REPORT)
+    b, m, f, jobs = r["baseline"], r["memory"], r["file_bytes"], r["jobs"]
+    rows = [
+        [
+            op,
+            str(s["count"]),
+            _ms_cell(s["p50_ms"]),
+            _ms_cell(s["p99_ms"]),
+            str(s["server_errors"]),
+            ", ".join(f"{k}: {v}" for k, v in s["errors"].items()) or "-",
+        ]
+        for op, s in r["operations"].items()
+    ]
+    mib = {k: "-" if v is None else f"{v / 2**20:.1f} MiB" for k, v in f.items()}
+    lines = [
+        f"{r['clients']} clients for {r['seconds']:g} s, every route (weights "
+        f"{', '.join(f'{op} {w:g}' for op, w in r['mix'].items())}), "
+        f"{r['large_bodies']} bodies of {r['large_body_bytes'] / 1e6:.0f} MB and {r['abandoned']} synchronous "
+        f"diagnoses abandoned after {r['abandon_after_s']:g} s among them; one run on 2 cores (code "
+        f"{r['code']}), no interval.",
+        "",
+        f"- **5xx: {r['server_errors']}** (limit 0); **lost jobs: {jobs['lost']}** of {jobs['submitted']} "
+        f"submitted (limit 0; final states {jobs['final_states']}).",
+        f"- **`GET /healthz` under load: p99 {_ms_cell(b['under_load_p99_ms'])} ms** (limit 1000 ms), maximum "
+        f"{_ms_cell(b['under_load_max_ms'])} ms over {b['under_load_n']} requests; p50 "
+        f"{b['under_load_p50_ms']:.1f} ms against {b['before_p50_ms']:.1f} ms before the load (ratio "
+        f"{b['ratio_p50']:.1f}x).",
+        f"- A synchronous diagnosis after the load: {r['sync_after_load']} (the abandoned ones gave their slots back).",
+        f"- Peak resident memory of the server (its process and every worker): {m['peak_total_mib']:.0f} MiB in "
+        f"all, {m['peak_process_mib']:.0f} MiB in one process.",
+        f"- Database file: {mib['before_the_load']} before the load, {mib['after_the_load']} after it, "
+        f"{mib['after_the_retention_run']} after the retention run ({retention_words(r['retention'])}).",
+        "",
+        table(["operation", "count", "p50 ms", "p99 ms", "5xx", "other answers"], rows),
+    ]
+    return "\n".join(lines) + sources(page, [LOAD_REPORT], LOAD_COMMAND)
+
+
+def render_service_fuzz(page: Page) -> str:
+    """The long schemathesis run: requests per operation, 5xx and failed checks."""
+    r = read_json(FUZZ_REPORT)
+    ops = r["operations"]
+    counts = sorted(o["requests"] for o in ops.values())
+    fewest = [op for op, o in ops.items() if o["requests"] == counts[0]]
+    line = (
+        f"{len(ops)} operations, {r['requests']} requests (at most {r['max_examples']} random ones per operation "
+        f"besides its examples and the coverage phase's boundary cases; from {counts[0]} requests ({', '.join(fewest)}) "
+        f"to {counts[-1]} per operation, median {counts[len(counts) // 2]}): **{r['server_errors']} 5xx, "
+        f"{r['failed']} failed checks** ({', '.join(r['checks'])}; code {r['code']})."
+    )
+    return line + sources(page, [FUZZ_REPORT], FUZZ_COMMAND)
+
+
+def render_service_summary(page: Page) -> str:
+    """Two lines for the README: the load benchmark's limits and the long schemathesis run's counts."""
+    load, fuzz = read_json(LOAD_REPORT), read_json(FUZZ_REPORT)
+    b, jobs = load["baseline"], load["jobs"]
+    counts = sorted(o["requests"] for o in fuzz["operations"].values())
+    lines = [
+        f"- **Load** ({load['clients']} clients x {load['seconds']:g} s over every route, {load['large_bodies']} "
+        f"bodies of 20 MB and {load['abandoned']} abandoned synchronous diagnoses among them, one run on 2 cores): "
+        f"**{load['server_errors']} 5xx, {jobs['lost']} lost jobs** of {jobs['submitted']}, `GET /healthz` p99 "
+        f"**{_ms_cell(b['under_load_p99_ms'])} ms**; `{LOAD_COMMAND}`.",
+        f"- **Contract** (schemathesis, every one of {len(fuzz['operations'])} operations, at most "
+        f"{fuzz['max_examples']} random requests each besides the examples and boundary cases: {fuzz['requests']} "
+        f"requests, {counts[0]} to {counts[-1]} per operation): **{fuzz['server_errors']} 5xx, {fuzz['failed']} "
+        f"schema violations**; `{FUZZ_COMMAND}`.",
+    ]
+    return "\n".join(lines) + sources(page, [LOAD_REPORT, FUZZ_REPORT])
+
+
 #: Every renderer by the name its region bears.
 RENDERERS: dict[str, Callable[[Page], str]] = {
     "validation-summary": render_validation_summary,
@@ -774,6 +872,9 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "p1-runs": render_p1_runs,
     "p1-identification": render_p1_identification,
     "emps-diagnosis": render_emps_diagnosis,
+    "service-load": render_service_load,
+    "service-fuzz": render_service_fuzz,
+    "service-summary": render_service_summary,
 }
 
 
