@@ -22,12 +22,17 @@
     return h;
   }
 
+  // An error answer of the API: its status, the "error" name (e.g. NotFoundError) and the "detail" sentence.
   class ApiError extends Error {
-    constructor(status, detail) {
+    constructor(status, detail, kind) {
       super(detail);
       this.status = status;
+      this.kind = kind || "";
     }
   }
+
+  // The service did not answer at all (down, or the connection lost).
+  class NetworkError extends Error {}
 
   // "detail" of the service's error answers: a sentence, or FastAPI's list of field errors.
   function describeError(body, status) {
@@ -42,7 +47,14 @@
   async function request(path, init) {
     const options = Object.assign({}, init || {});
     options.headers = headers(options.headers);
-    const response = await fetch(API + path, options);
+    let response;
+    try {
+      response = await fetch(API + path, options);
+    } catch (e) {
+      throw new NetworkError(
+        `The service did not answer (${e.message}): check that it is running and that this computer reaches it, then try again.`,
+      );
+    }
     if (!response.ok) {
       let body = null;
       try {
@@ -51,7 +63,7 @@
         body = null;
       }
       if (response.status === 401) askForKey();
-      throw new ApiError(response.status, describeError(body, response.status));
+      throw new ApiError(response.status, describeError(body, response.status), body && body.error);
     }
     return response;
   }
@@ -76,11 +88,128 @@
     if (link) link.href = url;
   }
 
+  const KEY_NEEDED = 'The service needs its API key: type it under "API key" at the top of the page and click "Use key".';
+
   function askForKey() {
     const form = $("key-form");
     form.hidden = false;
     $("api-key").focus();
-    say("The service needs its API key: type it at the top of the page.", "error");
+    showError(KEY_NEEDED, "API key needed");
+  }
+
+  // -- errors and warnings, at the top of the page -----------------------------------------
+  // Every failure and every warning of an answer goes to #alerts (right under the header), which is scrolled
+  // into view; the next action the user starts clears it. The API's messages say what to fix in HTTP terms
+  // (routes, body fields); the page says it in its own: the buttons and fields to use.
+
+  // The page's fields for the API's names (in validation messages, "query sample_interval: ...").
+  const FIELDS = {
+    sample_interval: "CSV: sample interval",
+    event_index: "CSV: event index",
+    units: "CSV: units",
+    measured_at: "Measured at",
+    asset: "Drive (asset)",
+    channel: "from channel",
+    pattern_set: "with pattern set",
+    limit: "Width limit",
+  };
+  const ROUTE = /\b(GET|POST|PUT|PATCH|DELETE) \/v1\//;
+  const NO_SET_HELP = 'click "Diagnose" instead: its report gives the backlash width without a pattern set';
+
+  // The API's sentence without its clauses that name HTTP routes, and with the page's names of the fields.
+  function pageTerms(detail) {
+    const kept = String(detail).split(/;\s+/).filter((part) => !ROUTE.test(part));
+    const text = (kept.length ? kept : [String(detail)]).join("; ");
+    return text.replace(/\bquery (\w+)/g, (all, name) => (FIELDS[name] ? `"${FIELDS[name]}"` : all));
+  }
+
+  // What went wrong and what to do, in the page's terms, for an error of the page's action.
+  function pageMessage(e) {
+    if (!(e instanceof ApiError)) return e.message;
+    const d = e.message;
+    let m;
+    if (e.status === 401) return KEY_NEEDED;
+    if ((m = /^no pattern set for channel '([^']+)'/.exec(d))) {
+      const c = /"c": ([0-9.eE+-]+)/.exec(d);
+      const listed = $("pattern-set").length > 1; // beside "(the stored set nearest the record's c)"
+      return (
+        `No pattern set for channel ${m[1]} is stored that the service would choose by itself (one trained without ` +
+        `effects on the paper's J1 grid). ${listed ? 'Pick one of the stored sets under "with pattern set", or ' : ""}` +
+        `${listed ? NO_SET_HELP : NO_SET_HELP.replace(/^c/, "C")}. A pattern set is trained by the service's operator ` +
+        `(backlash train --channel ${m[1]}${c ? ` --c ${c[1]}` : ""}).`
+      );
+    }
+    if (/^no pattern set with id/.test(d)) {
+      return 'The pattern set picked under "with pattern set" is no longer stored; the list is refreshed: pick another one, or "(the stored set nearest the record\'s c)".';
+    }
+    if ((m = /was trained on channel '([^']+)', not '([^']+)'/.exec(d))) {
+      return `The pattern set picked under "with pattern set" was trained on channel ${m[1]}, not ${m[2]}: choose ${m[1]} under "from channel", or pick a set of channel ${m[2]}.`;
+    }
+    if (/^the nearest stored set/.test(d)) {
+      return `${pageTerms(d)}. Pick that set (or another) under "with pattern set" to use it anyway, or ${NO_SET_HELP}.`;
+    }
+    if (/^pattern set .* model version/.test(d)) {
+      return `${pageTerms(d)}: pick another set under "with pattern set", or ${NO_SET_HELP}.`;
+    }
+    if (/^no record with id/.test(d)) {
+      return 'The stored record picked is no longer stored; the list is refreshed: pick another one, or upload a file.';
+    }
+    if ((m = /^no diagnosis with id '([^']*)'/.exec(d))) {
+      return `Diagnosis ${m[1]} is not stored (an old link, or it was deleted): upload a record and click "Diagnose".`;
+    }
+    if ((m = /^no identification or diagnosis of asset '([^']*)'/.exec(d))) {
+      return `Drive ${m[1]} has no history yet: name it under "Drive (asset)" when you diagnose or identify one of its records, and its history starts.`;
+    }
+    if (e.status >= 500) {
+      return `The service failed (HTTP ${e.status}: ${pageTerms(d)}). Try again; if it fails again, tell the service's operator.`;
+    }
+    return pageTerms(d);
+  }
+
+  function alertBox(kind, id, title) {
+    const box = el("div", null, { class: `alert ${kind}`, id });
+    if (kind === "error") box.setAttribute("role", "alert");
+    box.appendChild(el("p", title, { class: "alert-title" }));
+    return box;
+  }
+
+  function reveal() {
+    $("alerts").scrollIntoView({ block: "nearest" });
+  }
+
+  // A new action starts with a clean slate: the errors and warnings of the previous one go.
+  function clearAlerts() {
+    $("alerts").replaceChildren();
+  }
+
+  function showError(text, title) {
+    const area = $("alerts");
+    const old = $("alert-error");
+    if (old) old.remove();
+    const box = alertBox("error", "alert-error", title || "Error");
+    box.appendChild(el("p", text, { class: "alert-text" }));
+    area.prepend(box);
+    reveal();
+  }
+
+  // An action failed: its error at the top, titled with what failed (the status line under the form is cleared).
+  function fail(e, title) {
+    say("");
+    showError(pageMessage(e), e instanceof ApiError && e.status === 401 ? "API key needed" : title);
+  }
+
+  // What an answer says to check before acting on it (its "warnings": code, message, channel).
+  function showWarnings(warnings, id, what) {
+    const old = $(id);
+    if (old) old.remove();
+    if (!warnings || !warnings.length) return;
+    const n = warnings.length;
+    const box = alertBox("warning", id, `Check before acting on ${what} (${n} warning${n > 1 ? "s" : ""}):`);
+    const list = el("ul");
+    for (const w of warnings) list.appendChild(el("li", w.message, w.code ? { "data-code": w.code } : {}));
+    box.appendChild(list);
+    $("alerts").appendChild(box);
+    reveal();
   }
 
   // -- formatting ---------------------------------------------------------------------
@@ -345,6 +474,7 @@
 
   async function diagnose(event) {
     event.preventDefault();
+    clearAlerts();
     setBusy(true);
     say("Sending the record…");
     $("report-section").hidden = true;
@@ -356,14 +486,16 @@
       say(`Diagnosing ${record.name || "the record"} (job ${accepted.job_id})…`);
       const job = await waitForJob(accepted.job_id);
       if (job.state !== "done") {
-        say(`The diagnosis job ${job.state}${job.error ? `: ${job.error}` : ""}`, "error");
+        say("");
+        showError(`The diagnosis job ${job.state}${job.error ? `: ${pageTerms(job.error)}` : ""}.`, "The diagnosis stopped");
         return;
       }
       await showDiagnosis(accepted.diagnosis_id);
       say("Diagnosis done.", "ok");
       loadRecords().catch(() => {});
     } catch (e) {
-      say(e.message, "error");
+      fail(e, "The record was not diagnosed");
+      if (e instanceof ApiError && /^no record with id/.test(e.message)) loadRecords().catch(() => {});
     } finally {
       currentJob = null;
       setBusy(false);
@@ -375,7 +507,7 @@
     try {
       await request(`/jobs/${encodeURIComponent(currentJob)}/cancel`, { method: "POST" });
     } catch (e) {
-      say(e.message, "error");
+      showError(pageMessage(e), "The job was not cancelled");
     }
   }
 
@@ -632,6 +764,7 @@
       return d;
     }
     renderVerdict(d);
+    showWarnings((d.result || {}).warnings, "alert-warnings", "this diagnosis");
     renderGap(d);
     renderCandidates(d);
     section.hidden = false;
@@ -646,6 +779,7 @@
   // -- identification ------------------------------------------------------------------
 
   async function identify() {
+    clearAlerts();
     setBusy(true);
     const channel = $("identify-channel").value;
     const continuous = $("identify-continuous").checked;
@@ -660,7 +794,9 @@
         await showAsset();
       }
     } catch (e) {
-      say(e.message, "error");
+      fail(e, "The width was not identified");
+      if (e instanceof ApiError && /^no pattern set with id/.test(e.message)) loadPatternSets().catch(() => {});
+      if (e instanceof ApiError && /^no record with id/.test(e.message)) loadRecords().catch(() => {});
     } finally {
       setBusy(false);
     }
@@ -690,6 +826,7 @@
     box.appendChild(el("p", lines.join(" "), { id: "identification-text" }));
     renderWarnings({ result: a }, box, "identification-warnings");
     $("identification-section").hidden = false;
+    showWarnings(a.warnings, "alert-warnings", "this width");
   }
 
   // -- the drive's history and trend -----------------------------------------------------
@@ -762,6 +899,7 @@
     if (stored) $("api-key").value = stored;
     $("key-form").addEventListener("submit", (e) => {
       e.preventDefault();
+      clearAlerts();
       sessionStorage.setItem(KEY_STORAGE, $("api-key").value.trim());
       say("API key set for this tab.", "ok");
       refreshLists();
@@ -769,15 +907,21 @@
     $("record-form").addEventListener("submit", diagnose);
     $("identify-button").addEventListener("click", identify);
     $("cancel-button").addEventListener("click", cancel);
-    $("refresh-records").addEventListener("click", () => loadRecords().catch((e) => say(e.message, "error")));
-    $("asset-form").addEventListener("submit", (e) => showAsset(e).catch((err) => say(err.message, "error")));
+    $("refresh-records").addEventListener("click", () => {
+      clearAlerts();
+      loadRecords().catch((e) => fail(e, "The stored records were not listed"));
+    });
+    $("asset-form").addEventListener("submit", (e) => {
+      clearAlerts();
+      showAsset(e).catch((err) => fail(err, "The drive's history was not shown"));
+    });
     $("stored-record").addEventListener("change", () => {
       const option = $("stored-record").selectedOptions[0];
       if (option && option.dataset.plant) $("plant").value = option.dataset.plant;
     });
     refreshLists();
     const id = new URLSearchParams(location.search).get("diagnosis");
-    if (id) showDiagnosis(id).catch((e) => say(e.message, "error"));
+    if (id) showDiagnosis(id).catch((e) => fail(e, "The diagnosis was not shown"));
     document.body.dataset.ready = "true";
   }
 
@@ -786,7 +930,7 @@
       askForKey();
       return;
     }
-    loadRecords().catch((e) => say(e.message, "error"));
+    loadRecords().catch((e) => fail(e, "The stored records were not listed"));
     loadAssets().catch(() => {});
     loadPatternSets().catch(() => {});
   }
