@@ -423,3 +423,17 @@ def test_tie_at_minimum_is_logged(fitted, data, caplog) -> None:
         r = tied.identify(X[0])
     assert r.index == 1 and np.all(r.D[0] == r.D)
     assert any("tie" in m for m in caplog.messages)
+
+
+def test_ties_of_a_batch_are_logged_once(fitted, data, caplog) -> None:
+    """Issue 53 (``make run`` printed 638 tie warnings): a batch with ties at D's minimum logs one line that counts
+    them, not one per record."""
+    X, _ = data
+    tied = PaperIdentifier.from_arrays(
+        fitted.get_params(), {**fitted.to_arrays(), "patterns": np.tile(fitted.patterns_[2], (6, 1))}
+    )
+    with caplog.at_level(logging.WARNING, logger="engine.identification"):
+        results = tied.identify_batch(X[:3])
+    assert all(r.index == 1 for r in results)
+    ties = [m for m in caplog.messages if "tie" in m]
+    assert len(ties) == 1 and "on 3 of 3 test records" in ties[0], ties

@@ -429,7 +429,8 @@ class PaperIdentifier:
 
     # -- identification ------------------------------------------------------
 
-    def _test_result(self, x1: np.ndarray, label: str) -> IdentificationResult:
+    def _test_result(self, x1: np.ndarray, label: str) -> tuple[IdentificationResult, list[float]]:
+        """The record's result and the widths tied at D's minimum (empty without a tie)."""
         counts = self._test_row_counts()
         D = np.empty(_N_OUT)
         nets = {}
@@ -441,17 +442,10 @@ class PaperIdentifier:
         i = int(np.argmin(D))
         res = nets[int(counts[i])]
         tied = np.flatnonzero(D[i] == D)
-        if tied.size > 1:
-            logger.warning(
-                "%s: D has a tie at its minimum %.3g between widths %s; reporting the first (nr5 = %d), as argmin does",
-                label,
-                D[i],
-                [float(self.widths_[j]) for j in tied],
-                i + 1,
-            )
-        return IdentificationResult(
+        result = IdentificationResult(
             D=D, index=i + 1, width=float(self.widths_[i]), epochs=res.epochs, rms=res.rms, converged=res.converged
         )
+        return result, [float(self.widths_[j]) for j in tied] if tied.size > 1 else []
 
     def identify_batch(self, X: Any) -> list[IdentificationResult]:
         """Identify every record of a batch.
@@ -467,7 +461,31 @@ class PaperIdentifier:
         """
         self._check_fitted()
         X1 = normalise(self._features(X), self.h1_, self.k1_, self.h2_, self.k2_)
-        return [self._test_result(x1, f"{self.channel}/test record {r}") for r, x1 in enumerate(X1)]
+        out = [self._test_result(x1, f"{self.channel}/test record {r}") for r, x1 in enumerate(X1)]
+        ties = [(r, result, tied) for r, (result, tied) in enumerate(out) if tied]
+        if len(ties) == 1 and len(out) == 1:
+            _, result, tied = ties[0]
+            logger.warning(
+                "%s/test record: D has a tie at its minimum %.3g between widths %s; reporting the first (nr5 = %d), "
+                "as argmin does",
+                self.channel,
+                result.D[result.index - 1],
+                tied,
+                result.index,
+            )
+        elif ties:  # one line for the batch, not one per record (make run's evaluation printed 638)
+            r, result, tied = ties[0]
+            logger.warning(
+                "%s: D has a tie at its minimum on %d of %d test records (the first: record %d, %.3g between widths "
+                "%s); each reports the first width of its tie, as argmin does",
+                self.channel,
+                len(ties),
+                len(out),
+                r,
+                result.D[result.index - 1],
+                tied,
+            )
+        return [result for result, _ in out]
 
     def identify(self, x: Any) -> IdentificationResult:
         """Identify the width of one record.
