@@ -364,6 +364,7 @@ class Load:
         self.done: list[Submitted] = []  # diagnoses that finished done (read, then maybe deleted)
         self._read_turn = 0
         self.identifications: list[str] = []  # identifications the load stored
+        self._large_sent = 0  # large bodies sent so far (they alternate: a diagnosis job, an identification)
 
     def schedule(self, start: float, seconds: float, large_bodies: int, abandoned: int) -> None:
         """Spread ``large_bodies`` 20 MB bodies and ``abandoned`` abandoned synchronous diagnoses over the load,
@@ -374,7 +375,6 @@ class Load:
         kinds.insert(len(kinds) // 2, "retention")  # and one retention run, half way
         n = len(kinds)
         self._specials = [(start + seconds * (0.1 + 0.8 * (i + 0.5) / n), k) for i, k in enumerate(kinds)]
-        self._large_sent = 0
 
     def _due_special(self) -> str | None:
         with self._lock:

@@ -81,29 +81,8 @@ class RecordRepository:
     def __init__(self, store: PatternStore) -> None:
         self.store = store
 
-    def add(
-        self,
-        body: bytes,
-        *,
-        media: Media,
-        params: dict[str, Any],
-        plant: str,
-        name: str | None,
-        asset: str | None,
-        measured_at: datetime | None,
-        n_samples: int,
-    ) -> StoredRecord:
-        """Store a record's body as sent; return its metadata (with a new id)."""
-        new = self.new(
-            body,
-            media=media,
-            params=params,
-            plant=plant,
-            name=name,
-            asset=asset,
-            measured_at=measured_at,
-            n_samples=n_samples,
-        )
+    def add(self, new: NewRecord) -> StoredRecord:
+        """Store a record made by :meth:`new` (in a transaction of its own); return its metadata."""
         with self.store.writing() as conn:
             self.insert(conn, new)
         return new.record

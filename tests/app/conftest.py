@@ -8,7 +8,7 @@ from typing import Any
 
 import httpx
 import pytest
-from servicekit import GatedTraining, InProcessServer, Server, ServerFactory, make_factory, train
+from servicekit import GatedTraining, InProcessServer, Server, ServerFactory, gated_in_process, make_factory, train
 
 from app.core.config import Settings
 from app.main import create_app
@@ -68,14 +68,8 @@ def gated(monkeypatch: pytest.MonkeyPatch) -> Iterator[GatedTraining]:
 def inprocess(tmp_path: Path, gated: GatedTraining) -> Iterator[InProcessServer]:
     """The application served in a thread of this process (one training worker), its training gated."""
     settings = Settings(db_path=tmp_path / "inprocess" / "patterns.sqlite3", workers=1, training_runs_in="thread")
-    server = InProcessServer(create_app(settings))  # training on a thread of this process: the gate holds it
-    server.start()
-    try:
+    with gated_in_process(create_app(settings), gated) as server:  # training on a thread here: the gate holds it
         yield server
-    finally:
-        gated.release_all()
-        server.request_stop()
-        server.join()
 
 
 @pytest.hookimpl(trylast=True)  # after -m/-k have deselected: no build when the container's tests will not run

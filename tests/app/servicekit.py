@@ -16,7 +16,8 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -238,3 +239,16 @@ class InProcessServer:
 
     def client(self) -> httpx.Client:
         return httpx.Client(base_url=self.base_url, timeout=TIMEOUT)
+
+
+@contextmanager
+def gated_in_process(app: FastAPI, gated: GatedTraining) -> Iterator[InProcessServer]:
+    """``app`` served in a thread of this process while the block runs; on leaving, the gated trainings are
+    released and the server stopped."""
+    server = InProcessServer(app).start()
+    try:
+        yield server
+    finally:
+        gated.release_all()
+        server.request_stop()
+        server.join()

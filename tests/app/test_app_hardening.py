@@ -340,6 +340,18 @@ def test_abandoned_synchronous_diagnoses_give_their_slots_back(tmp_path: Path, c
 # -- 9. one service per database file, whatever its name ------------------------------------------------
 
 
+def start_on(db: Path, cwd: Path) -> subprocess.CompletedProcess[str]:
+    """``backlash serve`` on the database ``db``, run until it exits (a refused start exits at once)."""
+    return subprocess.run(
+        serve_command(free_port()),
+        env=clean_env(BACKLASH_DB_PATH=str(db)),
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+
+
 def test_a_second_service_on_a_hard_link_of_the_database_is_refused(
     start_server: ServerFactory, tmp_path: Path
 ) -> None:
@@ -355,14 +367,7 @@ def test_a_second_service_on_a_hard_link_of_the_database_is_refused(
     (links / "hard.sqlite3").hardlink_to(db)
     (links / "soft.sqlite3").symlink_to(db)
     for other in (links / "hard.sqlite3", links / "soft.sqlite3"):
-        proc = subprocess.run(
-            serve_command(free_port()),
-            env=clean_env(BACKLASH_DB_PATH=str(other)),
-            cwd=tmp_path,
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
+        proc = start_on(other, tmp_path)
         assert proc.returncode == 2, proc.stderr
         assert "another backlash service" in proc.stderr and str(other) in proc.stderr, proc.stderr
     with first.client() as c:  # the refused starts interrupted nothing
@@ -380,14 +385,7 @@ def test_the_lock_is_taken_before_the_store_is_opened(tmp_path: Path) -> None:
     conn.close()
     before = db.read_bytes()
     with hold_database(db):  # as a running service holds it
-        proc = subprocess.run(
-            serve_command(free_port()),
-            env=clean_env(BACKLASH_DB_PATH=str(db)),
-            cwd=tmp_path,
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
+        proc = start_on(db, tmp_path)
         assert proc.returncode == 2, proc.stderr
         assert "another backlash service" in proc.stderr, proc.stderr
         assert db.read_bytes() == before  # neither migrated nor switched to WAL

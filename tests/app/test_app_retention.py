@@ -17,7 +17,15 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import pytest
-from servicekit import SMALL_TRAINING, TIMEOUT, GatedTraining, InProcessServer, ServerFactory, wait_until
+from servicekit import (
+    SMALL_TRAINING,
+    TIMEOUT,
+    GatedTraining,
+    InProcessServer,
+    ServerFactory,
+    gated_in_process,
+    wait_until,
+)
 
 from app.cli.main import main as cli_main
 from app.core.config import Settings
@@ -55,15 +63,18 @@ def add_diagnosis(
 ) -> dict[str, str]:
     """A stored record, its diagnosis job (``state``) and the diagnosis (with a result and ``figures`` if
     ``result``), written as the service writes them; returns their ids."""
-    record = RecordRepository(store).add(
-        b'{"record": {}}',
-        media="json",
-        params={},
-        plant="reference",
-        name=None,
-        asset=ASSET,
-        measured_at=datetime(2026, 1, 1, tzinfo=UTC),
-        n_samples=10,
+    repo = RecordRepository(store)
+    record = repo.add(
+        repo.new(
+            b'{"record": {}}',
+            media="json",
+            params={},
+            plant="reference",
+            name=None,
+            asset=ASSET,
+            measured_at=datetime(2026, 1, 1, tzinfo=UTC),
+            n_samples=10,
+        )
     )
     jobs = JobRepository(store)
     job = jobs.create("diagnose", meta={"record_id": record.id}, spec={"record_id": record.id})
@@ -177,13 +188,8 @@ def gated_server(tmp_path: Path, gated: GatedTraining) -> Iterator[InProcessServ
         max_pattern_sets=1,
         retention_interval_hours=0,
     )
-    server = InProcessServer(create_app(settings)).start()
-    try:
+    with gated_in_process(create_app(settings), gated) as server:
         yield server
-    finally:
-        gated.release_all()
-        server.request_stop()
-        server.join()
 
 
 def test_identifications_and_finished_jobs_can_be_deleted_a_running_job_cannot(
