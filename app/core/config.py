@@ -126,9 +126,9 @@ class Settings(BaseSettings):
         default_factory=lambda: 2 * (os.cpu_count() or 1),
         description="Threads that compute answers at once (simulations, identifications, figures, parsing of "
         "bodies, the store's reads); further requests wait for one. Few threads keep the event loop, which "
-        "answers GET /healthz and accepts connections, from waiting behind many threads for the GIL: with 40 "
-        "(the default of Starlette's pool) and 20 busy clients on 2 cores, /healthz's p99 exceeded 1 s "
-        "(bench/bench_load.py; 4 threads brought it to 0.18 s at the same throughput). Default: two per core.",
+        "answers GET /healthz and accepts connections, from waiting behind many threads for the GIL (Starlette's "
+        "default is 40); the load benchmark's committed run and its command are in docs/service-operation.md, "
+        "section Load. Default: two per core.",
     )
     keep_alive_timeout: Annotated[int, Field(ge=1, le=300)] = Field(
         default=5, description="Seconds an idle keep-alive connection stays open after an answer."
