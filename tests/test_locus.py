@@ -28,6 +28,7 @@ from engine.diagnosis.locus import LocusReport, estimate_locus
 from engine.diagnosis.noise import NoiseModel
 from engine.records import Record
 from engine.simulation import CATALOGUE, HELD_BACK, LOCI, Case, EffectLibrary, PlantParameters, simulate_batch
+from engine.simulation.development import PARAMETER_DRIFTS
 from engine.simulation.noise import add_white_noise
 
 logger = logging.getLogger(__name__)
@@ -47,7 +48,10 @@ STRONG = {
 
 
 def _library(effect: str) -> EffectLibrary:
-    return HELD_BACK if effect in list(HELD_BACK) else CATALOGUE  # EffectLibrary.__contains__ raises on unknown names
+    for library in (HELD_BACK, PARAMETER_DRIFTS):
+        if effect in library:
+            return library
+    return CATALOGUE
 
 
 @dataclass(frozen=True)
@@ -192,6 +196,25 @@ def test_a_wheel_friction_that_stops_the_wheel_is_a_coulomb_friction_on_the_driv
     assert term is not None and term.follows == "speed"
     assert term.details["coulomb_friction"] == pytest.approx(0.09, rel=0.1)
     assert "against the motion of the drive wheel" in term.description
+
+
+def test_a_supply_frequency_off_its_nominal_value_is_a_drift_at_the_supply() -> None:
+    """The operating point unknown, the supply frequency 2 % high (a development-family effect,
+    nominal plant, 40 dB). It acts from the switch-on, so the calibration meets it with K, J1 and c
+    (chi2/n above 5 left), and a schedule d(t) around that fit places it in the motor (the
+    development baseline: 0 of 5 such records at the supply). The supply frequency is one of the
+    supply's own parameters (``PART_FIELDS``): fitted with K, J1 and c it brings the record to the
+    noise, and the term names it with its factor."""
+    rec = _record("supply_frequency_drift", 1.02, PlantParameters(), 40.0, seed=8, known=False)
+    cal = calibrate(rec)
+    assert cal.reduced_chi2 > 5.0
+    rep = estimate_locus(rec, cal)
+    assert rep.locus == "supply", rep.description
+    assert rep.chi2_injected < 1.5 * rep.n_data
+    term = rep.term
+    assert term is not None and term.details["drift_field"] == "f"
+    assert term.details["drift_factor"] == pytest.approx(1.02, abs=0.002)
+    assert "supply frequency f at about 1.02 times" in term.description
 
 
 def test_no_gap_no_confident_locus() -> None:

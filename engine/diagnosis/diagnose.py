@@ -104,12 +104,13 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
 from engine.diagnosis.ambiguity import Model
 from engine.diagnosis.calibration import CalibrationResult, calibrate
+from engine.diagnosis.candidate import Candidate
 from engine.diagnosis.candidate_set import CandidateSet
 from engine.diagnosis.candidates import fit_candidates
 from engine.diagnosis.confidence import locus_confidence
@@ -136,6 +137,7 @@ from engine.diagnosis.width import MISSING_PHYSICS, answer_calibration, answer_w
 from engine.parallel import single_threaded_blas
 from engine.records import Record
 from engine.simulation import CATALOGUE, EffectLibrary
+from engine.simulation.parameters import PART_FIELDS
 
 logger = logging.getLogger(__name__)
 
@@ -157,14 +159,34 @@ __all__ = [
 IdentificationHook = Callable[[Record, "DiagnosisResult"], dict]
 
 
+def _known_drifts(cands: Sequence[Candidate], library: EffectLibrary) -> dict[str, dict[str, float]]:
+    """The escalated (globally searched) catalogue candidates that drift a part's own parameter by a
+    factor, by field: their fitted values, the factor under ``"factor"`` (the locus estimate's
+    ``known_drifts``: it need not fit them again)."""
+    part = {field for fields in PART_FIELDS.values() for field in fields}
+    out: dict[str, dict[str, float]] = {}
+    for c in cands:
+        if not c.escalated or c.calibration is None or c.effect not in library:
+            continue
+        effect = library[c.effect]
+        if effect.target == "plant" and effect.mode == "multiply" and effect.field in part:
+            values = dict(c.calibration.values)
+            out[effect.field] = {**values, "factor": values.pop(c.effect)}
+    return out
+
+
 def _locate(
-    record: Record, nominal: CalibrationResult, verdict: Verdict, space: ModelSpace
+    record: Record,
+    nominal: CalibrationResult,
+    verdict: Verdict,
+    space: ModelSpace,
+    known: Mapping[str, Mapping[str, float]] | None = None,
 ) -> tuple[Verdict, dict[str, Any] | None]:
     """The verdict with the locus and missing term the data point to (see :mod:`engine.diagnosis.locus`)."""
     from engine.diagnosis.locus import estimate_locus
 
     try:
-        report = estimate_locus(record, nominal, space=space)
+        report = estimate_locus(record, nominal, space=space, known_drifts=known)
     except (ValueError, RuntimeError) as exc:  # the diagnosis stands without it; say why
         logger.warning("locus estimate failed: %s", exc)
         return replace(verdict, reason=f"{verdict.reason}; the locus could not be estimated ({exc})"), None
@@ -330,7 +352,7 @@ def _diagnose(
         cells_after = localise(record, final.simulated_record(record), nominal.sigma, DEFAULT_WINDOWS_MS)
         stage("gap after the fix")
     elif verdict.status in ("unexplained", "weak_gap") and settings.locate:
-        verdict, locus = _locate(record, nominal, verdict, space)
+        verdict, locus = _locate(record, nominal, verdict, space, _known_drifts(cands, library))
         stage("locus and missing term")
     result = DiagnosisResult(
         calibration=nominal,

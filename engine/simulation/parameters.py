@@ -53,6 +53,39 @@ DISTURBANCE_MEANING: dict[str, tuple[str, str]] = {
 #: calibrated trajectory cannot represent once the part sticks (``engine.diagnosis.locus``).
 COULOMB_FIELDS: dict[str, str] = {"motor_shaft": "tau_C1", "drive_train": "tau_C2", "load": "c1"}
 
+#: The plant's own MODEL.md parameters at each locus, with what each is and the plausible range
+#: of its drift factor (a regulated supply's frequency within 10 %, masses and stiffnesses within a
+#: factor 2, dampings, which are poorly known, as the catalogue's contact damping). The locus estimate lets
+#: each drift by a factor, one at a time, fitted with the calibrated parameters, as a term of its
+#: part: a gap at a part is often one of its own parameters off its nominal value, and a drift that
+#: is large (a load 40 % heavier) or acts through the whole run (the supply frequency) is out of
+#: reach of a schedule d(t) linearised around the calibrated trajectory. The list is every MODEL.md
+#: parameter of the part with a non-zero nominal value, not a choice made for any effect, less the
+#: reactances (a factor on one of x_s, x_r, x_m alone changes the leakages too, and can make the
+#: inductance matrix singular) and the wheel radius (a scale of the channels); the calibrated ones
+#: (K, J1, c) are left to the calibration.
+PART_FIELDS: dict[str, dict[str, tuple[str, tuple[float, float]]]] = {
+    "supply": {"u": ("supply voltage amplitude u", (0.8, 1.2)), "f": ("supply frequency f", (0.9, 1.1))},
+    "motor_electrical": {
+        "r_s": ("stator resistance r_s", (0.5, 2.0)),
+        "r_r": ("rotor resistance r_r", (0.5, 2.0)),
+    },
+    "motor_shaft": {"J1": ("motor inertia J1", (0.5, 2.0))},
+    "clutch": {
+        "k12": ("contact stiffness k12 of the clutch", (0.1, 10.0)),
+        "d12": ("contact damping d12 of the clutch", (0.1, 20.0)),
+    },
+    "drive_train": {
+        "J2": ("wheel inertia J2", (0.5, 2.0)),
+        "k2": ("stiffness k2 of the resilient element", (0.5, 2.0)),
+        "d2": ("damping d2 of the resilient element", (0.1, 20.0)),
+    },
+    "load": {
+        "T3": ("mechanical time constant T3 of the load", (0.5, 2.0)),
+        "c": ("viscous coefficient c of the absorber", (0.5, 2.0)),
+    },
+}
+
 
 class ParameterError(ValueError):
     """Raised for a physically absurd or non-finite parameter; the message says what to fix."""

@@ -74,6 +74,11 @@ def main(argv: list[str] | None = None) -> int:
             "right": ok,
             "confidence": round(report.confidence, 3),
             "explained": {n: round(s["explained"], 3) for n, s in out.get("scores", {}).items()},
+            "delta_bic": {n: round(s["delta_bic"], 1) for n, s in out.get("scores", {}).items()},
+            "dispersion": round(report.dispersion, 3),
+            "chi2n_left": round(min(s["rss"] for s in out.get("scores", {}).values()) / report.n_data, 3)
+            if out.get("scores")
+            else None,
             "description": report.description,
             "nominal_chi2n": round(nominal.reduced_chi2, 2),
             "seconds": round(time.perf_counter() - t0, 1),

@@ -1,8 +1,9 @@
 """The calibrated case changed for a probe or a trial.
 
-With an unknown input d(t) at a locus, with more Coulomb friction against a part's motion [pu],
-or with its calibrated parameters moved: each by a small step (for their response columns) or by
-a fitted move (in the parameters' units).
+With an unknown input d(t) at a locus, with a term of a part's own (more Coulomb friction against
+its motion [pu], or one of its MODEL.md parameters drifted by a factor), or with its calibrated
+parameters moved: each by a small step (for their response columns) or by a fitted move (in the
+parameters' units).
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from engine.simulation import Case, Disturbance
-from engine.simulation.parameters import COULOMB_FIELDS
+from engine.simulation.parameters import COULOMB_FIELDS, PART_FIELDS
 
 #: Steps of the calibrated parameters' response columns, in their units (relative for K, J1, c).
 _PARAM_STEP_REL: dict[str, float] = {"K": 1e-3, "J1": 1e-3, "c": 1e-3}
@@ -21,12 +22,31 @@ def with_input(case: Case, dist: Disturbance) -> Case:
     return Case(case.plant.replace(disturbance=dist), case.sensors)
 
 
-def with_friction(case: Case, locus: str, f: float) -> Case:
-    """``case`` with ``f`` [pu] more Coulomb friction against the motion of the part at ``locus``."""
-    if f == 0.0:
+#: Smallest factor of a drifted part parameter (a factor must stay positive).
+MIN_DRIFT: float = -0.9
+
+
+def is_coulomb(field: str) -> bool:
+    """Whether a part term's field is a Coulomb friction (added [pu]) rather than a drifted parameter."""
+    return field in COULOMB_FIELDS.values()
+
+
+def part_terms(locus: str, calibrated: list[str]) -> list[str]:
+    """The fields of the part terms of ``locus`` the estimate tries: those the calibration does not fit."""
+    fields = ([COULOMB_FIELDS[locus]] if locus in COULOMB_FIELDS else []) + list(PART_FIELDS.get(locus, {}))
+    return [f for f in fields if f not in calibrated]
+
+
+def with_term(case: Case, field: str, value: float) -> Case:
+    """``case`` with a term of a part's own: ``value`` [pu] more Coulomb friction when ``field`` is one
+    of :data:`COULOMB_FIELDS`, else the parameter ``field`` times ``1 + value`` (at least ``1 +
+    MIN_DRIFT``)."""
+    if value == 0.0 or not field:
         return case
-    name = COULOMB_FIELDS[locus]
-    return Case(case.plant.replace(**{name: getattr(case.plant, name) + f}), case.sensors)
+    if is_coulomb(field):
+        return Case(case.plant.replace(**{field: getattr(case.plant, field) + value}), case.sensors)
+    new = float(getattr(case.plant, field)) * (1.0 + max(value, MIN_DRIFT))
+    return Case(case.plant.replace(**{field: new}), case.sensors)
 
 
 def parameter_cases(case: Case, names: list[str]) -> tuple[list[Case], list[float], list[str]]:

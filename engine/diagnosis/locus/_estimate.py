@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -18,7 +19,7 @@ from engine.diagnosis.locus._linear import linear_fit, orth, penalised_fit, proj
 from engine.diagnosis.locus._refine import Estimate, refine
 from engine.diagnosis.locus._report import LocusError, LocusReport, LocusScore, LocusSettings
 from engine.diagnosis.locus._responses import N_EXTRAS, Observed, responses
-from engine.diagnosis.locus._starts import extras_scan, friction_fits, refinement_start
+from engine.diagnosis.locus._starts import drift_fits, extras_scan, friction_fits, refinement_start
 from engine.diagnosis.locus._term import locus_term, sensor_term
 from engine.diagnosis.space import ModelSpace, default_space
 from engine.parallel import single_threaded_blas
@@ -39,6 +40,7 @@ def estimate_locus(
     calibration: CalibrationResult,
     settings: LocusSettings = LocusSettings(),  # noqa: B008 (frozen, so immutable; imported, so ruff cannot tell)
     space: ModelSpace | None = None,
+    known_drifts: Mapping[str, Mapping[str, float]] | None = None,
 ) -> LocusReport:
     """Where in the plant the residual of a calibration comes from, and what the missing term looks like.
 
@@ -54,6 +56,10 @@ def estimate_locus(
     space : ModelSpace, optional
         The calibration's model space (its free parameters and search box), for the joint fits
         of a Coulomb friction with the calibration; default :func:`default_space` of the record.
+    known_drifts : mapping, optional
+        Global joint fits of part-parameter drifts already made (the diagnosis's escalated
+        catalogue candidates of the same fields), by field: the fitted calibrated parameters and
+        the drift's factor under ``"factor"``; those are not fitted again (:func:`drift_fits`).
 
     Returns
     -------
@@ -65,11 +71,15 @@ def estimate_locus(
         The calibration holds no simulation, or its case cannot be simulated.
     """
     with single_threaded_blas():  # small matrices: BLAS threads only compete with the simulations
-        return _estimate(record, calibration, settings, space)
+        return _estimate(record, calibration, settings, space, known_drifts)
 
 
 def _estimate(
-    record: Record, calibration: CalibrationResult, settings: LocusSettings, space: ModelSpace | None
+    record: Record,
+    calibration: CalibrationResult,
+    settings: LocusSettings,
+    space: ModelSpace | None,
+    known_drifts: Mapping[str, Mapping[str, float]] | None,
 ) -> LocusReport:
     t0 = time.perf_counter()
     record, _ = record.test_window()
@@ -118,6 +128,9 @@ def _estimate(
     if settings.friction_fits:
         # on the test window, as the calibration and every locus fit (a longer record is cut, not misread)
         scan, used = friction_fits(record, cal, space or default_space(record), resp, obs, scan, settings)
+        n_sim += used
+    if settings.part_drifts:
+        scan, used = drift_fits(record, cal, space or default_space(record), resp, obs, scan, settings, known_drifts)
         n_sim += used
 
     # 3. Gauss-Newton refinement: one iteration of every locus (the linearised ranking misleads

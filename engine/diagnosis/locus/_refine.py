@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.diagnosis.calibration import CalibrationResult
-from engine.diagnosis.locus._cases import with_friction, with_input, with_moves
+from engine.diagnosis.locus._cases import with_input, with_moves, with_term
 from engine.diagnosis.locus._linear import Fit, orth, penalised_fit, project
 from engine.diagnosis.locus._report import LocusSettings
 from engine.diagnosis.locus._responses import N_EXTRAS, PROBE, Observed, Responses
@@ -34,12 +34,13 @@ class Estimate:
     rss: float  # chi2 of the estimate: linearised, or simulated once refined
     bic: float
     refined: bool
-    f: float = 0.0  # Coulomb friction added against the part's motion (COULOMB_FIELDS) [pu]
+    f: float = 0.0  # the part term's value: Coulomb friction added [pu], or a parameter's drift (factor - 1)
+    field: str = ""  # the part term's field (COULOMB_FIELDS or PART_FIELDS), "" for none
 
     @property
     def n_extras(self) -> int:
-        """Unpenalised parameters of the input: the constant, the step, and the friction if used."""
-        return N_EXTRAS + (self.f > 0.0)
+        """Unpenalised parameters of the input: the constant, the step, and the part term if used."""
+        return N_EXTRAS + bool(self.field and self.f != 0.0)
 
 
 def refine(
@@ -72,7 +73,7 @@ def refine(
 
     x, e, p, fit, chi2_cur = est.x, est.e, est.p, est.fit, est.rss
     used = 0
-    base = with_friction(with_moves(cal.case, names, p), locus, est.f)
+    base = with_term(with_moves(cal.case, names, p), est.field, est.f)
     for _ in range(iterations):
         cases = [case_of(base, x, e)]
         cases += [with_input(base, d) for d in resp.probes(locus, x, e)]
@@ -100,6 +101,6 @@ def refine(
             break
         a = STEP_LENGTHS[i]
         x, e, fit, chi2_cur = x + a * dx, e + a * de, new_fit, chi2s[i]
-    out = Estimate(x, e, p, fit, chi2_cur, math.nan, refined=True, f=est.f)
+    out = Estimate(x, e, p, fit, chi2_cur, math.nan, refined=True, f=est.f, field=est.field)
     out.bic = chi2_cur + (fit.dof + len(names) + out.n_extras) * ln_n
     return out, used

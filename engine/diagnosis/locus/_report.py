@@ -65,6 +65,10 @@ class LocusSettings:
         calibrated parameters by a global search (a candidate's escalated fit,
         :func:`engine.diagnosis.candidate.fit_candidate` with ``global_search=True``), as one
         more start of that locus (False: the friction is only scanned).
+    part_drifts : bool
+        Fit a drift of each of every part's own MODEL.md parameters
+        (:data:`~engine.simulation.parameters.PART_FIELDS`) jointly with the calibrated parameters
+        (a catalogue candidate's seeded fit), as one more start of its locus.
     first_guess_chi2 : float
         When the best locus's fit leaves more than this chi2 per residual, the locus is a first
         guess: its confidence is capped at :data:`FIRST_GUESS_CONFIDENCE` and a note says so
@@ -94,6 +98,7 @@ class LocusSettings:
     max_frequency_hz: float = 150.0
     first_guess_chi2: float = 10.0
     friction_fits: bool = True
+    part_drifts: bool = True
     const_share: float = 0.8
     min_shape_r2: float = 0.3
     shape_margin: float = 1.5

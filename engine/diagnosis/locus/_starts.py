@@ -1,7 +1,7 @@
 """The starts of the refinement (step 3 of the method).
 
 A scan of simple inputs (a constant or a step at every locus, a Coulomb friction [pu] at every
-rotating part) from the calibration and from its global starts, a dense scan of a zone offset
+rotating part, a drift of each of a part's own parameters) from the calibration and from its global starts, a dense scan of a zone offset
 [rad], damped Gauss-Newton steps of each locus's best (:func:`extras_scan`); the joint fits of
 every part's Coulomb friction with the calibrated parameters (:func:`friction_fits`); and the
 choice between the scan and the linearised estimate (:func:`refinement_start`).
@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import cast
 
@@ -18,14 +19,23 @@ import numpy as np
 
 from engine.diagnosis.calibration import CalibrationError, CalibrationResult
 from engine.diagnosis.candidate import fit_candidate
-from engine.diagnosis.locus._cases import current, parameter_cases, with_friction, with_input, with_moves
+from engine.diagnosis.locus._cases import (
+    MIN_DRIFT,
+    current,
+    is_coulomb,
+    parameter_cases,
+    part_terms,
+    with_input,
+    with_moves,
+    with_term,
+)
 from engine.diagnosis.locus._refine import STEP_LENGTHS, Estimate
 from engine.diagnosis.locus._report import LocusSettings
 from engine.diagnosis.locus._responses import N_EXTRAS, PROBE, Observed, Responses
 from engine.diagnosis.space import ModelSpace
 from engine.records import Record
 from engine.simulation import DISTURBANCE_LOCI, Case, Effect, Locus, SolverSettings, run_cases
-from engine.simulation.parameters import COULOMB_FIELDS
+from engine.simulation.parameters import COULOMB_FIELDS, PART_FIELDS
 
 logger = logging.getLogger(__name__)
 
@@ -35,6 +45,8 @@ _SCAN_FRACTIONS: tuple[float, ...] = (-1.0, -0.5, -0.25, -0.1, 0.1, 0.25, 0.5, 1
 #: Coulomb frictions of the scan (loci of :data:`COULOMB_FIELDS`), as fractions of :data:`SCAN_SCALE`;
 #: friction only opposes motion, so none is negative.
 _FRICTION_FRACTIONS: tuple[float, ...] = (0.1, 0.25, 0.5, 1.0)
+#: Relative step of a drift's finite difference in the polish (of the factor).
+_DRIFT_STEP: float = 1e-2
 #: Largest constant input of the scan per locus, in the locus's unit: a fifth of the rated
 #: torque, a tenth of the voltage, the angle of the smallest backlash's quarter width.
 SCAN_SCALE: dict[str, float] = {
@@ -81,8 +93,9 @@ def extras_scan(
                 e[i] = f * SCAN_SCALE[locus]
                 trials += [_Trial(locus, e, base) for base in bases]
     for locus in _friction_loci(names):
+        field = COULOMB_FIELDS[locus]
         for f in _FRICTION_FRACTIONS:
-            trials += [_Trial(locus, np.zeros(N_EXTRAS), base, f * SCAN_SCALE[locus]) for base in bases]
+            trials += [_Trial(locus, np.zeros(N_EXTRAS), base, f * SCAN_SCALE[locus], field) for base in bases]
     trials += _zone_trials(cal.case, bases[1:], names, settings.n_zone_scan)
     cases += [t.case(cal.case, names, resp, t.p) for t in trials]
     ch, _, status = run_cases(cases, solver, obs.record.grid)
@@ -96,7 +109,7 @@ def extras_scan(
         res = obs.residual(c)
         c2 = float(res @ res)
         if c2 < best[t.locus].chi2:
-            best[t.locus] = _Start(t.e, t.p, c2, t.f)
+            best[t.locus] = _Start(t.e, t.p, c2, t.f, t.field)
         moves.append(t.p + np.linalg.lstsq(resp.params, res, rcond=None)[0] if names else no_move)
     used = len(cases)
     if names:
@@ -106,7 +119,7 @@ def extras_scan(
         for t, p, c, st in zip(trials, moves, ch, status, strict=True):
             c2 = float(np.sum(obs.residual(c) ** 2)) if st == 0 else math.inf
             if c2 < best[t.locus].chi2:
-                best[t.locus] = _Start(t.e, p, c2, t.f)
+                best[t.locus] = _Start(t.e, p, c2, t.f, t.field)
     for _ in range(settings.extras_iterations):
         best, n = _polish_extras(cal, resp, obs, best, solver)
         used += n
@@ -173,7 +186,7 @@ def friction_fits(
         p = np.array([fit.values[n] - current(cal.case, n) if n in fit.values else 0.0 for n in names])
         f = fit.values[effect.name] - effect.neutral
         if f > 0.0:
-            fitted.append(_Trial(locus, np.zeros(N_EXTRAS), p, f))
+            fitted.append(_Trial(locus, np.zeros(N_EXTRAS), p, f, COULOMB_FIELDS[locus]))
     if not fitted:
         return best, used
     ch, _, status = run_cases(
@@ -185,7 +198,79 @@ def friction_fits(
         c2 = float(np.sum(obs.residual(c) ** 2)) if st == 0 else math.inf
         logger.debug("locus: %s friction fitted %.4g pu, chi2 %.4g (scan %.4g)", t.locus, t.f, c2, out[t.locus].chi2)
         if c2 < out[t.locus].chi2:
-            out[t.locus] = _Start(t.e, t.p, c2, t.f)
+            out[t.locus] = _Start(t.e, t.p, c2, t.f, t.field)
+    return out, used
+
+
+def drift_fits(
+    record: Record,
+    cal: CalibrationResult,
+    space: ModelSpace,
+    resp: Responses,
+    obs: Observed,
+    best: dict[str, _Start],
+    settings: LocusSettings,
+    known: Mapping[str, Mapping[str, float]] | None = None,
+) -> tuple[dict[str, _Start], int]:
+    """Every part's own parameters (:data:`~engine.simulation.parameters.PART_FIELDS`), each drifted
+    by a factor fitted jointly with the calibrated parameters.
+
+    A drift of a parameter that acts through the whole run (the supply frequency moves the motor's
+    speed from the switch-on) is absorbed by the calibration, which moves K, J1 and c to meet it
+    partly; the drift alone from the calibrated point then makes the fit worse (a supply frequency
+    1.7 % high: chi2/n 57 calibrated, 1453 with the drift added at the calibrated K, J1 and c, 0.98
+    refitted), so it must be fitted with them, and globally: the valley is narrow, and a seeded fit
+    stops short (a frequency 2 % high, nominal plant, 40 dB: seeded fits over three ranges gave
+    1.0191, 1.0146 and 1.0066 with chi2/n 22-171; the global search 1.0200 with 0.98 from each).
+    Each is a catalogue candidate's fit with the global search over the parameter's plausible range
+    (:func:`~engine.diagnosis.candidate.fit_candidate`, ``global_search=True``; about 1.4 s and 1000
+    simulations on 2 cores). A field in ``known`` (the fitted values of a global joint fit already
+    made, e.g. the diagnosis's escalated catalogue candidate of the same drift, the factor under
+    the key ``"factor"``) is not fitted again. Its point, simulated at the locus's step, replaces
+    the locus's start where its chi2 is lower. Returns the starts and the simulations used.
+    """
+    assert cal.case is not None
+    names = resp.param_names
+    used = 0
+    fitted: list[_Trial] = []
+    for locus in DISTURBANCE_LOCI:
+        for field in part_terms(locus, names):
+            if is_coulomb(field):
+                continue
+            if known and field in known:
+                values = known[field]
+                p = np.array([values[n] - current(cal.case, n) if n in values else 0.0 for n in names])
+                fitted.append(_Trial(locus, np.zeros(N_EXTRAS), p, float(values["factor"]) - 1.0, field))
+                continue
+            meaning, bounds = PART_FIELDS[locus][field]
+            effect = Effect(
+                f"{field}_drift", f"{meaning} multiplied by value", "plant", field, "multiply", bounds, 1.0,
+                "x", cast(Locus, locus),
+            )  # fmt: skip
+            try:
+                cand = fit_candidate(record, cal, space, effect, global_search=True)
+            except (CalibrationError, ValueError) as exc:
+                logger.info("locus: the drift of %s could not be fitted (%s)", field, exc)
+                continue
+            fit = cand.calibration
+            if fit is None:
+                continue
+            used += fit.n_simulations
+            p = np.array([fit.values[n] - current(cal.case, n) if n in fit.values else 0.0 for n in names])
+            # the effect multiplies the space's base case, whose part parameters are the calibrated case's
+            fitted.append(_Trial(locus, np.zeros(N_EXTRAS), p, float(fit.values[effect.name]) - 1.0, field))
+    if not fitted:
+        return best, used
+    ch, _, status = run_cases(
+        [t.case(cal.case, names, resp, t.p) for t in fitted], SolverSettings(max_step=settings.step), obs.record.grid
+    )
+    used += len(fitted)
+    out = dict(best)
+    for t, c, st in zip(fitted, ch, status, strict=True):
+        c2 = float(np.sum(obs.residual(c) ** 2)) if st == 0 else math.inf
+        logger.debug("locus: %s x %.4g fitted, chi2 %.4g (start %.4g)", t.field, 1.0 + t.f, c2, out[t.locus].chi2)
+        if c2 < out[t.locus].chi2:
+            out[t.locus] = _Start(t.e, t.p, c2, t.f, t.field)
     return out, used
 
 
@@ -239,39 +324,43 @@ def _zone_trials(case: Case, starts: list[np.ndarray], names: list[str], n: int)
 @dataclass(frozen=True)
 class _Start:
     """A starting point of the refinement: extras (constant, step), parameter moves, its chi2, and
-    the Coulomb friction added at the locus (:data:`COULOMB_FIELDS`) [pu]."""
+    the part term at the locus: its value ``f`` (Coulomb friction added [pu], or a parameter's
+    drift, factor - 1) and its ``field`` ("" for none; see :func:`with_term`)."""
 
     e: np.ndarray
     p: np.ndarray
     chi2: float
     f: float = 0.0
+    field: str = ""
 
 
 @dataclass(frozen=True)
 class _Trial:
     """A simple input of the scan: the locus, its extras, the parameter moves it starts from, and
-    a Coulomb friction added at the locus [pu]."""
+    a part term at the locus (value ``f``, ``field``; see :func:`with_term`)."""
 
     locus: str
     e: np.ndarray
     p: np.ndarray
     f: float = 0.0
+    field: str = ""
 
     def case(self, cal_case: Case, names: list[str], resp: Responses, p: np.ndarray) -> Case:
         """The calibrated case with this input, its parameters moved by ``p``."""
         zeros = np.zeros(resp.n_free)
-        moved = with_friction(with_moves(cal_case, names, p), self.locus, self.f)
+        moved = with_term(with_moves(cal_case, names, p), self.field, self.f)
         return with_input(moved, resp.schedule(self.locus, zeros, self.e))
 
 
 def _polish_extras(
     cal: CalibrationResult, resp: Responses, obs: Observed, best: dict[str, _Start], solver: SolverSettings
 ) -> tuple[dict[str, _Start], int]:
-    """One damped Gauss-Newton step of every locus's (extras, friction, parameter moves), jointly.
+    """One damped Gauss-Newton step of every locus's (extras or part term, parameter moves), jointly.
 
-    One batch of finite differences (each extra, the Coulomb friction where the start has one, and
+    One batch of finite differences (each extra, or the part term where the start has one, and
     each calibrated parameter, around each locus's current point) and one batch of three step
-    lengths; a locus keeps the step if its simulated chi2 falls. The friction stays >= 0.
+    lengths; a locus keeps the step if its simulated chi2 falls. A friction stays >= 0, a drift's
+    factor >= 1 + MIN_DRIFT.
     """
     assert cal.case is not None
     names = resp.param_names
@@ -282,19 +371,25 @@ def _polish_extras(
     for locus in loci:
         start = best[locus]
         h = 5.0 * PROBE[locus]
-        trial = _Trial(locus, start.e, start.p, start.f)
+        trial = _Trial(locus, start.e, start.p, start.f, start.field)
         centre = trial.case(cal.case, names, resp, start.p)
         cases.append(centre)
-        if start.f > 0.0:  # a friction is polished with the parameters alone (the extras would trade with it)
-            cases.append(with_friction(centre, locus, h))
+        if start.field:  # a part term is polished with the parameters alone (the extras would trade with it)
+            if is_coulomb(start.field):
+                cases.append(with_term(centre, start.field, h))
+                hs = [h]
+            else:  # the factor (1 + f) times (1 + step): a step of f of (1 + f) step
+                cases.append(with_term(centre, start.field, _DRIFT_STEP))
+                hs = [_DRIFT_STEP * (1.0 + start.f)]
         else:
             for i in range(N_EXTRAS):
                 de = np.zeros(N_EXTRAS)
                 de[i] = h
                 cases.append(with_input(centre, resp.schedule(locus, zeros, start.e + de)))
+            hs = [h] * N_EXTRAS
         pcases, psteps, _ = parameter_cases(centre, names)
         cases += pcases
-        steps[locus] = [h] * (1 if start.f > 0.0 else N_EXTRAS) + psteps
+        steps[locus] = hs + psteps
     ch, _, status = run_cases(cases, solver, obs.record.grid)
     used = len(cases)
     trials: list[_Trial] = []
@@ -304,15 +399,16 @@ def _polish_extras(
         block, st = ch[i : i + 1 + m], status[i : i + 1 + m]
         i += 1 + m
         start = best[locus]
-        n_in = 1 if start.f > 0.0 else N_EXTRAS  # the input's own unknowns, before the parameters
+        n_in = 1 if start.field else N_EXTRAS  # the input's own unknowns, before the parameters
         if np.any(st != 0) or m != n_in + len(names):
             continue
         r0 = obs.residual(block[0])
         J = np.stack([(obs.residual(b) - r0) / h for b, h in zip(block[1:], steps[locus], strict=True)], axis=1)
         delta = -np.linalg.lstsq(J, r0, rcond=None)[0]
-        de, df = (0.0 * start.e, float(delta[0])) if start.f > 0.0 else (delta[:N_EXTRAS], 0.0)
+        de, df = (0.0 * start.e, float(delta[0])) if start.field else (delta[:N_EXTRAS], 0.0)
+        floor = 0.0 if is_coulomb(start.field) else MIN_DRIFT
         trials += [
-            _Trial(locus, start.e + a * de, start.p + a * delta[n_in:], max(start.f + a * df, 0.0))
+            _Trial(locus, start.e + a * de, start.p + a * delta[n_in:], max(start.f + a * df, floor), start.field)
             for a in STEP_LENGTHS
         ]
     if not trials:
@@ -324,7 +420,7 @@ def _polish_extras(
     for t, c, st in zip(trials, ch, status, strict=True):
         c2 = float(np.sum(obs.residual(c) ** 2)) if st == 0 else math.inf
         if c2 < out[t.locus].chi2:
-            out[t.locus] = _Start(t.e, t.p, c2, t.f)
+            out[t.locus] = _Start(t.e, t.p, c2, t.f, t.field)
     return out, used
 
 
@@ -364,6 +460,6 @@ def refinement_start(
         a0 = STEP_LENGTHS[i]
         out = Estimate(a0 * est.x, a0 * est.e, a0 * est.p, est.fit, chi2s[i], math.nan, True)
     else:
-        out = Estimate(0.0 * est.x, scan.e, scan.p, est.fit, scan.chi2, math.nan, True, f=scan.f)
+        out = Estimate(0.0 * est.x, scan.e, scan.p, est.fit, scan.chi2, math.nan, True, f=scan.f, field=scan.field)
     out.bic = out.rss + (out.fit.dof + len(names) + out.n_extras) * ln_n
     return out, len(trials)

@@ -18,7 +18,8 @@ from engine.diagnosis.calibration import CalibrationResult
 from engine.diagnosis.locus._refine import Estimate
 from engine.diagnosis.locus._report import LocusSettings, Term
 from engine.diagnosis.locus._responses import Responses
-from engine.simulation.parameters import COULOMB_FIELDS, DISTURBANCE_MEANING
+from engine.diagnosis.locus._starts import SCAN_SCALE
+from engine.simulation.parameters import COULOMB_FIELDS, DISTURBANCE_MEANING, PART_FIELDS
 
 #: How the unknown input is called in a sentence, per locus.
 #: (The place is said once, by ``_WHERE``: "a periodic torque of about 0.03 pu at 37 Hz on the load".)
@@ -180,6 +181,9 @@ _FRICTION_PART: dict[str, tuple[str, str]] = {
 #: A schedule smaller than the Coulomb friction beside it is described too when its weighted RMS exceeds
 #: this share of the friction (a larger one is the term's shape, the friction described beside it).
 _FRICTION_ALONE: float = 0.25
+#: A schedule beside a drifted part parameter is described too when its weighted RMS exceeds this
+#: share of the locus's scan scale (:data:`~engine.diagnosis.locus.SCAN_SCALE`).
+_DRIFT_ALONE: float = 0.1
 
 
 def _describe(locus: str, unit: str, follows: str, amplitude: float, freq: float, details: Mapping[str, Any]) -> str:
@@ -226,7 +230,15 @@ def locus_term(
     f_max = min(settings.max_frequency_hz, 0.4 / float(resp.knots[1] - resp.knots[0]))
     follows, amp, freq, r2, details = _shape(series, weight, t_rel, resp.base, cal.case.plant.r, settings, f_max)
     description = _describe(locus, unit, follows, amp, freq, details)
-    if est.f > 0.0:  # a Coulomb friction at the locus: it follows the part's speed, beside the schedule
+    if est.field and est.field not in COULOMB_FIELDS.values() and est.f != 0.0:  # a part parameter drifted
+        meaning = PART_FIELDS[locus][est.field][0]
+        rms = float(np.sqrt(np.average(series**2, weights=weight))) if np.any(weight > 0) else 0.0
+        drift = f"the {meaning} at about {1.0 + est.f:.3g} times its calibrated value"
+        if rms > _DRIFT_ALONE * SCAN_SCALE[locus]:
+            drift += "; besides it, " + description
+        description = drift
+        details = {**details, "drift_field": est.field, "drift_factor": 1.0 + est.f}
+    elif est.f > 0.0:  # a Coulomb friction at the locus: it follows the part's speed, beside the schedule
         part, speed = _FRICTION_PART[locus]
         rms = float(np.sqrt(np.average(series**2, weights=weight))) if np.any(weight > 0) else 0.0
         friction = f"a Coulomb friction of about {est.f:.2g} pu against the motion of the {part} (it follows the sign of {speed})"
