@@ -20,7 +20,8 @@ from typing import Final
 #: Stored with every pattern set so that patterns trained on another model
 #: version are never silently mixed with this one.
 #: 1.2 (docs/model-changes.md): the held-out family's seven terms, neutral by default.
-MODEL_VERSION: Final[str] = "1.2"
+#: 1.3: the sealed family's seven terms, neutral by default.
+MODEL_VERSION: Final[str] = "1.3"
 
 # --- base quantities -------------------------------------------------------
 #: Electrical base angular frequency w_b [rad/s] (50 Hz supply).
@@ -97,6 +98,24 @@ DISTURBANCE_MAX_KNOTS: Final[int] = 256
 # --- model 1.2 extensions (docs/model-changes.md) ----------------------------
 # The seven terms of the held-out family (engine.simulation.held_out) need no constant of their
 # own: each is its one value times the state (the load spring's unit is per revolution, 2 pi rad).
+
+# --- model 1.3 extensions (docs/model-changes.md) ----------------------------
+# Constants of the sealed family's terms (engine.simulation.sealed).
+#: Frequency of the supply's voltage flicker [Hz] (sealed effect ``supply_flicker``): the peak of
+#: the flicker sensitivity of IEC 61000-4-15 (the lamp-eye-brain model), the flicker a supply is
+#: judged by.
+F_FLICKER: Final[float] = 8.8
+#: Speed scale of the Stribeck friction on the motor shaft [pu speed] (sealed effect
+#: ``motor_stribeck``): the friction ``v tanh(w_1 / W_SMOOTH) exp(-(w_1 / W_STRIBECK)^2)`` fades
+#: within a few tenths of the backlash test's top motor speed (1-2 % of synchronous).
+W_STRIBECK: Final[float] = 0.005
+#: Reference penetration of the clutch's contact [rad] (sealed effect
+#: ``clutch_progressive_contact``: the contact spring ``k_12 x (1 + v x / X_REF)``): the largest
+#: penetration beyond the zone's edge in the nominal plant's backlash test (K 5 mm, J1 0.87 kg m^2,
+#: c 1.0), 0.0107 rad (at 27.6 ms, between the first contact and the event; scipy reference,
+#: DOP853 at rtol 1e-10, and the kernel on a 1 us grid agree), rounded. At x = X_REF the spring is
+#: stiffer by the factor 1 + v.
+X_REF: Final[float] = 0.01
 
 # --- test protocol (MODEL.md section 2) ------------------------------------
 #: Sample interval Ts [s].

@@ -99,6 +99,13 @@ def test_defaults_are_model_md_constants():
         "k_pre": 0.0,
         "hard2": 0.0,
         "k_3": 0.0,
+        # model 1.3 extensions (the sealed family), neutral by default
+        "u_flicker": 0.0,
+        "x_leak": 0.0,
+        "tau_S1": 0.0,
+        "prog12": 0.0,
+        "tau_dry2": 0.0,
+        "b_3": 0.0,
     }
     assert PlantParameters().as_dict() == expected
     assert SolverSettings().max_step == SAMPLE_INTERVAL / 3

@@ -15,6 +15,7 @@ from engine.simulation.parameters import (
     full_grid,
     paper_grid,
 )
+from engine.simulation.sealed import SEALED
 from engine.simulation.simulator import (
     SimulationError,
     SimulationResult,
@@ -30,6 +31,7 @@ __all__ = [
     "HELD_BACK",
     "HELD_OUT",
     "LOCI",
+    "SEALED",
     "Case",
     "Disturbance",
     "Effect",

@@ -28,6 +28,14 @@ ground, and a once-per-revolution error of the speed encoder (the held-out famil
 :data:`engine.simulation.held_out.HELD_OUT`). With all of them zero the kernel performs
 model 1.1's floating-point operations.
 
+Model 1.3 adds six more behind the same guard (the sealed family,
+:data:`engine.simulation.sealed.SEALED`): a flicker of the supply voltage's amplitude, Stribeck
+friction on the motor shaft, a progressive (hardening) contact spring of the clutch, dry friction
+inside the resilient element, quadratic drag on the load, and the load accelerometer's cross-axis
+sensitivity to a1. (The seventh, higher leakage reactances, needs no term: the simulator adds it to
+``P_X_S`` and ``P_X_R``.) With all of them zero the kernel performs model 1.2's floating-point
+operations.
+
 The parameter vector layout is given by the ``P_*`` indices below and built by
 :func:`engine.simulation.simulator.parameter_vector`; it carries the record's
 sample grid too (``P_TS``, ``P_EVENT_INDEX``), and the number of samples is the
@@ -45,11 +53,14 @@ from engine.constants import (
     CHANNELS,
     COGGING_ORDER,
     DISTURBANCE_MAX_KNOTS,
+    F_FLICKER,
     LOAD_RIPPLE_HZ,
     OMEGA_B,
     SWITCH_OFF_DECAY_TIME,
     W_B,
     W_SMOOTH,
+    W_STRIBECK,
+    X_REF,
 )
 
 # parameter vector layout
@@ -85,7 +96,17 @@ P_K_PRE = P_B_2 + 1
 P_HARD2 = P_K_PRE + 1
 P_K_3 = P_HARD2 + 1
 P_ECC1 = P_K_3 + 1
-N_PARAMS = P_ECC1 + 1
+# model 1.3: parametric terms of the sealed effects (engine.simulation.sealed), appended: flicker of
+# the supply voltage [x u], Stribeck friction on J1 [pu torque], progressive contact of the clutch
+# [x], dry friction in the resilient element [pu torque], quadratic drag on the load
+# [pu torque / pu speed^2], cross-axis sensitivity of the load accelerometer [x]
+P_FLICKER = P_ECC1 + 1
+P_TAU_S1 = P_FLICKER + 1
+P_PROG12 = P_TAU_S1 + 1
+P_TAU_DRY2 = P_PROG12 + 1
+P_B_3 = P_TAU_DRY2 + 1
+P_XTALK2 = P_B_3 + 1
+N_PARAMS = P_XTALK2 + 1
 
 # locus codes of the unknown input (P_DIST_LOCUS): what d(t) is and where it enters
 DIST_NONE = 0
@@ -189,6 +210,23 @@ def clutch_deflection(t, y, P, motor_on):
     return d
 
 
+@njit(cache=True, fastmath=False, inline="always")
+def contact_push(d, dw, P, ext):
+    """The clutch's contact torque before its clip, k12 x + d12 dw [pu], at a deflection d outside the zone.
+
+    x = d - b or d + b is the signed penetration beyond the zone's edge [rad]; with model 1.3's
+    progressive contact (``P_PROG12``, under the guard ``ext``) the spring is k12 x (1 + prog12 |x| / X_REF).
+    The caller clips it (a contact can push, never pull). Inlined (numba IR) into its callers,
+    :func:`rhs` and :func:`zone`, which evaluate it at every stage of every step.
+    """
+    b = P[P_B]
+    x = d - b if d > b else d + b
+    spring = P[P_K12] * x
+    if ext and P[P_PROG12] != 0.0:  # progressive contact: the spring hardens with the penetration
+        spring = spring * (1.0 + P[P_PROG12] * abs(x) / X_REF)
+    return spring + P[P_D12] * dw
+
+
 @njit(cache=True, fastmath=False)
 def electromagnetic_torque(y, P):
     """m_el = psi_s_alpha i_s_beta - psi_s_beta i_s_alpha [pu] of the fluxes in y (model 1.2: saturated x_m)."""
@@ -244,6 +282,8 @@ def rhs(t, y, P, motor_on, dy, ch):
         u = P[P_U]
         if locus == DIST_SUPPLY:
             u = u * (1.0 + dd)
+        if ext and P[P_FLICKER] != 0.0:  # flicker of the voltage's amplitude at F_FLICKER
+            u = u * (1.0 + P[P_FLICKER] * math.sin(2.0 * math.pi * F_FLICKER * t))
         usa = u * math.cos(ang)
         usb = u * math.sin(ang)
         if ext and P[P_U_NEG] != 0.0:  # negative sequence: u (e^{j ang} + u_neg e^{-j ang})
@@ -270,15 +310,17 @@ def rhs(t, y, P, motor_on, dy, ch):
     dw = w1 - w2
     b = P[P_B]
     if d > b:
-        m_c = max(0.0, P[P_K12] * (d - b) + P[P_D12] * dw)
+        m_c = max(0.0, contact_push(d, dw, P, ext))
     elif d < -b:
-        m_c = min(0.0, P[P_K12] * (d + b) + P[P_D12] * dw)
+        m_c = min(0.0, contact_push(d, dw, P, ext))
     else:
         m_c = 0.0
     m_s = P[P_K2] * (y[8] - y[9]) + P[P_D2] * (w2 - w3)
     if ext and P[P_HARD2] != 0.0:  # hardening resilient element: k2 x (1 + hard2 (k2 x)^2)
         kx = P[P_K2] * (y[8] - y[9])
         m_s += P[P_HARD2] * kx * kx * kx
+    if ext and P[P_TAU_DRY2] != 0.0:  # dry friction inside the resilient element
+        m_s += P[P_TAU_DRY2] * smooth_sign(w2 - w3)
     m_a = P[P_C] * w3 + P[P_C1] * smooth_sign(w3)
     m_f = P[P_B_1] * w1
     if P[P_TAU_C1] != 0.0:
@@ -299,6 +341,11 @@ def rhs(t, y, P, motor_on, dy, ch):
             m_2 += m_pre
         if P[P_K_3] != 0.0:  # a spring from the load to ground [pu torque per revolution]
             m_3 -= P[P_K_3] * y[9] / (2.0 * math.pi)
+        if P[P_TAU_S1] != 0.0:  # Stribeck friction of the motor shaft, fading above W_STRIBECK
+            s = w1 / W_STRIBECK
+            m_1 -= P[P_TAU_S1] * smooth_sign(w1) * math.exp(-(s * s))
+        if P[P_B_3] != 0.0:  # quadratic drag on the load against its motion
+            m_3 -= P[P_B_3] * w3 * abs(w3)
         if locus == DIST_MOTOR_SHAFT:
             m_1 += dd
         elif locus == DIST_DRIVE_TRAIN:
@@ -321,6 +368,8 @@ def rhs(t, y, P, motor_on, dy, ch):
     if ext and P[P_ECC1] != 0.0:  # once-per-revolution error of the speed encoder
         ch[2] = OMEGA_B * w1 * (1.0 + P[P_ECC1] * math.sin(y[7]))
     ch[3] = r * OMEGA_B * dw3
+    if ext and P[P_XTALK2] != 0.0:  # cross-axis sensitivity of the load accelerometer to a1
+        ch[3] += P[P_XTALK2] * ch[0]
     ch[4] = r * OMEGA_B * w3
     fc = P[P_LOWPASS]
     if fc > 0.0:
@@ -372,13 +421,14 @@ def zone(t, y, P, motor_on):
     discontinuous (contact entry) or kinked (clipping).
     """
     b = P[P_B]
-    d = clutch_deflection(t, y, P, motor_on) if P[P_EXTENDED] != 0.0 else y[7] - y[8]
+    ext = P[P_EXTENDED] != 0.0
+    d = clutch_deflection(t, y, P, motor_on) if ext else y[7] - y[8]
     if -b <= d <= b:
         return 0
     dw = y[4] - y[5]
     if d > b:
-        return 1 if P[P_K12] * (d - b) + P[P_D12] * dw > 0.0 else 2
-    return -1 if P[P_K12] * (d + b) + P[P_D12] * dw < 0.0 else -2
+        return 1 if contact_push(d, dw, P, ext) > 0.0 else 2
+    return -1 if contact_push(d, dw, P, ext) < 0.0 else -2
 
 
 _zone_inlined = njit(cache=True, fastmath=False, inline="always")(zone.py_func)

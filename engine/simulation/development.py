@@ -1,15 +1,16 @@
 """Development effects: outside the catalogue, open to development of the open-world step.
 
 The locus estimate (:mod:`engine.diagnosis.locus`) must say where a gap outside the catalogue
-lies. Two families of effects outside the catalogue serve to measure it, with opposite rules:
+lies. Families of effects outside the catalogue serve to measure it, with opposite rules:
 
 * :data:`DEVELOPMENT` (this module) may be run, read and tuned on. It holds the held-back five
   of model 1.1 (:data:`~engine.simulation.held_back.HELD_BACK`, developed on since issue 10)
   and three drifts of plant parameters that no catalogue effect and no calibrated parameter
   moves: the supply frequency, the resilient element's damping and the load's inertia. They
   need no new term in the simulator (each multiplies one field of MODEL.md).
-* :data:`~engine.simulation.held_out.HELD_OUT` (model 1.2) is kept for scoring: development
-  never reads its scores.
+* :data:`~engine.simulation.held_out.HELD_OUT` (model 1.2) and
+  :data:`~engine.simulation.sealed.SEALED` (model 1.3) are kept for scoring: development never
+  reads their scores.
 
 =============================  ===============  ===============================  =============
 effect                         locus            term                             bounds

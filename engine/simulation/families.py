@@ -9,6 +9,9 @@ A protocol-2 run hides one family from the diagnosis and draws its held-back cas
   three parameter drifts; open to development of the open-world step.
 * ``held_out``: :data:`~engine.simulation.held_out.HELD_OUT` (model 1.2), kept for scoring (its
   rule: :data:`~engine.simulation.held_out.RULE`); its figures are the out-of-sample ones.
+* ``sealed``: :data:`~engine.simulation.sealed.SEALED` (model 1.3), kept for scoring (its rule:
+  :data:`~engine.simulation.sealed.RULE`); run only in blind runs of committed code, its figures
+  are out-of-sample ones.
 """
 
 from __future__ import annotations
@@ -17,11 +20,17 @@ from engine.simulation.development import DEVELOPMENT
 from engine.simulation.effects import CATALOGUE, EffectLibrary
 from engine.simulation.held_back import HELD_BACK
 from engine.simulation.held_out import HELD_OUT
+from engine.simulation.sealed import SEALED
 
 __all__ = ["DEFAULT_FAMILY", "FAMILIES", "locus_of"]
 
 #: Every family outside the catalogue, by the name a run is given.
-FAMILIES: dict[str, EffectLibrary] = {"held_back": HELD_BACK, "development": DEVELOPMENT, "held_out": HELD_OUT}
+FAMILIES: dict[str, EffectLibrary] = {
+    "held_back": HELD_BACK,
+    "development": DEVELOPMENT,
+    "held_out": HELD_OUT,
+    "sealed": SEALED,
+}
 #: The family a run hides unless told otherwise.
 DEFAULT_FAMILY: str = "held_back"
 

@@ -8,8 +8,10 @@ effects (``tau_ripple3``, ``clutch_offset``, ``tau_cog``, ``tau_C2``,
 ``m_off``) and an additive unknown input at one locus of the plant
 (:class:`Disturbance`); since model 1.2 the terms of the held-out effects
 (``u_neg``, ``sat``, ``b_2``, ``k_pre``, ``hard2``, ``k_3`` and the sensors'
-``ecc1``). The sensor chain (delay, trigger offset, low-pass,
-gain, offset, quantisation) is also an extension with neutral defaults. See
+``ecc1``); since model 1.3 the terms of the sealed effects (``u_flicker``,
+``x_leak``, ``tau_S1``, ``prog12``, ``tau_dry2``, ``b_3`` and the sensors'
+``xtalk2``). The sensor chain (delay, trigger offset, low-pass, gain, offset,
+quantisation) is also an extension with neutral defaults. See
 ``docs/model-changes.md``.
 """
 
@@ -230,6 +232,27 @@ class PlantParameters:
     k_3 : float
         Extension (1.2): a spring from the load to ground, -k_3 * theta_3 / (2 pi) on the mass
         [pu torque per revolution of theta_3].
+    u_flicker : float
+        Extension (1.3): flicker of the supply voltage [x u]: its amplitude is
+        u (1 + u_flicker sin(2 pi F_FLICKER t)), F_FLICKER = 8.8 Hz, t since switch-on (u including
+        a supply disturbance; the negative sequence of ``u_neg`` follows it).
+    x_leak : float
+        Extension (1.3): both leakage reactances higher by x_leak [pu]: x_s -> x_s + x_leak,
+        x_r -> x_r + x_leak, x_m unchanged (the simulator adds it to x_s and x_r).
+    tau_S1 : float
+        Extension (1.3): Stribeck friction on the motor shaft against its motion [pu torque],
+        tau_S1 * tanh(w_1 / W_SMOOTH) * exp(-(w_1 / W_STRIBECK)^2), W_STRIBECK = 0.005 pu (not in m_el).
+    prog12 : float
+        Extension (1.3): progressive contact of the clutch [x]: the contact spring k12 x becomes
+        k12 x (1 + prog12 x / X_REF), x >= 0 the penetration beyond the zone's edge [rad],
+        X_REF = 0.01 rad (the contact damping and the push-never-pull clip unchanged).
+    tau_dry2 : float
+        Extension (1.3): dry friction inside the resilient element [pu torque]:
+        tau_dry2 * tanh((w_2 - w_3) / W_SMOOTH) added to its torque m_s (against the relative
+        motion of the wheel and the load).
+    b_3 : float
+        Extension (1.3): quadratic drag on the load, b_3 * w_3 * abs(w_3) against its motion
+        [pu torque / pu speed^2].
     """
 
     K: float = const.K_NOMINAL
@@ -264,6 +287,12 @@ class PlantParameters:
     k_pre: float = 0.0
     hard2: float = 0.0
     k_3: float = 0.0
+    u_flicker: float = 0.0
+    x_leak: float = 0.0
+    tau_S1: float = 0.0
+    prog12: float = 0.0
+    tau_dry2: float = 0.0
+    b_3: float = 0.0
 
     @property
     def T1(self) -> float:
@@ -313,6 +342,12 @@ class PlantParameters:
         _check_range("k_pre", self.k_pre, 0.0, 1.0, "x k12")
         _check_range("hard2", self.hard2, 0.0, 100.0, "1/pu^2")
         _check_range("k_3", self.k_3, 0.0, 100.0, "pu/rev")
+        _check_range("u_flicker", self.u_flicker, 0.0, 0.5, "x u")
+        _check_range("x_leak", self.x_leak, 0.0, 1.0, "pu")
+        _check_range("tau_S1", self.tau_S1, 0.0, 100.0, "pu")
+        _check_range("prog12", self.prog12, 0.0, 1000.0, "x")
+        _check_range("tau_dry2", self.tau_dry2, 0.0, 100.0, "pu")
+        _check_range("b_3", self.b_3, 0.0, 1000.0, "pu")
         for name in ("k12", "k2"):
             _check_range(name, getattr(self, name), 1e-3, 1e5, "pu/rad")
         for name in ("r_s", "r_r"):
@@ -354,10 +389,12 @@ class SensorParameters:
     5. **quantisation** of omega1 to multiples of ``speed_quantum``.
 
     Model 1.2 adds an error of the speed encoder before the chain: omega1 reads
-    ``Omega_b w_1 (1 + ecc1 sin(theta_1))`` (once per revolution of the motor shaft).
+    ``Omega_b w_1 (1 + ecc1 sin(theta_1))`` (once per revolution of the motor shaft). Model 1.3
+    adds the cross-axis sensitivity of the load's accelerometer before the chain: a2 reads
+    ``a2 + xtalk2 a1``.
 
-    Steps 1-2 (and the encoder's error) are in the kernel, 3-5 act on the sampled values
-    (:func:`engine.simulation.simulator.apply_sensor_readout`).
+    Steps 1-2 (and the encoder's and the accelerometer's errors) are in the kernel, 3-5 act on the
+    sampled values (:func:`engine.simulation.simulator.apply_sensor_readout`).
 
     Parameters
     ----------
@@ -378,6 +415,9 @@ class SensorParameters:
     ecc1 : float
         Extension (1.2): eccentricity of the speed encoder [x], in [0, 0.5]: omega1 reads
         Omega_b w_1 (1 + ecc1 sin(theta_1)) before the low-pass, gain, offset and quantisation; 0 means none.
+    xtalk2 : float
+        Extension (1.3): cross-axis sensitivity of the load's accelerometer [x], in [0, 1]: a2 reads
+        a2 + xtalk2 a1 [m/s^2] (the analog values, before the low-pass, gain and offset); 0 means none.
     """
 
     delay: float = 0.0
@@ -387,6 +427,7 @@ class SensorParameters:
     gain: float = 1.0
     offset_rms: float = 0.0
     ecc1: float = 0.0
+    xtalk2: float = 0.0
 
     def validate(self) -> SensorParameters:
         for f in fields(self):
@@ -401,6 +442,7 @@ class SensorParameters:
         _check_range("gain", self.gain, 0.1, 10.0, "x")
         _check_range("offset_rms", self.offset_rms, -1.0, 1.0, "x RMS")
         _check_range("ecc1", self.ecc1, 0.0, 0.5, "x")
+        _check_range("xtalk2", self.xtalk2, 0.0, 1.0, "x")
         return self
 
     def replace(self, **changes: Any) -> SensorParameters:

@@ -1,8 +1,8 @@
 """Reference solution of the backlash test with scipy's ``solve_ivp``.
 
 A second, independent transcription of MODEL.md, of the effect catalogue, of the
-held-back effects and of the additive unknown input of model 1.1, and of the held-out
-effects of model 1.2,
+held-back effects and of the additive unknown input of model 1.1, of the held-out
+effects of model 1.2 and of the sealed effects of model 1.3,
 used as the yardstick of the numba kernel (MODEL.md section 4, relative
 tolerance 1e-9; ``tests/test_simulation_accuracy.py``) and as the baseline of
 ``bench/bench_simulator.py``. It is slow on purpose: plain numpy, complex
@@ -42,6 +42,17 @@ switch-off); windage ``-v w_1 |w_1|`` on the motor shaft; a spring ``v k_12 d`` 
 ``k_2 x (1 + v (k_2 x)^2)``; a spring ``-v theta_3 / (2 pi)`` from the load to ground; and the
 speed encoder's ``omega1 = Omega_b w_1 (1 + v sin theta_1)`` before the sensor chain.
 
+Model 1.3 (``docs/model-changes.md``)
+-------------------------------------
+The sealed effects (:data:`engine.simulation.SEALED`), written out here from their definitions:
+the supply's amplitude times ``1 + v sin(2 pi F_FLICKER t)`` (with the unbalance and a supply
+input as above); both leakages higher by v, ``x_s + v`` and ``x_r + v`` in the inductance matrix
+(x_m kept, so with saturation too); Stribeck friction ``v tanh(w_1 / W_SMOOTH) exp(-(w_1 /
+W_STRIBECK)^2)`` against the motor shaft; the contact spring ``k_12 x (1 + v x / X_REF)`` of the
+penetration ``x = |d| - b`` beyond the zone's edge, with the sign of d; dry friction
+``v tanh((w_2 - w_3) / W_SMOOTH)`` in the resilient element's torque; drag ``-v w_3 |w_3|`` on the
+load; and the load accelerometer's ``a2 + v a1`` before the sensor chain.
+
 Sensor chain
 ------------
 Applied in the order of the measurement:
@@ -77,6 +88,7 @@ from engine import constants as const
 from engine.constants import (
     CHANNELS,
     COGGING_ORDER,
+    F_FLICKER,
     LOAD_RIPPLE_HZ,
     OMEGA_B,
     POST_EVENT_TIME,
@@ -86,6 +98,8 @@ from engine.constants import (
     TM_PER_J,
     W_B,
     W_SMOOTH,
+    W_STRIBECK,
+    X_REF,
 )
 
 if TYPE_CHECKING:
@@ -164,6 +178,17 @@ HELD_OUT_NEUTRAL: Mapping[str, float] = {
     "speed_encoder_eccentricity": 0.0,  # omega1 read as Omega_b w_1 (1 + value sin theta_1)
 }
 
+#: The sealed effects (model 1.3), at their "no effect" value.
+SEALED_NEUTRAL: Mapping[str, float] = {
+    "supply_flicker": 0.0,  # x u: u -> u (1 + value sin(2 pi F_FLICKER t))
+    "leakage_reactance": 0.0,  # pu: x_s -> x_s + value, x_r -> x_r + value, x_m unchanged
+    "motor_stribeck": 0.0,  # pu: - value tanh(w_1 / W_SMOOTH) exp(-(w_1 / W_STRIBECK)^2) on the motor shaft
+    "clutch_progressive_contact": 0.0,  # x: contact spring k_12 x (1 + value x / X_REF), x the penetration
+    "resilient_dry_friction": 0.0,  # pu: + value tanh((w_2 - w_3) / W_SMOOTH) in the resilient torque m_s
+    "load_quadratic_drag": 0.0,  # pu torque / pu speed^2: - value w_3 |w_3| on the mass m2
+    "accelerometer_crosstalk": 0.0,  # a2 read as a2 + value a1
+}
+
 _N_PLANT = 10  # psi_s (2), psi_r (2), w_1..3, theta_1..3
 _N_CHANNELS = len(CHANNELS)
 _OMEGA1 = CHANNELS.index("omega1")
@@ -199,7 +224,7 @@ def _resolve(parameters: Mapping[str, float] | None, effects: Mapping[str, float
         if name not in MODEL_DEFAULTS:
             raise ValueError(f"unknown MODEL.md parameter {name!r}; known: {', '.join(MODEL_DEFAULTS)}")
         values[name] = float(value)
-    neutral_values = {**EFFECT_NEUTRAL, **HELD_BACK_NEUTRAL, **HELD_OUT_NEUTRAL}
+    neutral_values = {**EFFECT_NEUTRAL, **HELD_BACK_NEUTRAL, **HELD_OUT_NEUTRAL, **SEALED_NEUTRAL}
     for name in effects or {}:
         if name not in neutral_values:
             raise ValueError(f"the reference does not implement effect {name!r}; known: {', '.join(neutral_values)}")
@@ -241,7 +266,8 @@ class ReferenceModel:
     ----------
     values : mapping
         Every MODEL.md name and every effect name of :data:`EFFECT_NEUTRAL`,
-        :data:`HELD_BACK_NEUTRAL` and :data:`HELD_OUT_NEUTRAL` (see :func:`reference_simulate`).
+        :data:`HELD_BACK_NEUTRAL`, :data:`HELD_OUT_NEUTRAL` and :data:`SEALED_NEUTRAL` (see
+        :func:`reference_simulate`).
     disturbance : mapping, optional
         The unknown input ``{"locus", "t0", "dt", "values"}``.
 
@@ -262,15 +288,19 @@ class ReferenceModel:
         self.windage, self.preload = v["motor_windage"], v["clutch_preload_spring"]
         self.hardening, self.load_spring = v["resilient_hardening"], v["load_position_spring"]
         self.eccentricity = v["speed_encoder_eccentricity"]
-        self.x_s, self.x_r, self.x_m = v["x_s"], v["x_r"], v["x_m"]
+        self.flicker, self.stribeck = v["supply_flicker"], v["motor_stribeck"]
+        self.progressive, self.dry_friction = v["clutch_progressive_contact"], v["resilient_dry_friction"]
+        self.drag, self.crosstalk = v["load_quadratic_drag"], v["accelerometer_crosstalk"]
+        leak = v["leakage_reactance"]  # both leakages x_s - x_m and x_r - x_m higher by it
+        self.x_s, self.x_r, self.x_m = v["x_s"] + leak, v["x_r"] + leak, v["x_m"]
         self.switch_off = (math.inf, 0.0)
         self.u = v["u"] * v["supply_voltage"]
         self.f = v["f"]
         self.r_s = v["r_s"] * v["stator_resistance_drift"]
         self.r_r = v["r_r"] * v["rotor_resistance_drift"]
-        det = v["x_s"] * v["x_r"] - v["x_m"] ** 2
+        det = self.x_s * self.x_r - self.x_m**2
         # [i_s, i_r] = L^-1 [psi_s, psi_r]
-        self.Linv = np.array([[v["x_r"], -v["x_m"]], [-v["x_m"], v["x_s"]]]) / det
+        self.Linv = np.array([[self.x_r, -self.x_m], [-self.x_m, self.x_s]]) / det
         # MODEL.md: T_i = J_i * 0.86 / 0.87 s; T_3 is given directly
         self.T = np.array([v["J1"] * TM_PER_J, v["J2"] * v["load_inertia"] * TM_PER_J, v["T3"]])
         self.half_gap = v["K"] / v["r"]
@@ -295,7 +325,9 @@ class ReferenceModel:
         if motor_on:
             i_s, i_r = self.inverse_inductance(psi[0]) @ psi
             phase = np.exp(1j * self.f * W_B * t)
-            u_s = self.u * (1.0 + self.input.at("supply", t)) * (phase + self.unbalance * np.conj(phase))
+            amplitude = self.u * (1.0 + self.input.at("supply", t))
+            amplitude *= 1.0 + self.flicker * math.sin(2.0 * math.pi * F_FLICKER * t)
+            u_s = amplitude * (phase + self.unbalance * np.conj(phase))
             dpsi[0] = W_B * (u_s - self.r_s * i_s)
             dpsi[1] = W_B * (-self.r_r * i_r + 1j * w[0] * psi[1])
             m_el = float(np.imag(np.conj(psi[0]) * i_s))
@@ -304,18 +336,22 @@ class ReferenceModel:
             m_el = self.decay * m_e * math.exp(-(t - t_e) / SWITCH_OFF_DECAY_TIME)
         m_el += self.input.at("motor_electrical", t, motor_on)
         d, dw, b = self.deflection(t, y, motor_on), w[0] - w[1], self.half_gap
+        penetration = abs(d) - b  # beyond the zone's edge [rad]
+        contact_spring = self.k12 * penetration * (1.0 + self.progressive * penetration / X_REF)
         if d > b:
-            m_c = max(0.0, self.k12 * (d - b) + self.d12 * dw)
+            m_c = max(0.0, contact_spring + self.d12 * dw)
         elif d < -b:
-            m_c = min(0.0, self.k12 * (d + b) + self.d12 * dw)
+            m_c = min(0.0, -contact_spring + self.d12 * dw)
         else:
             m_c = 0.0
         spring = self.k2 * (th[1] - th[2])
         m_s = spring * (1.0 + self.hardening * spring**2) + self.d2 * (w[1] - w[2])
+        m_s += self.dry_friction * math.tanh((w[1] - w[2]) / W_SMOOTH)
         m_a = self.c * w[2] + self.c1 * np.tanh(w[2] / W_SMOOTH)
         m_f = self.coulomb * np.tanh(w[0] / W_SMOOTH) + self.viscous * w[0]
         m_f += self.cogging * math.sin(COGGING_ORDER * th[0])
         m_f += self.windage * w[0] * abs(w[0])
+        m_f += self.stribeck * math.tanh(w[0] / W_SMOOTH) * math.exp(-((w[0] / W_STRIBECK) ** 2))
         m_pre = self.preload * self.k12 * d  # the spring across the clutch, inside the zone too
         torques = np.array(
             [
@@ -329,14 +365,15 @@ class ReferenceModel:
                 - m_a
                 + self.ripple * math.sin(2.0 * math.pi * LOAD_RIPPLE_HZ * t)
                 - self.load_spring * th[2] / (2.0 * math.pi)
+                - self.drag * w[2] * abs(w[2])
                 + self.input.at("load", t, motor_on),
             ]
         )
         dw_dt = torques / self.T
         omega1 = OMEGA_B * w[0] * (1.0 + self.eccentricity * math.sin(th[0]))  # the encoder's reading
-        raw = np.array(
-            [self.r * OMEGA_B * dw_dt[0], m_el, omega1, self.r * OMEGA_B * dw_dt[2], self.r * OMEGA_B * w[2]]
-        )
+        a1, a2 = self.r * OMEGA_B * dw_dt[0], self.r * OMEGA_B * dw_dt[2]
+        a2 += self.crosstalk * a1  # the load accelerometer's cross-axis sensitivity
+        raw = np.array([a1, m_el, omega1, a2, self.r * OMEGA_B * w[2]])
         parts = [dpsi.real, dpsi.imag, dw_dt, OMEGA_B * w]
         if self.filter_rate:
             parts.append(self.filter_rate * (raw - y[_N_PLANT:]))
@@ -378,8 +415,9 @@ def reference_simulate(
         MODEL.md parameters that differ from :data:`MODEL_DEFAULTS`, by their
         MODEL.md names (e.g. ``{"K": 0.005, "J1": 0.87, "c": 1.0}``).
     effects : mapping, optional
-        Catalogued, held-back and held-out effects by name and value (keys of
-        :data:`EFFECT_NEUTRAL`, :data:`HELD_BACK_NEUTRAL` and :data:`HELD_OUT_NEUTRAL`).
+        Catalogued, held-back, held-out and sealed effects by name and value (keys of
+        :data:`EFFECT_NEUTRAL`, :data:`HELD_BACK_NEUTRAL`, :data:`HELD_OUT_NEUTRAL` and
+        :data:`SEALED_NEUTRAL`).
     method, rtol, atol
         ``solve_ivp`` settings.
     grid : SampleGrid, optional
@@ -504,6 +542,13 @@ def reference_inputs(case: Case) -> tuple[dict[str, float], dict[str, float]]:
         "resilient_hardening": p.hard2,
         "load_position_spring": p.k_3,
         "speed_encoder_eccentricity": s.ecc1,
+        "supply_flicker": p.u_flicker,
+        "leakage_reactance": p.x_leak,
+        "motor_stribeck": p.tau_S1,
+        "clutch_progressive_contact": p.prog12,
+        "resilient_dry_friction": p.tau_dry2,
+        "load_quadratic_drag": p.b_3,
+        "accelerometer_crosstalk": s.xtalk2,
     }
     return parameters, effects
 

@@ -161,9 +161,11 @@ def parameter_vector(
     Parameters
     ----------
     case : Case
-        Plant (with its model-1.1 and 1.2 terms and unknown input, if any) and measurement chain;
-        only the chain's delay, trigger offset, low-pass and (model 1.2) encoder eccentricity enter
-        the kernel (gain, offset and quantisation act afterwards: :func:`apply_sensor_readout`).
+        Plant (with its model-1.1, 1.2 and 1.3 terms and unknown input, if any) and measurement
+        chain; only the chain's delay, trigger offset, low-pass, (model 1.2) encoder eccentricity
+        and (model 1.3) accelerometer cross-talk enter the kernel (gain, offset and quantisation act
+        afterwards: :func:`apply_sensor_readout`). Model 1.3's higher leakage reactances
+        (``x_leak``) enter as ``x_s + x_leak`` and ``x_r + x_leak``, with no term of their own.
     solver : SolverSettings
         RK4 step [s] and the longest time to the event [s].
     grid : SampleGrid
@@ -176,7 +178,7 @@ def parameter_vector(
     p, s = case.plant, case.sensors
     P = np.empty(kern.N_PARAMS)
     P[kern.P_R_S], P[kern.P_R_R] = p.r_s, p.r_r
-    P[kern.P_X_S], P[kern.P_X_R], P[kern.P_X_M] = p.x_s, p.x_r, p.x_m
+    P[kern.P_X_S], P[kern.P_X_R], P[kern.P_X_M] = p.x_s + p.x_leak, p.x_r + p.x_leak, p.x_m  # 1.3: leakages
     P[kern.P_U], P[kern.P_F] = p.u, p.f
     P[kern.P_T1], P[kern.P_T2], P[kern.P_T3] = p.T1, p.T2, p.T3
     P[kern.P_B], P[kern.P_K12], P[kern.P_D12] = p.b, p.k12, p.d12
@@ -201,10 +203,14 @@ def parameter_vector(
     P[kern.P_U_NEG], P[kern.P_SAT], P[kern.P_B_2] = p.u_neg, p.sat, p.b_2
     P[kern.P_K_PRE], P[kern.P_HARD2], P[kern.P_K_3] = p.k_pre, p.hard2, p.k_3
     P[kern.P_ECC1] = s.ecc1
+    # model 1.3 (appended after 1.2's)
+    P[kern.P_FLICKER], P[kern.P_TAU_S1], P[kern.P_PROG12] = p.u_flicker, p.tau_S1, p.prog12
+    P[kern.P_TAU_DRY2], P[kern.P_B_3], P[kern.P_XTALK2] = p.tau_dry2, p.b_3, s.xtalk2
     extended = (
         dist is not None
         or any(P[kern.P_TAU_RIPPLE3 : kern.P_M_OFF + 1] != 0.0)
-        or any(P[kern.P_U_NEG : kern.P_ECC1 + 1] != 0.0)
+        or any(P[kern.P_U_NEG : kern.P_XTALK2 + 1] != 0.0)
+        or p.x_leak != 0.0  # no kernel term (folded into x_s, x_r above); switched on as every 1.3 term is
     )
     P[kern.P_EXTENDED] = 1.0 if extended else 0.0
     return P
@@ -379,7 +385,8 @@ def simulate_batch(
     library : EffectLibrary
         Where the names of ``effects`` are looked up: the catalogue by default;
         e.g. :data:`~engine.simulation.held_back.HELD_BACK` for the held-back effects,
-        :data:`~engine.simulation.held_out.HELD_OUT` for the held-out ones (model 1.2).
+        :data:`~engine.simulation.held_out.HELD_OUT` for the held-out ones (model 1.2),
+        :data:`~engine.simulation.sealed.SEALED` for the sealed ones (model 1.3).
 
     Returns
     -------
