@@ -174,32 +174,59 @@ def friction_fits(
     fitted: list[_Trial] = []
     for locus in _friction_loci(names):
         effect = _friction_effect(cal.case, locus)
-        try:
-            cand = fit_candidate(record, cal, space, effect, global_search=True)
-        except (CalibrationError, ValueError) as exc:
-            logger.info("locus: the %s friction could not be fitted (%s)", locus, exc)
+        got = _global_fit(record, cal, space, effect, names)
+        if got is None:
             continue
-        fit = cand.calibration
-        if fit is None:
-            continue
-        used += fit.n_simulations
-        p = np.array([fit.values[n] - current(cal.case, n) if n in fit.values else 0.0 for n in names])
-        f = fit.values[effect.name] - effect.neutral
-        if f > 0.0:
-            fitted.append(_Trial(locus, np.zeros(N_EXTRAS), p, f, COULOMB_FIELDS[locus]))
+        p, value, n_sim = got
+        used += n_sim
+        if value - effect.neutral > 0.0:
+            fitted.append(_Trial(locus, np.zeros(N_EXTRAS), p, value - effect.neutral, COULOMB_FIELDS[locus]))
+    out, n_sim = _keep_better(cal, names, resp, obs, best, fitted, settings)
+    return out, used + n_sim
+
+
+def _global_fit(
+    record: Record, cal: CalibrationResult, space: ModelSpace, effect: Effect, names: list[str]
+) -> tuple[np.ndarray, float, int] | None:
+    """An effect fitted with the calibrated parameters by a global search: (their moves, the effect's
+    value, simulations used), or None when it cannot be fitted."""
+    assert cal.case is not None
+    try:
+        cand = fit_candidate(record, cal, space, effect, global_search=True)
+    except (CalibrationError, ValueError) as exc:
+        logger.info("locus: %s could not be fitted (%s)", effect.name, exc)
+        return None
+    fit = cand.calibration
+    if fit is None:
+        return None
+    p = np.array([fit.values[n] - current(cal.case, n) if n in fit.values else 0.0 for n in names])
+    return p, float(fit.values[effect.name]), fit.n_simulations
+
+
+def _keep_better(
+    cal: CalibrationResult,
+    names: list[str],
+    resp: Responses,
+    obs: Observed,
+    best: dict[str, _Start],
+    fitted: list[_Trial],
+    settings: LocusSettings,
+) -> tuple[dict[str, _Start], int]:
+    """Each fitted trial, simulated at the locus's step, replaces its locus's start where its chi2 is
+    lower; returns the starts and the simulations used."""
+    assert cal.case is not None
     if not fitted:
-        return best, used
+        return best, 0
     ch, _, status = run_cases(
         [t.case(cal.case, names, resp, t.p) for t in fitted], SolverSettings(max_step=settings.step), obs.record.grid
     )
-    used += len(fitted)
     out = dict(best)
     for t, c, st in zip(fitted, ch, status, strict=True):
         c2 = float(np.sum(obs.residual(c) ** 2)) if st == 0 else math.inf
-        logger.debug("locus: %s friction fitted %.4g pu, chi2 %.4g (scan %.4g)", t.locus, t.f, c2, out[t.locus].chi2)
+        logger.debug("locus: %s %s %.4g fitted, chi2 %.4g (start %.4g)", t.locus, t.field, t.f, c2, out[t.locus].chi2)
         if c2 < out[t.locus].chi2:
             out[t.locus] = _Start(t.e, t.p, c2, t.f, t.field)
-    return out, used
+    return out, len(fitted)
 
 
 def drift_fits(
@@ -247,31 +274,15 @@ def drift_fits(
                 f"{field}_drift", f"{meaning} multiplied by value", "plant", field, "multiply", bounds, 1.0,
                 "x", cast(Locus, locus),
             )  # fmt: skip
-            try:
-                cand = fit_candidate(record, cal, space, effect, global_search=True)
-            except (CalibrationError, ValueError) as exc:
-                logger.info("locus: the drift of %s could not be fitted (%s)", field, exc)
+            got = _global_fit(record, cal, space, effect, names)
+            if got is None:
                 continue
-            fit = cand.calibration
-            if fit is None:
-                continue
-            used += fit.n_simulations
-            p = np.array([fit.values[n] - current(cal.case, n) if n in fit.values else 0.0 for n in names])
+            p, value, n_sim = got
+            used += n_sim
             # the effect multiplies the space's base case, whose part parameters are the calibrated case's
-            fitted.append(_Trial(locus, np.zeros(N_EXTRAS), p, float(fit.values[effect.name]) - 1.0, field))
-    if not fitted:
-        return best, used
-    ch, _, status = run_cases(
-        [t.case(cal.case, names, resp, t.p) for t in fitted], SolverSettings(max_step=settings.step), obs.record.grid
-    )
-    used += len(fitted)
-    out = dict(best)
-    for t, c, st in zip(fitted, ch, status, strict=True):
-        c2 = float(np.sum(obs.residual(c) ** 2)) if st == 0 else math.inf
-        logger.debug("locus: %s x %.4g fitted, chi2 %.4g (start %.4g)", t.field, 1.0 + t.f, c2, out[t.locus].chi2)
-        if c2 < out[t.locus].chi2:
-            out[t.locus] = _Start(t.e, t.p, c2, t.f, t.field)
-    return out, used
+            fitted.append(_Trial(locus, np.zeros(N_EXTRAS), p, value - 1.0, field))
+    out, n_sim = _keep_better(cal, names, resp, obs, best, fitted, settings)
+    return out, used + n_sim
 
 
 def _base_points(cal: CalibrationResult, names: list[str]) -> list[np.ndarray]:
