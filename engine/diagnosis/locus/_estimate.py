@@ -100,6 +100,7 @@ def _estimate(
     chi2 = float(r @ r)
     ln_n = math.log(max(n, 2))
     obs = Observed(record, rows, data, sigma)
+    space = space or default_space(record)  # the joint fits' space (friction, drifts)
 
     # 1. linearised around the calibrated trajectory, every locus at once
     resp = responses(record, cal, sigma, rows, settings)
@@ -127,10 +128,10 @@ def _estimate(
     n_sim += used
     if settings.friction_fits:
         # on the test window, as the calibration and every locus fit (a longer record is cut, not misread)
-        scan, used = friction_fits(record, cal, space or default_space(record), resp, obs, scan, settings)
+        scan, used = friction_fits(record, cal, space, resp, obs, scan, settings)
         n_sim += used
     if settings.part_drifts:
-        scan, used = drift_fits(record, cal, space or default_space(record), resp, obs, scan, settings, known_drifts)
+        scan, used = drift_fits(record, cal, space, resp, obs, scan, settings, known_drifts)
         n_sim += used
 
     # 3. Gauss-Newton refinement: one iteration of every locus (the linearised ranking misleads
