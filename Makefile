@@ -32,8 +32,13 @@ docs: $(STAMP)
 system-deps:
 	sh .ci/system-deps.sh
 
+# the default suite on $(TEST_WORKERS) workers (pytest-xdist), then alone the tests that measure a
+# latency or a timing (marked serial), which the other worker's load would make flaky
+TEST_WORKERS ?= 2
+
 test: lint docs system-deps
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) -m "not slow and not serial"
+	$(BIN)/python -m pytest -q -m "serial and not slow"
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow

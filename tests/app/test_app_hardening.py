@@ -54,6 +54,9 @@ JSON = {"Content-Type": "application/json"}
 KEY = "s3cret-test-key"
 #: Size of the large bodies [bytes] (the issue's "20 MB record").
 LARGE_BODY = 20_000_000
+#: Latency budgets and client timeouts are measured here: run alone, after the parallel run.
+pytestmark = pytest.mark.serial
+
 #: Longest ``GET /healthz`` may take while a large body is parsed [s].
 HEALTHZ_BUDGET = 1.0
 

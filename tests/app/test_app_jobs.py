@@ -147,6 +147,7 @@ def test_a_restart_marks_unfinished_jobs_interrupted_and_a_retry_runs_them_again
     manager.shutdown()
 
 
+@pytest.mark.serial  # asserts the worker ends within 1 s of the cancel
 def test_cancelling_a_running_process_job_terminates_its_worker_at_once(tmp_path: Path) -> None:
     manager = make_manager(tmp_path, lambda spec, progress: None)
     pid_file = tmp_path / "worker.pid"

@@ -41,7 +41,8 @@ from servicekit import SMALL_TRAINING, free_port, wait_for_job
 from engine.records import Record
 from engine.simulation import PlantParameters, add_white_noise, simulate
 
-pytestmark = pytest.mark.container
+# serial: the image build takes both cores, and its health checks have deadlines
+pytestmark = [pytest.mark.container, pytest.mark.serial]
 
 REPO = Path(__file__).resolve().parents[2]
 SCRIPT_IN_SHARED = Path("shared") / "tools" / "local-python-base.sh"
