@@ -195,6 +195,8 @@ def test_a_wheel_friction_that_stops_the_wheel_is_a_coulomb_friction_on_the_driv
     term = rep.term
     assert term is not None and term.follows == "speed"
     assert term.details["coulomb_friction"] == pytest.approx(0.09, rel=0.1)
+    lo, hi = term.details["coulomb_friction_interval_95"]  # the fit's interval at the final estimate
+    assert lo <= 0.09 <= hi
     assert "against the motion of the drive wheel" in term.description
 
 
@@ -214,7 +216,12 @@ def test_a_supply_frequency_off_its_nominal_value_is_a_drift_at_the_supply() -> 
     term = rep.term
     assert term is not None and term.details["drift_field"] == "f"
     assert term.details["drift_factor"] == pytest.approx(1.02, abs=0.002)
-    assert "supply frequency f at about 1.02 times" in term.description
+    assert term.description.startswith("the supply frequency f at about 1.0")
+    # its interval, from the fit at the final estimate, covers the truth and is not wider than the factor's 1 %
+    lo, hi = term.details["drift_factor_interval_95"]
+    assert lo <= 1.02 <= hi
+    assert 0.0 < hi - lo < 0.02
+    assert "95 % interval" in term.description
 
 
 def test_no_gap_no_confident_locus() -> None:

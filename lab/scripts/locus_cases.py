@@ -80,6 +80,12 @@ def main(argv: list[str] | None = None) -> int:
             if out.get("scores")
             else None,
             "description": report.description,
+            # the part term's value and its interval (a friction [pu] or a drift's factor), if any
+            "part_term": {
+                k: v
+                for k, v in (report.term.details.items() if report.term is not None else ())
+                if k.startswith(("drift_", "coulomb_"))
+            },
             "nominal_chi2n": round(nominal.reduced_chi2, 2),
             "seconds": round(time.perf_counter() - t0, 1),
             "locus_simulations": report.n_simulations,

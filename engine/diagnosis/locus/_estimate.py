@@ -19,8 +19,9 @@ from engine.diagnosis.locus._linear import linear_fit, orth, penalised_fit, proj
 from engine.diagnosis.locus._refine import Estimate, refine
 from engine.diagnosis.locus._report import LocusError, LocusReport, LocusScore, LocusSettings
 from engine.diagnosis.locus._responses import N_EXTRAS, Observed, responses
-from engine.diagnosis.locus._starts import drift_fits, extras_scan, friction_fits, refinement_start
+from engine.diagnosis.locus._starts import extras_scan, joint_fits, refinement_start
 from engine.diagnosis.locus._term import locus_term, sensor_term
+from engine.diagnosis.locus._uncertainty import part_term_sigma
 from engine.diagnosis.space import ModelSpace, default_space
 from engine.parallel import single_threaded_blas
 from engine.records import Record
@@ -59,7 +60,7 @@ def estimate_locus(
     known_drifts : mapping, optional
         Global joint fits of part-parameter drifts already made (the diagnosis's escalated
         catalogue candidates of the same fields), by field: the fitted calibrated parameters and
-        the drift's factor under ``"factor"``; those are not fitted again (:func:`drift_fits`).
+        the drift's factor under ``"factor"``; those are not fitted again (:func:`~engine.diagnosis.locus._starts.joint_fits`).
 
     Returns
     -------
@@ -126,13 +127,11 @@ def _estimate(
     # linearise (a constant offset of the backlash zone shifts the impacts)
     scan, chi2_base, used = extras_scan(cal, resp, obs, settings)
     n_sim += used
-    if settings.friction_fits:
-        # on the test window, as the calibration and every locus fit (a longer record is cut, not misread)
-        scan, used = friction_fits(record, cal, space, resp, obs, scan, settings)
-        n_sim += used
-    if settings.part_drifts:
-        scan, used = drift_fits(record, cal, space, resp, obs, scan, settings, known_drifts)
-        n_sim += used
+    # each part's Coulomb friction and parameter drifts, fitted jointly with the calibrated
+    # parameters on the test window, as the calibration and every locus fit (a longer record is
+    # cut, not misread)
+    scan, used = joint_fits(record, cal, space, resp, obs, scan, settings, known_drifts)
+    n_sim += used
 
     # 3. Gauss-Newton refinement: one iteration of every locus (the linearised ranking misleads
     # when the term is strong), then more for the best ones
@@ -201,7 +200,10 @@ def _estimate(
     else:
         est = estimates[best]
         chi2_injected = est.rss if est.refined else math.nan
-        term = locus_term(best, est, resp, cal, t_rel, settings)
+        # how well the record determines the value of a part term, if the locus ends with one
+        part_sigma, used = part_term_sigma(cal, best, resp, est, obs, dispersion, settings)
+        n_sim += used
+        term = locus_term(best, est, resp, cal, t_rel, settings, part_sigma)
         if not est.refined or est.rss > chi2:
             notes.append(
                 "injecting the estimated input into the calibrated case does not lower chi2: the gap is too "

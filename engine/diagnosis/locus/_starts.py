@@ -1,10 +1,11 @@
 """The starts of the refinement (step 3 of the method).
 
 A scan of simple inputs (a constant or a step at every locus, a Coulomb friction [pu] at every
-rotating part, a drift of each of a part's own parameters) from the calibration and from its global starts, a dense scan of a zone offset
+rotating part) from the calibration and from its global starts, a dense scan of a zone offset
 [rad], damped Gauss-Newton steps of each locus's best (:func:`extras_scan`); the joint fits of
-every part's Coulomb friction with the calibrated parameters (:func:`friction_fits`); and the
-choice between the scan and the linearised estimate (:func:`refinement_start`).
+every part's Coulomb friction and of each drift of a part's own parameters with the calibrated
+parameters (:func:`joint_fits`); and the choice between the scan and the linearised estimate
+(:func:`refinement_start`).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from typing import cast
 import numpy as np
 
 from engine.diagnosis.calibration import CalibrationError, CalibrationResult
-from engine.diagnosis.candidate import fit_candidate
+from engine.diagnosis.candidate import CandidateSettings, fit_candidate
 from engine.diagnosis.locus._cases import (
     MIN_DRIFT,
     current,
@@ -33,8 +34,9 @@ from engine.diagnosis.locus._refine import STEP_LENGTHS, Estimate
 from engine.diagnosis.locus._report import LocusSettings
 from engine.diagnosis.locus._responses import N_EXTRAS, PROBE, Observed, Responses
 from engine.diagnosis.space import ModelSpace
+from engine.parallel import Runner, single_threaded_blas
 from engine.records import Record
-from engine.simulation import DISTURBANCE_LOCI, Case, Effect, Locus, SolverSettings, run_cases
+from engine.simulation import DISTURBANCE_LOCI, Case, Effect, Locus, SolverSettings, run_cases, serial_kernel
 from engine.simulation.parameters import COULOMB_FIELDS, PART_FIELDS
 
 logger = logging.getLogger(__name__)
@@ -144,7 +146,17 @@ def _friction_effect(case: Case, locus: str) -> Effect:
     )
 
 
-def friction_fits(
+def _drift_effect(locus: str, field: str) -> Effect:
+    """A drift of the part parameter ``field`` at ``locus`` by a factor, as an effect on top of the
+    calibrated case (neutral 1, within the parameter's plausible range of :data:`PART_FIELDS`)."""
+    meaning, bounds = PART_FIELDS[locus][field]
+    return Effect(
+        f"{field}_drift", f"{meaning} multiplied by value", "plant", field, "multiply", bounds, 1.0,
+        "x", cast(Locus, locus),
+    )  # fmt: skip
+
+
+def joint_fits(
     record: Record,
     cal: CalibrationResult,
     space: ModelSpace,
@@ -152,35 +164,74 @@ def friction_fits(
     obs: Observed,
     best: dict[str, _Start],
     settings: LocusSettings,
+    known: Mapping[str, Mapping[str, float]] | None = None,
 ) -> tuple[dict[str, _Start], int]:
-    """Every part's Coulomb friction fitted jointly with the calibrated parameters, globally.
+    """Every part's own terms fitted jointly with the calibrated parameters, by a global search.
 
-    The scan's coarse friction sizes and two Gauss-Newton steps find a friction only near the
-    calibrated point; one strong enough to stop a part moves the impacts, and its valley in
-    (friction, K, J1) is narrower than the scan's steps, and the calibration's global starts,
-    searched without the friction, are off too. On the record of
+    **Coulomb frictions** (``settings.friction_fits``). The scan's coarse friction sizes and two
+    Gauss-Newton steps find a friction only near the calibrated point; one strong enough to stop
+    a part moves the impacts, and its valley in (friction, K, J1) is narrower than the scan's
+    steps, and the calibration's global starts, searched without the friction, are off too. On
+    the record of
     ``tests/test_locus.py::test_a_wheel_friction_that_stops_the_wheel_is_a_coulomb_friction_on_the_drive_wheel``
-    (a wheel friction of 0.09 pu at the nominal plant, 40 dB; the test asserts the last is above 100):
-    the true friction, J1 and c give chi2/n 1.02 with the true K, 159 with K 1 % off and 547 with
-    K 3 % off. The joint fit is a catalogue candidate's fit with the global search
-    (:func:`~engine.diagnosis.candidate.fit_candidate`, ``global_search=True``; 2-3 s and about
-    1000 simulations each on 2 cores). Its point, simulated at the locus's step, replaces the
-    scan's start of that locus where its chi2 is lower. Returns the starts and the simulations
-    used.
+    (a wheel friction of 0.09 pu at the nominal plant, 40 dB; the test asserts the last is above
+    100): the true friction, J1 and c give chi2/n 1.02 with the true K, 159 with K 1 % off and
+    547 with K 3 % off.
+
+    **Drifts of a part's own parameters** (``settings.part_drifts``,
+    :data:`~engine.simulation.parameters.PART_FIELDS`), each by a factor. A drift that acts
+    through the whole run (the supply frequency moves the motor's speed from the switch-on) is
+    absorbed by the calibration, which moves K, J1 and c to meet it partly; the drift alone from
+    the calibrated point then makes the fit worse (a supply frequency 1.7 % high: chi2/n 57
+    calibrated, 1453 with the drift added at the calibrated K, J1 and c, 0.98 refitted), so it
+    must be fitted with them, and globally: the valley is narrow, and a seeded fit stops short (a
+    frequency 2 % high, nominal plant, 40 dB: seeded fits over three ranges gave 1.0191, 1.0146
+    and 1.0066 with chi2/n 22-171; the global search 1.0200 with 0.98 from each). A scan of the
+    factors with a linearised move of the calibrated parameters does not rank such a drift either
+    (on that record the frequency's scan left the most of the ten parameters). A field in
+    ``known`` (the fitted values of a global joint fit already made, e.g. the diagnosis's
+    escalated catalogue candidate of the same drift, the factor under the key ``"factor"``) is
+    not fitted again.
+
+    Each is a catalogue candidate's fit with the global search
+    (:func:`~engine.diagnosis.candidate.fit_candidate`, ``global_search=True``; 1.4-3 s and about
+    1000 simulations each), all of them on the candidate fits' threads (one core each,
+    :func:`~engine.simulation.serial_kernel`; the same results as one after another). Each point,
+    simulated at the locus's step, replaces the locus's start where its chi2 is lower. Returns the
+    starts and the simulations used.
     """
     assert cal.case is not None
     names = resp.param_names
-    used = 0
+    jobs: list[tuple[str, str, Effect]] = []
     fitted: list[_Trial] = []
-    for locus in _friction_loci(names):
-        effect = _friction_effect(cal.case, locus)
-        got = _global_fit(record, cal, space, effect, names)
-        if got is None:
-            continue
-        p, value, n_sim = got
-        used += n_sim
-        if value - effect.neutral > 0.0:
-            fitted.append(_Trial(locus, np.zeros(N_EXTRAS), p, value - effect.neutral, COULOMB_FIELDS[locus]))
+    if settings.friction_fits:
+        jobs += [(locus, COULOMB_FIELDS[locus], _friction_effect(cal.case, locus)) for locus in _friction_loci(names)]
+    if settings.part_drifts:
+        for locus in DISTURBANCE_LOCI:
+            for field in part_terms(locus, names):
+                if is_coulomb(field):
+                    continue
+                if known and field in known:
+                    values = known[field]
+                    p = np.array([values[n] - current(cal.case, n) if n in values else 0.0 for n in names])
+                    fitted.append(_Trial(locus, np.zeros(N_EXTRAS), p, float(values["factor"]) - 1.0, field))
+                else:
+                    jobs.append((locus, field, _drift_effect(locus, field)))
+    used = 0
+    runner = Runner(CandidateSettings().jobs(), thread_context=serial_kernel, thread_name_prefix="locus")
+    with single_threaded_blas(), runner:
+        tasks = [runner.submit(_global_fit, record, cal, space, effect, names) for _, _, effect in jobs]
+        for (locus, field, effect), task in zip(jobs, tasks, strict=True):
+            got = task.result()
+            if got is None:
+                continue
+            p, value, n_sim = got
+            used += n_sim
+            if is_coulomb(field):
+                if value - effect.neutral > 0.0:
+                    fitted.append(_Trial(locus, np.zeros(N_EXTRAS), p, value - effect.neutral, field))
+            else:  # the effect multiplies the space's base case, whose part parameters are the calibrated case's
+                fitted.append(_Trial(locus, np.zeros(N_EXTRAS), p, value - 1.0, field))
     out, n_sim = _keep_better(cal, names, resp, obs, best, fitted, settings)
     return out, used + n_sim
 
@@ -227,62 +278,6 @@ def _keep_better(
         if c2 < out[t.locus].chi2:
             out[t.locus] = _Start(t.e, t.p, c2, t.f, t.field)
     return out, len(fitted)
-
-
-def drift_fits(
-    record: Record,
-    cal: CalibrationResult,
-    space: ModelSpace,
-    resp: Responses,
-    obs: Observed,
-    best: dict[str, _Start],
-    settings: LocusSettings,
-    known: Mapping[str, Mapping[str, float]] | None = None,
-) -> tuple[dict[str, _Start], int]:
-    """Every part's own parameters (:data:`~engine.simulation.parameters.PART_FIELDS`), each drifted
-    by a factor fitted jointly with the calibrated parameters.
-
-    A drift of a parameter that acts through the whole run (the supply frequency moves the motor's
-    speed from the switch-on) is absorbed by the calibration, which moves K, J1 and c to meet it
-    partly; the drift alone from the calibrated point then makes the fit worse (a supply frequency
-    1.7 % high: chi2/n 57 calibrated, 1453 with the drift added at the calibrated K, J1 and c, 0.98
-    refitted), so it must be fitted with them, and globally: the valley is narrow, and a seeded fit
-    stops short (a frequency 2 % high, nominal plant, 40 dB: seeded fits over three ranges gave
-    1.0191, 1.0146 and 1.0066 with chi2/n 22-171; the global search 1.0200 with 0.98 from each).
-    Each is a catalogue candidate's fit with the global search over the parameter's plausible range
-    (:func:`~engine.diagnosis.candidate.fit_candidate`, ``global_search=True``; about 1.4 s and 1000
-    simulations on 2 cores). A field in ``known`` (the fitted values of a global joint fit already
-    made, e.g. the diagnosis's escalated catalogue candidate of the same drift, the factor under
-    the key ``"factor"``) is not fitted again. Its point, simulated at the locus's step, replaces
-    the locus's start where its chi2 is lower. Returns the starts and the simulations used.
-    """
-    assert cal.case is not None
-    names = resp.param_names
-    used = 0
-    fitted: list[_Trial] = []
-    for locus in DISTURBANCE_LOCI:
-        for field in part_terms(locus, names):
-            if is_coulomb(field):
-                continue
-            if known and field in known:
-                values = known[field]
-                p = np.array([values[n] - current(cal.case, n) if n in values else 0.0 for n in names])
-                fitted.append(_Trial(locus, np.zeros(N_EXTRAS), p, float(values["factor"]) - 1.0, field))
-                continue
-            meaning, bounds = PART_FIELDS[locus][field]
-            effect = Effect(
-                f"{field}_drift", f"{meaning} multiplied by value", "plant", field, "multiply", bounds, 1.0,
-                "x", cast(Locus, locus),
-            )  # fmt: skip
-            got = _global_fit(record, cal, space, effect, names)
-            if got is None:
-                continue
-            p, value, n_sim = got
-            used += n_sim
-            # the effect multiplies the space's base case, whose part parameters are the calibrated case's
-            fitted.append(_Trial(locus, np.zeros(N_EXTRAS), p, value - 1.0, field))
-    out, n_sim = _keep_better(cal, names, resp, obs, best, fitted, settings)
-    return out, used + n_sim
 
 
 def _base_points(cal: CalibrationResult, names: list[str]) -> list[np.ndarray]:

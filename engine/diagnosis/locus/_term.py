@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from engine.constants import CHANNELS, OMEGA_B, W_SMOOTH
+from engine.constants import CHANNELS, OMEGA_B, W_SMOOTH, Z95
 from engine.diagnosis.calibration import CalibrationResult
 from engine.diagnosis.locus._refine import Estimate
 from engine.diagnosis.locus._report import LocusSettings, Term
@@ -215,10 +215,43 @@ def _describe(locus: str, unit: str, follows: str, amplitude: float, freq: float
     return f"{a} {what} of RMS about {amp} {where}, of no clear shape"
 
 
+def _interval(value: float, sigma: float, lo: float, hi: float) -> tuple[float, float] | None:
+    """The 95 % interval ``value +- 1.96 sigma`` within ``[lo, hi]``, or None without a finite sigma."""
+    if not math.isfinite(sigma):
+        return None
+    return max(lo, value - Z95 * sigma), min(hi, value + Z95 * sigma)
+
+
+def _decimals(sigma: float, default: int) -> int:
+    """Decimals that show a value to about a tenth of its standard deviation (``default`` without one)."""
+    if not (math.isfinite(sigma) and sigma > 0.0):
+        return default
+    return max(0, 1 - math.floor(math.log10(sigma)))
+
+
+def _stated(value: float, interval: tuple[float, float] | None, sigma: float, default: int) -> str:
+    """``value`` to about a tenth of ``sigma``, and its 95 % interval when there is one."""
+    d = _decimals(sigma, default)
+    if interval is None:
+        return f"{value:.{d}f}"
+    return f"{value:.{d}f} (95 % interval {interval[0]:.{d}f} to {interval[1]:.{d}f})"
+
+
 def locus_term(
-    locus: str, est: Estimate, resp: Responses, cal: CalibrationResult, t_rel: np.ndarray, settings: LocusSettings
+    locus: str,
+    est: Estimate,
+    resp: Responses,
+    cal: CalibrationResult,
+    t_rel: np.ndarray,
+    settings: LocusSettings,
+    part_sigma: float = math.nan,
 ) -> Term:
-    """The estimated input of ``locus`` on the record's grid, and its shape."""
+    """The estimated input of ``locus`` on the record's grid, and its shape.
+
+    ``part_sigma`` is the standard deviation of the estimate's part term (its friction [pu], or its
+    drift's factor; :func:`~engine.diagnosis.locus._uncertainty.part_term_sigma`): the term's
+    details and description then carry it and its 95 % interval.
+    """
     assert cal.case is not None and cal.event_time is not None
     t_abs = cal.event_time + t_rel
     series = np.interp(t_abs, resp.knots, resp.values(est.x, est.e)) + np.where(t_rel >= 0, est.e[1], 0.0)
@@ -233,16 +266,34 @@ def locus_term(
     if est.field and est.field not in COULOMB_FIELDS.values() and est.f != 0.0:  # a part parameter drifted
         meaning = PART_FIELDS[locus][est.field][0]
         rms = float(np.sqrt(np.average(series**2, weights=weight))) if np.any(weight > 0) else 0.0
-        drift = f"the {meaning} at about {1.0 + est.f:.3g} times its calibrated value"
+        lo, hi = PART_FIELDS[locus][est.field][1]
+        ci = _interval(1.0 + est.f, part_sigma, lo, hi)
+        drift = f"the {meaning} at about {_stated(1.0 + est.f, ci, part_sigma, 2)} times its calibrated value"
         if rms > _DRIFT_ALONE * SCAN_SCALE[locus]:
             drift += "; besides it, " + description
         description = drift
-        details = {**details, "drift_field": est.field, "drift_factor": 1.0 + est.f}
+        details = {
+            **details,
+            "drift_field": est.field,
+            "drift_factor": 1.0 + est.f,
+            "drift_factor_sigma": part_sigma if math.isfinite(part_sigma) else None,
+            "drift_factor_interval_95": None if ci is None else list(ci),
+        }
     elif est.f > 0.0:  # a Coulomb friction at the locus: it follows the part's speed, beside the schedule
         part, speed = _FRICTION_PART[locus]
         rms = float(np.sqrt(np.average(series**2, weights=weight))) if np.any(weight > 0) else 0.0
-        friction = f"a Coulomb friction of about {est.f:.2g} pu against the motion of the {part} (it follows the sign of {speed})"
-        details = {**details, "coulomb_friction": est.f, "coulomb_field": COULOMB_FIELDS[locus]}
+        ci = _interval(est.f, part_sigma, 0.0, math.inf)
+        friction = (
+            f"a Coulomb friction of about {_stated(est.f, ci, part_sigma, 3)} pu against the motion of the {part} "
+            f"(it follows the sign of {speed})"
+        )
+        details = {
+            **details,
+            "coulomb_friction": est.f,
+            "coulomb_field": COULOMB_FIELDS[locus],
+            "coulomb_friction_sigma": part_sigma if math.isfinite(part_sigma) else None,
+            "coulomb_friction_interval_95": None if ci is None else list(ci),
+        }
         if rms <= est.f:  # the friction is the larger part: it is the term's shape
             if rms > _FRICTION_ALONE * est.f:
                 friction += "; besides it, " + description
