@@ -1,0 +1,615 @@
+"""The model versions' families of effects, checked alike (docs/model-changes.md, versions 1.1 to 1.3).
+
+Each version from 1.1 on added a family of effects outside the catalogue, each effect a new term of
+the kernel: 1.1 the held-back family HELD_BACK (and the additive unknown input), 1.2 the held-out
+family HELD_OUT, 1.3 the sealed family SEALED. The checks they share run here from one table,
+:data:`VERSIONS`; a case id names the version and the effect (``1.3-supply_flicker``), or the version
+and the family (``1.2-held_out``) where the check is of a family. What one version alone has stays in
+its module: the unknown input of 1.1 in ``tests/test_simulation_model_1_1.py``, the terms of 1.3 that
+have a physics of their own (the leakages, the progressive contact, the cross-talk's a1, the
+visibility table) in ``tests/test_simulation_model_1_3.py``.
+
+Simulation only. HELD_OUT and SEALED are kept for scoring: nothing here diagnoses, calibrates,
+locates or validates a record of their effects (the case generator is run without its absorption
+rule, which refits).
+
+* every new term is exactly neutral at its neutral value: the records are bit for bit those without
+  it (model 1.0's for 1.1), from 1.2 on also inside the kernel's extended path (``P_EXTENDED``),
+  which the terms of the earlier versions switch on; forcing that path on with every term zero is
+  model 1.0 bit for bit;
+* the kernel agrees with the independent scipy reference (engine.simulation.reference) for every
+  effect at its upper bound, for an unknown input at every locus (1.1) and in the combinations where
+  two terms meet (1.2, 1.3): MODEL.md section 4's spec, plus a regression guard at about twice the
+  worst error measured;
+* from 1.2 on, at half its upper bound every effect is visible at 40 dB on the nominal plant, keeps
+  the event across the plausible box at its upper bound, and has a slot of its own in the kernel's
+  parameter vector;
+* every family is disjoint from the catalogue and the earlier families, is known to the reference at
+  its neutral values, is registered by its name for blind runs (``backlash validate --held-back
+  NAME``), and refuses an absurd value with its name; from 1.2 on it has one effect per locus, each a
+  new term neutral at zero, its rule is stated in its module and the docs, and the case generator
+  of protocol 2 draws held-back cases from it.
+
+Measured with the default SolverSettings against the reference (DOP853, rtol 1e-9), worst over the
+cases, in % of peak-to-peak:
+
+* 1.1: held-back effects at their upper bound 0.0195 % (a1, clutch_offset 0.005 rad), |dt_e|
+  8.7e-9 s; unknown inputs (20 knots of 10 ms, random values and step) 0.0183 % (a1, drive_train),
+  |dt_e| 2.2e-8 s. Guards: 0.04 % and 5e-8 s.
+* 1.2: effects at their upper bound 0.0137 % (a1, magnetic_saturation 0.5), |dt_e| 1.0e-8 s
+  (clutch_preload_spring 0.02); combinations 0.0228 % (a1, saturation with the switch-off decay at
+  0.2), |dt_e| 9.5e-9 s. Guards as for model 1.1: 0.04 % and 5e-8 s.
+* 1.3: effects at their upper bound 0.0160 % (a1, leakage_reactance 0.02), |dt_e| 1.9e-8 s
+  (leakage_reactance 0.02); combinations 0.0339 % (a1, the leakages with saturation 0.5: the
+  kernel's step, 0.0060 % at 10 us), |dt_e| 2.0e-8 s (every sealed effect at once). Guards as for
+  model 1.1 and 1.2: 0.04 % and 5e-8 s.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+import pytest
+
+from engine.constants import CHANNELS, MODEL_VERSION
+from engine.records import SampleGrid
+from engine.simulation import (
+    CATALOGUE,
+    DISTURBANCE_LOCI,
+    HELD_BACK,
+    HELD_OUT,
+    LOCI,
+    SEALED,
+    Case,
+    Disturbance,
+    ParameterError,
+    PlantParameters,
+    SensorParameters,
+    SimulationResult,
+    SolverSettings,
+    UnknownEffectError,
+    held_out,
+    noise_std,
+    sealed,
+    simulate,
+    simulate_batch,
+)
+from engine.simulation import _kernel as kern
+from engine.simulation.effects import EffectLibrary
+from engine.simulation.families import FAMILIES, locus_of
+from engine.simulation.reference import (
+    HELD_BACK_NEUTRAL,
+    HELD_OUT_NEUTRAL,
+    SEALED_NEUTRAL,
+    reference_inputs,
+    reference_simulate,
+)
+from engine.simulation.simulator import parameter_vector
+
+SPEC_REL = 0.005
+SPEC_EVENT_TIME = 1e-6
+GUARD_REL = 4e-4
+GUARD_EVENT_TIME = 5e-8
+PLANT = {"K": 0.005, "J1": 0.87, "c": 1.0}
+NOMINAL = PlantParameters(K=0.005, J1=0.87, c=1.0)  # PLANT, by the simulator's names
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+
+
+@dataclass(frozen=True, eq=False)  # hashed by identity: a key of the cached runs
+class Version:
+    """One version of the model and the family of effects it added (docs/model-changes.md)."""
+
+    #: The model version that added the family, e.g. ``"1.2"``.
+    version: str
+    #: The family's name in FAMILIES (``backlash validate --held-back NAME``).
+    name: str
+    family: EffectLibrary
+    #: The catalogue and the families of the versions before, in order.
+    earlier: tuple[EffectLibrary, ...]
+    #: The model version this one bumped.
+    previous: str
+    #: The reference's table of the family's neutral values.
+    reference_neutral: Mapping[str, float]
+    #: What each new term is neutral on, by a label for the failure message: the nominal plant,
+    #: and from 1.2 on the plant with the earlier families' terms on (the kernel's extended path).
+    bases: tuple[tuple[str, Case], ...]
+
+    @property
+    def library(self) -> EffectLibrary:
+        """The catalogue, the earlier families and this one: every effect the version knows by name."""
+        library = self.earlier[0]
+        for other in (*self.earlier[1:], self.family):
+            library = library + other
+        return library
+
+
+_PLAIN = ("nominal plant", Case(NOMINAL))
+_COGGING = ("on motor_cogging 0.03", HELD_BACK["motor_cogging"].apply(Case(NOMINAL), 0.03))
+_EVERY_HELD_OUT = (
+    "on every held-out effect at half its bound",
+    HELD_OUT.apply(Case(NOMINAL), {n: 0.5 * e.bounds[1] for n, e in HELD_OUT.items()}),
+)
+
+V1_1 = Version("1.1", "held_back", HELD_BACK, (CATALOGUE,), "1.0", HELD_BACK_NEUTRAL, (_PLAIN,))
+V1_2 = Version("1.2", "held_out", HELD_OUT, (CATALOGUE, HELD_BACK), "1.1", HELD_OUT_NEUTRAL, (_PLAIN, _COGGING))
+V1_3 = Version(
+    "1.3",
+    "sealed",
+    SEALED,
+    (CATALOGUE, HELD_BACK, HELD_OUT),
+    "1.2",
+    SEALED_NEUTRAL,
+    (_PLAIN, _COGGING, _EVERY_HELD_OUT),
+)
+#: Every version with a family of its own, oldest first; a new version adds its row here.
+VERSIONS = (V1_1, V1_2, V1_3)
+
+
+def _families(*versions: Version) -> list[Any]:
+    """One case per version, its id the version and the family (``1.2-held_out``)."""
+    return [pytest.param(v, id=f"{v.version}-{v.name}") for v in versions]
+
+
+def _effects(*versions: Version) -> list[Any]:
+    """One case per effect of each version, its id the version and the effect (``1.2-supply_unbalance``)."""
+    return [pytest.param(v, n, id=f"{v.version}-{n}") for v in versions for n in v.family]
+
+
+# --- the kernel against the reference -------------------------------------------------------------
+
+#: A random schedule per locus (20 knots of 10 ms from 10 ms on) and a step, scaled to the locus.
+_SCALE = {
+    "supply": 0.05,
+    "motor_electrical": 0.2,
+    "motor_shaft": 0.2,
+    "clutch": 0.003,
+    "drive_train": 0.1,
+    "load": 0.1,
+}
+
+
+def _schedule(locus: str) -> dict[str, Any]:
+    rng = np.random.default_rng(DISTURBANCE_LOCI.index(locus))
+    scale = _SCALE[locus]
+    return {
+        "locus": locus,
+        "t0": 0.01,
+        "dt": 0.01,
+        "values": [float(v) for v in scale * rng.standard_normal(20)],
+        "step": float(scale * rng.standard_normal()),
+    }
+
+
+#: Where two terms meet: each case by effect name and value (the reference takes the same names).
+COMBINATIONS: dict[str, dict[str, dict[str, float]]] = {
+    "1.2": {
+        "saturation-and-switch-off-decay": {"magnetic_saturation": 0.5, "switch_off_decay": 0.2},
+        "preload-and-zone-offset": {"clutch_preload_spring": 0.02, "clutch_offset": -0.004},
+        "encoder-and-lowpass": {"speed_encoder_eccentricity": 0.2, "sensor_lowpass": 1000.0},
+        "every-held-out-effect": {n: e.bounds[1] for n, e in HELD_OUT.items()},
+    },
+    "1.3": {
+        "leakages-and-saturation": {"leakage_reactance": 0.02, "magnetic_saturation": 0.5},
+        "progressive-contact-zone-offset-and-preload": {
+            "clutch_progressive_contact": 1.0,
+            "clutch_offset": -0.004,
+            "clutch_preload_spring": 0.02,
+        },
+        "stribeck-and-coulomb": {"motor_stribeck": 0.1, "motor_coulomb_friction": 0.1},
+        "dry-friction-and-hardening": {"resilient_dry_friction": 0.05, "resilient_hardening": 1.0},
+        "drag-and-load-spring": {"load_quadratic_drag": 20.0, "load_position_spring": 0.5},
+        "crosstalk-lowpass-and-gain": {"accelerometer_crosstalk": 0.1, "sensor_lowpass": 1000.0, "sensor_gain": 1.2},
+        "every-sealed-effect": {n: e.bounds[1] for n, e in SEALED.items()},
+    },
+}
+_SUPPLY_INPUT = {"locus": "supply", "t0": 0.01, "dt": 0.01, "values": [0.04, -0.03, 0.05, 0.02, -0.05] * 4}
+#: Unknown inputs, with the effects on top of them: (effects, the input's schedule) by case name.
+INPUTS: dict[str, dict[str, tuple[dict[str, float] | None, dict[str, Any]]]] = {
+    "1.1": {locus: (None, _schedule(locus)) for locus in DISTURBANCE_LOCI},
+    # the unbalance on top of a supply input: u includes the input's factor
+    "1.2": {
+        "supply_unbalance-and-supply-input": (
+            {"supply_unbalance": HELD_OUT["supply_unbalance"].bounds[1]},
+            _SUPPLY_INPUT,
+        )
+    },
+    # the flicker and the unbalance on top of a supply input: u includes every factor
+    "1.3": {
+        "flicker-unbalance-and-supply-input": (
+            {"supply_flicker": SEALED["supply_flicker"].bounds[1], "supply_unbalance": 0.1},
+            _SUPPLY_INPUT,
+        )
+    },
+}
+
+#: (version, effects, unknown input) of each comparison with the reference, by version; the id is
+#: version-kind-name: each effect at its upper bound, the combinations, the inputs.
+REFERENCE_CASES = [
+    case
+    for v in VERSIONS
+    for case in (
+        *(pytest.param(v, {n: e.bounds[1]}, None, id=f"{v.version}-effect-{n}") for n, e in v.family.items()),
+        *(
+            pytest.param(v, effects, None, id=f"{v.version}-combination-{name}")
+            for name, effects in COMBINATIONS.get(v.version, {}).items()
+        ),
+        *(
+            pytest.param(v, effects, spec, id=f"{v.version}-input-{name}")
+            for name, (effects, spec) in INPUTS[v.version].items()
+        ),
+    )
+]
+
+
+@pytest.mark.parametrize(("version", "effects", "disturbance"), REFERENCE_CASES)
+def test_kernel_meets_the_spec_and_the_guard_against_the_reference(
+    version: Version, effects: dict[str, float] | None, disturbance: dict[str, Any] | None
+) -> None:
+    """The kernel's record and event time against the reference's, nominal plant.
+
+    Relative error per channel as max |kernel - reference| / peak-to-peak of the reference; the
+    event time t_e in s.
+    """
+    plant = NOMINAL
+    if disturbance is not None:
+        d = disturbance
+        plant = NOMINAL.replace(
+            disturbance=Disturbance(d["locus"], d["t0"], d["dt"], tuple(d["values"]), d.get("step", 0.0))
+        )
+    sim = simulate_batch([Case(plant)], effects, library=version.library)
+    ref = reference_simulate(PLANT, effects, disturbance=disturbance)
+    kernel, te_k, te_r = sim.channels[0], float(sim.event_times[0]), ref.event_time
+    rel = np.max(np.abs(kernel - ref.channels), axis=1) / np.ptp(ref.channels, axis=1)
+    assert abs(te_k - te_r) < min(SPEC_EVENT_TIME, GUARD_EVENT_TIME)
+    assert np.all(rel < min(SPEC_REL, GUARD_REL)), dict(zip(CHANNELS, rel.round(6), strict=True))
+
+
+# --- neutral at the neutral value, acting otherwise -----------------------------------------------
+
+
+@cache
+def _neutral_and_bound_runs(version: Version) -> tuple[SimulationResult, ...]:
+    """Per base, one batch: the base, then each effect at its neutral value and at its upper bound."""
+    runs = []
+    for _, base in version.bases:
+        cases = [base]
+        for e in version.family.values():
+            cases += [e.apply(base, e.neutral), e.apply(base, e.bounds[1])]
+        runs.append(simulate_batch(cases))
+    return tuple(runs)
+
+
+@pytest.mark.parametrize(("version", "name"), _effects(*VERSIONS))
+def test_every_effect_is_neutral_at_its_neutral_value_and_acts_otherwise(version: Version, name: str) -> None:
+    """At its neutral value the record and the event time are bit for bit the previous version's.
+
+    Alone, and from 1.2 on also on top of a held-back effect (which switches the kernel's extended
+    path on) and from 1.3 on on top of every held-out effect; at its upper bound the record moves by
+    more than 1e-3 (in the channels' units) somewhere. Each base is one batch with every effect of
+    the family, as the records of a version are compared in one run.
+    """
+    i = list(version.family).index(name)
+    for (label, _), res in zip(version.bases, _neutral_and_bound_runs(version), strict=True):
+        plain, neutral, strong = res.channels[0], res.channels[1 + 2 * i], res.channels[2 + 2 * i]
+        assert neutral.tobytes() == plain.tobytes(), f"{name} at its neutral value changed the record ({label})"
+        assert res.event_times[1 + 2 * i] == res.event_times[0], f"{name} moved the event ({label})"
+        assert np.max(np.abs(strong - plain)) > 1e-3, f"{name} at its bound left the record unchanged ({label})"
+
+
+@pytest.mark.parametrize(
+    ("solver", "n", "grid"),
+    [
+        pytest.param(SolverSettings(), 2048, None, id="MODEL.md-grid"),
+        pytest.param(SolverSettings(max_step=1e-5), 8400, SampleGrid(2.5e-5, 8400, 200), id="25us-grid-10us-step"),
+    ],
+)
+def test_the_extended_path_with_every_term_zero_is_model_1_0_bit_for_bit(
+    solver: SolverSettings, n: int, grid: SampleGrid | None
+) -> None:
+    """Forcing P_EXTENDED on with every 1.1, 1.2 and 1.3 term zero changes no bit: each term is guarded.
+
+    Not a check of one version: the kernel's path of every version at once. MODEL.md's grid at the
+    default step (the check since 1.2), and a 25 us grid at a 10 us step (added with 1.3).
+    """
+    cases = [Case(NOMINAL), Case(PlantParameters(K=0.0025, J1=0.7612, c=0.8), SensorParameters(1e-3, 1000.0))]
+    P = np.stack([parameter_vector(c, solver) if grid is None else parameter_vector(c, solver, grid) for c in cases])
+    assert np.all(P[:, kern.P_EXTENDED] == 0.0)
+    assert np.all(P[:, kern.P_FLICKER :] == 0.0)
+    forced = P.copy()
+    forced[:, kern.P_EXTENDED] = 1.0
+    runs = []
+    for vectors in (P, forced):
+        out = np.zeros((len(cases), kern.N_CHANNELS, n))
+        t_e = np.zeros(len(cases))
+        status = np.zeros(len(cases), dtype=np.int64)
+        kern.simulate_serial(vectors, out, t_e, status)
+        assert np.all(status == kern.OK)
+        runs.append((out, t_e))
+    assert runs[0][0].tobytes() == runs[1][0].tobytes()
+    assert runs[0][1].tobytes() == runs[1][1].tobytes()
+
+
+# --- the kernel's parameter vector ------------------------------------------------------------------
+
+#: The kernel's slot of each value a version from 1.2 on added.
+SLOTS: dict[str, dict[str, int]] = {
+    "1.2": {
+        "u_neg": kern.P_U_NEG,
+        "sat": kern.P_SAT,
+        "b_2": kern.P_B_2,
+        "k_pre": kern.P_K_PRE,
+        "hard2": kern.P_HARD2,
+        "k_3": kern.P_K_3,
+        "ecc1": kern.P_ECC1,
+    },
+    "1.3": {
+        "u_flicker": kern.P_FLICKER,
+        "tau_S1": kern.P_TAU_S1,
+        "prog12": kern.P_PROG12,
+        "tau_dry2": kern.P_TAU_DRY2,
+        "b_3": kern.P_B_3,
+        "xtalk2": kern.P_XTALK2,
+    },
+}
+#: The slots of each version, appended after the previous version's: range(start, stop).
+SLOT_RANGES = {"1.2": (kern.P_T_SWITCH_OFF + 1, kern.P_ECC1 + 1), "1.3": (kern.P_ECC1 + 1, kern.N_PARAMS)}
+#: The values without a slot: the leakages enter x_s and x_r (tests/test_simulation_model_1_3.py).
+NO_SLOT = {"1.2": set(), "1.3": {"x_leak"}}
+
+
+@pytest.mark.parametrize("version", _families(V1_2, V1_3))
+def test_the_version_s_slots_are_appended_after_the_previous_version_s(version: Version) -> None:
+    slots = SLOTS[version.version]
+    assert sorted(slots.values()) == list(range(*SLOT_RANGES[version.version]))
+    assert {e.field for e in version.family.values()} == set(slots) | NO_SLOT[version.version]
+
+
+@pytest.mark.parametrize(
+    ("version", "name"),
+    [
+        pytest.param(v, n, id=f"{v.version}-{n}")
+        for v in (V1_2, V1_3)
+        for n, e in v.family.items()
+        if e.field not in NO_SLOT[v.version]
+    ],
+)
+def test_each_value_switches_the_extended_path_on_in_its_own_slot(version: Version, name: str) -> None:
+    """At half its upper bound: P_EXTENDED on, the value in its slot and in no other, x_s and x_r kept."""
+    e = version.family[name]
+    value = 0.5 * e.bounds[1]
+    plain = parameter_vector(Case(NOMINAL))
+    P = parameter_vector(e.apply(Case(NOMINAL), value))
+    assert P[kern.P_EXTENDED] == 1.0
+    assert P[SLOTS[version.version][e.field]] == value
+    assert np.count_nonzero(P[kern.P_U_NEG :]) == 1
+    assert P[kern.P_X_S] == plain[kern.P_X_S] and P[kern.P_X_R] == plain[kern.P_X_R]
+
+
+# --- visible at its bounds ------------------------------------------------------------------------
+
+
+@cache
+def _half_bound_runs(version: Version) -> SimulationResult:
+    """One batch: the nominal plant, then each effect at half its upper bound."""
+    base = Case(NOMINAL)
+    return simulate_batch([base] + [e.apply(base, 0.5 * e.bounds[1]) for e in version.family.values()])
+
+
+@pytest.mark.parametrize(("version", "name"), _effects(V1_2, V1_3))
+def test_half_the_upper_bound_is_visible_at_40_db_on_the_nominal_plant(version: Version, name: str) -> None:
+    """The bounds' rule (docs/model-changes.md, 1.2 and 1.3): > 3 noise RMS on two channels at half the bound.
+
+    The sensors' effects are in one channel by definition (the speed encoder's error in omega1, the
+    accelerometer's cross-talk in a2): one channel for them.
+    """
+    e = version.family[name]
+    res = _half_bound_runs(version)
+    plain = res.channels[0]
+    sd = noise_std(plain, 40.0)[:, 0]
+    rms = np.sqrt(np.mean((res.channels[1 + list(version.family).index(name)] - plain) ** 2, axis=1)) / sd
+    need = 1 if e.locus == "sensors" else 2
+    assert np.sum(rms > 3.0) >= need, (name, dict(zip(CHANNELS, rms.round(1), strict=True)))
+
+
+@pytest.mark.parametrize(("version", "name"), _effects(V1_2, V1_3))
+def test_every_effect_at_its_upper_bound_keeps_the_event_across_the_plausible_box(version: Version, name: str) -> None:
+    """The nominal plant and the eight corners of the plausible box (K, J1, c)."""
+    e = version.family[name]
+    corners = [PlantParameters(K=K, J1=J1, c=c) for K in (0.001, 0.015) for J1 in (0.6, 1.2) for c in (0.5, 2.0)]
+    res = simulate_batch([e.apply(Case(p), e.bounds[1]) for p in [NOMINAL, *corners]])
+    assert np.all(np.isfinite(res.event_times))  # simulate_batch raises on a missing event
+
+
+# --- by name --------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("version", "name", "value", "direct"),
+    [
+        pytest.param(V1_2, "resilient_hardening", 0.5, NOMINAL.replace(hard2=0.5), id="1.2-resilient_hardening"),
+        pytest.param(
+            V1_2,
+            "speed_encoder_eccentricity",
+            0.1,
+            Case(NOMINAL, SensorParameters(ecc1=0.1)),
+            id="1.2-speed_encoder_eccentricity",
+        ),
+        pytest.param(
+            V1_3, "clutch_progressive_contact", 0.5, NOMINAL.replace(prog12=0.5), id="1.3-clutch_progressive_contact"
+        ),
+        pytest.param(
+            V1_3,
+            "accelerometer_crosstalk",
+            0.05,
+            Case(NOMINAL, SensorParameters(xtalk2=0.05)),
+            id="1.3-accelerometer_crosstalk",
+        ),
+    ],
+)
+def test_simulate_takes_an_effect_by_name_from_its_family(
+    version: Version, name: str, value: float, direct: PlantParameters | Case
+) -> None:
+    """By name from its family's library, the record is bit for bit that of the field set directly."""
+    rec = simulate(NOMINAL, {name: value}, library=version.family)
+    same = simulate(direct)
+    for ch in CHANNELS:
+        assert rec.channels[ch].tobytes() == same.channels[ch].tobytes(), ch
+    with pytest.raises(UnknownEffectError):
+        simulate(NOMINAL, {name: value})  # not in the catalogue
+
+
+@pytest.mark.parametrize(
+    ("version", "name", "value", "channel"),
+    [
+        pytest.param(V1_2, "speed_encoder_eccentricity", 0.2, "omega1", id="1.2-speed_encoder_eccentricity"),
+        pytest.param(V1_3, "accelerometer_crosstalk", 0.1, "a2", id="1.3-accelerometer_crosstalk"),
+    ],
+)
+def test_a_sensor_s_effect_is_in_its_channel_only(version: Version, name: str, value: float, channel: str) -> None:
+    res = simulate_batch([Case(NOMINAL), version.family[name].apply(Case(NOMINAL), value)])
+    changed = [ch for j, ch in enumerate(CHANNELS) if res.channels[0, j].tobytes() != res.channels[1, j].tobytes()]
+    assert changed == [channel]
+
+
+# --- the family -------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("version", _families(*VERSIONS))
+def test_the_family_is_outside_the_catalogue_and_the_earlier_families(version: Version) -> None:
+    for other in version.earlier:
+        assert not set(version.family) & set(other)
+    assert {e.locus for e in version.family.values()} <= set(LOCI)
+    assert version.previous != MODEL_VERSION  # this version bumped it
+
+
+def test_the_model_version_is_the_last_version_s() -> None:
+    assert MODEL_VERSION == VERSIONS[-1].version == "1.3"
+
+
+@pytest.mark.parametrize("version", _families(V1_2, V1_3))
+def test_the_family_has_one_new_term_per_locus_neutral_at_zero(version: Version) -> None:
+    assert sorted(e.locus for e in version.family.values()) == sorted(LOCI)
+    fields_before = {(e.target, e.field) for library in version.earlier for e in library.values()}
+    assert not {(e.target, e.field) for e in version.family.values()} & fields_before  # new terms, not new values
+    assert all(e.neutral == 0.0 and e.bounds[0] == 0.0 < e.bounds[1] for e in version.family.values())
+
+
+@pytest.mark.parametrize("version", _families(*VERSIONS))
+def test_the_family_is_registered_by_its_name_for_blind_runs(version: Version) -> None:
+    from app.cli.main import build_parser
+
+    assert FAMILIES[version.name] is version.family
+    assert all(locus_of(n) == e.locus for n, e in version.family.items())
+    args = build_parser().parse_args(["validate", "--held-back", version.name, "--mix", "held_back=1"])
+    assert args.held_back == version.name  # parsed only: nothing is run
+
+
+@pytest.mark.parametrize("version", _families(*VERSIONS))
+def test_reference_knows_every_effect_at_its_neutral_value(version: Version) -> None:
+    assert {n: e.neutral for n, e in version.family.items()} == dict(version.reference_neutral)
+
+
+@pytest.mark.parametrize(
+    ("version", "case", "expected"),
+    [
+        pytest.param(
+            V1_2,
+            Case(
+                NOMINAL.replace(u_neg=0.01, sat=0.02, b_2=0.03, k_pre=0.004, hard2=0.05, k_3=0.06),
+                SensorParameters(ecc1=0.07),
+            ),
+            {
+                "supply_unbalance": 0.01,
+                "magnetic_saturation": 0.02,
+                "motor_windage": 0.03,
+                "clutch_preload_spring": 0.004,
+                "resilient_hardening": 0.05,
+                "load_position_spring": 0.06,
+                "speed_encoder_eccentricity": 0.07,
+            },
+            id="1.2-held_out",
+        ),
+        pytest.param(
+            V1_3,
+            Case(
+                NOMINAL.replace(u_flicker=0.01, x_leak=0.02, tau_S1=0.03, prog12=0.04, tau_dry2=0.05, b_3=0.06),
+                SensorParameters(xtalk2=0.07),
+            ),
+            {
+                "supply_flicker": 0.01,
+                "leakage_reactance": 0.02,
+                "motor_stribeck": 0.03,
+                "clutch_progressive_contact": 0.04,
+                "resilient_dry_friction": 0.05,
+                "load_quadratic_drag": 0.06,
+                "accelerometer_crosstalk": 0.07,
+            },
+            id="1.3-sealed",
+        ),
+    ],
+)
+def test_the_reference_reads_every_effect_of_a_case(version: Version, case: Case, expected: dict[str, float]) -> None:
+    """Each field at a value of its own, so that two fields swapped in the adapter would show."""
+    _, effects = reference_inputs(case)
+    assert {n: effects[n] for n in version.family} == expected
+
+
+@pytest.mark.parametrize(
+    ("version", "module"),
+    [pytest.param(V1_2, held_out, id="1.2-held_out"), pytest.param(V1_3, sealed, id="1.3-sealed")],
+)
+def test_the_rule_is_stated_in_the_module_and_in_the_docs(version: Version, module: ModuleType) -> None:
+    assert getattr(module, version.name.upper()) is version.family
+    assert module.__doc__ is not None and module.RULE in module.__doc__
+    assert module.RULE in " ".join((DOCS / "model-changes.md").read_text().split())
+
+
+@pytest.mark.parametrize("version", _families(V1_2, V1_3))
+def test_the_case_generator_draws_held_back_cases_from_the_family(version: Version) -> None:
+    from engine.validation.cases import generate_cases
+
+    family = version.family
+    n = len(family)  # its pool gives every effect once per round
+    cases, key = generate_cases(n, 5, CATALOGUE, family, {"held_back": 1.0}, absorption=False)
+    assert len(cases) == n
+    assert {k.kind for k in key} == {"held_back"}
+    assert sorted(t.name for k in key for t in k.effects) == sorted(family)
+    assert all(t.locus == family[t.name].locus for k in key for t in k.effects)
+    with pytest.raises(ValueError, match="never be in the catalogue"):
+        generate_cases(1, 5, CATALOGUE + family, family, {"held_back": 1.0}, absorption=False)
+
+
+@pytest.mark.parametrize(
+    ("parameters", "changes", "match"),
+    [
+        pytest.param(
+            PlantParameters, {"K": 0.005, "clutch_offset": 0.06}, "half-width", id="1.1-clutch_offset-beyond-half-width"
+        ),
+        pytest.param(PlantParameters, {"u_neg": -0.01}, "u_neg", id="1.2-supply_unbalance-negative"),
+        pytest.param(PlantParameters, {"sat": -0.1}, "sat", id="1.2-magnetic_saturation-negative"),
+        pytest.param(PlantParameters, {"b_2": float("nan")}, "finite", id="1.2-motor_windage-nan"),
+        pytest.param(PlantParameters, {"k_pre": 2.0}, "k_pre", id="1.2-clutch_preload_spring-too-stiff"),
+        pytest.param(PlantParameters, {"hard2": -1.0}, "hard2", id="1.2-resilient_hardening-negative"),
+        pytest.param(PlantParameters, {"k_3": -0.1}, "k_3", id="1.2-load_position_spring-negative"),
+        pytest.param(SensorParameters, {"ecc1": 0.9}, "ecc1", id="1.2-speed_encoder_eccentricity-too-large"),
+        pytest.param(PlantParameters, {"u_flicker": -0.01}, "u_flicker", id="1.3-supply_flicker-negative"),
+        pytest.param(PlantParameters, {"u_flicker": 0.9}, "u_flicker", id="1.3-supply_flicker-too-large"),
+        pytest.param(PlantParameters, {"x_leak": -0.1}, "x_leak", id="1.3-leakage_reactance-negative"),
+        pytest.param(PlantParameters, {"tau_S1": float("nan")}, "finite", id="1.3-motor_stribeck-nan"),
+        pytest.param(PlantParameters, {"prog12": -1.0}, "prog12", id="1.3-clutch_progressive_contact-negative"),
+        pytest.param(PlantParameters, {"tau_dry2": -0.1}, "tau_dry2", id="1.3-resilient_dry_friction-negative"),
+        pytest.param(PlantParameters, {"b_3": -1.0}, "b_3", id="1.3-load_quadratic_drag-negative"),
+        pytest.param(SensorParameters, {"xtalk2": 1.5}, "xtalk2", id="1.3-accelerometer_crosstalk-too-large"),
+    ],
+)
+def test_an_absurd_value_is_refused_with_its_name(
+    parameters: type[PlantParameters] | type[SensorParameters], changes: dict[str, Any], match: str
+) -> None:
+    with pytest.raises(ParameterError, match=match):
+        parameters(**changes).validate()
