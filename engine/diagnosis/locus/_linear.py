@@ -22,7 +22,6 @@ class Fit:
     bic: float
     x: np.ndarray  # knot values (NaN where the locus has no response)
     resolution: np.ndarray  # per knot, in [0, 1]
-    lam: float = math.nan  # the penalty's weight chosen (NaN: none)
 
 
 def orth(M: np.ndarray, n: int) -> np.ndarray:
@@ -90,7 +89,7 @@ def penalised_fit(A: np.ndarray, r: np.ndarray, k: int, settings: LocusSettings)
     R = Linv_T @ (V * f) @ (V.T @ L.T)
     x_all[keep] = x
     res_all[keep] = np.clip(np.diag(R), 0.0, 1.0)
-    return Fit(max(rss, 0.0), dof, bic, x_all, res_all, float(lam))
+    return Fit(max(rss, 0.0), dof, bic, x_all, res_all)
 
 
 def linear_fit(A: np.ndarray, r: np.ndarray, k: int) -> tuple[float, float, np.ndarray]:
