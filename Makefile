@@ -37,7 +37,7 @@ system-deps:
 TEST_WORKERS ?= 2
 
 test: lint docs system-deps
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) -m "not slow and not serial"
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "not slow and not serial"
 	$(BIN)/python -m pytest -q -m "serial and not slow"
 
 test-slow: $(STAMP)

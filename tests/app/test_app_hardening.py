@@ -54,9 +54,6 @@ JSON = {"Content-Type": "application/json"}
 KEY = "s3cret-test-key"
 #: Size of the large bodies [bytes] (the issue's "20 MB record").
 LARGE_BODY = 20_000_000
-#: Latency budgets and client timeouts are measured here: run alone, after the parallel run.
-pytestmark = pytest.mark.serial
-
 #: Longest ``GET /healthz`` may take while a large body is parsed [s].
 HEALTHZ_BUDGET = 1.0
 
@@ -100,6 +97,7 @@ def large_json_record() -> dict[str, object]:
 # -- 1. large bodies are parsed off the event loop ------------------------------------------------------
 
 
+@pytest.mark.serial  # the health check's latency budget: run alone, after the parallel run
 def test_large_bodies_do_not_hold_other_requests(start_server: ServerFactory) -> None:
     """Issue 51, item 1: while a ~20 MB body (CSV or JSON) is read, parsed and refused by every route that takes
     one, ``GET /healthz`` keeps answering within a second."""
@@ -127,6 +125,7 @@ def test_large_bodies_do_not_hold_other_requests(start_server: ServerFactory) ->
         assert c.get("/v1/records").json()["items"] == []  # nothing refused was stored
 
 
+@pytest.mark.serial  # the health check's latency budget: run alone, after the parallel run
 def test_healthz_does_not_wait_for_the_threads_that_compute(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Issue 51's load limit (``GET /healthz`` p99 under 1 s with 20 busy clients): the requests that compute
     share ``BACKLASH_REQUEST_THREADS`` threads, and ``/healthz`` (which reads the store) never waits for one.
@@ -314,6 +313,7 @@ def post_then_hang_up(port: int, body: dict[str, Any]) -> socket.socket:
     return conn
 
 
+@pytest.mark.serial  # slots freed within 5 s: run alone, after the parallel run
 def test_abandoned_synchronous_diagnoses_give_their_slots_back(tmp_path: Path, client: httpx.Client) -> None:
     """Issue 51, item 7: two clients start synchronous diagnoses (the whole catalogue: long) and hang up; their
     slots are free within seconds (not at the 120 s limit), and a third client's diagnosis is run, not refused."""
@@ -451,6 +451,7 @@ def test_an_unknown_parameter_message_names_a_few(server: Server, client: httpx.
     assert "param_09999" not in server.log_path.read_text(errors="replace")
 
 
+@pytest.mark.serial  # a 2 s read timeout measured: run alone, after the parallel run
 def test_slow_clients_are_timed_out(start_server: ServerFactory) -> None:
     """Issue 51, item 10: with BACKLASH_READ_TIMEOUT=2, a connection that sends nothing is closed, one that sends
     part of a request head gets 408 and is closed, and one whose body stalls gets 408 and is closed, each within
