@@ -58,7 +58,7 @@ def main(argv: list[str]) -> int:
                 U = qmc.Sobol(es.dim, scramble=True, seed=cs.seed).random(m)
                 C = Objective(record, es, sigma).chi2(U, horizons[:2], coarse)
                 scores[field] = (float(np.min(C[:, 0])), float(np.min(C[:, 1])))
-        ranks = [sorted(scores, key=lambda f, h=h: scores[f][h]) for h in (0, 1)]
+        ranks = [sorted(scores, key=lambda f: scores[f][0]), sorted(scores, key=lambda f: scores[f][1])]
         tf = FIELD.get(truth)
         where = ["-" if tf is None else str(r.index(tf) + 1) for r in ranks]
         print(cid, truth, "true field's rank, first/second horizon:", "/".join(where), "top 3:", ranks[0][:3],
