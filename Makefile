@@ -41,7 +41,7 @@ test: lint docs system-deps
 	$(BIN)/python -m pytest -q -m "serial and not slow"
 
 test-slow: $(STAMP)
-	$(BIN)/python -m pytest -q -m slow
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m slow
 
 bench: $(STAMP)
 	$(BIN)/backlash bench
