@@ -34,7 +34,7 @@ from engine.diagnosis.locus._refine import STEP_LENGTHS, Estimate
 from engine.diagnosis.locus._report import LocusSettings
 from engine.diagnosis.locus._responses import N_EXTRAS, PROBE, Observed, Responses
 from engine.diagnosis.space import ModelSpace
-from engine.parallel import Runner, single_threaded_blas
+from engine.parallel import Runner
 from engine.records import Record
 from engine.simulation import DISTURBANCE_LOCI, Case, Effect, Locus, SolverSettings, run_cases, serial_kernel
 from engine.simulation.parameters import COULOMB_FIELDS, PART_FIELDS
@@ -219,7 +219,7 @@ def joint_fits(
                     jobs.append((locus, field, _drift_effect(locus, field)))
     used = 0
     runner = Runner(CandidateSettings().jobs(), thread_context=serial_kernel, thread_name_prefix="locus")
-    with single_threaded_blas(), runner:
+    with runner:  # BLAS is single-threaded around the whole estimate (estimate_locus)
         tasks = [runner.submit(_global_fit, record, cal, space, effect, names) for _, _, effect in jobs]
         for (locus, field, effect), task in zip(jobs, tasks, strict=True):
             got = task.result()

@@ -32,9 +32,11 @@ from engine.simulation import Case, SolverSettings, run_cases
 #: 95th percentile of |z| there is 3.8, about twice 1.96. Its coverage on records it was not set on
 #: is measured in ``lab/validation/dev-locus-seed307/``.
 INFLATION: float = 2.0
-#: Step of the part term's finite difference: [pu] for a Coulomb friction, relative to the factor
-#: for a drift (small: the supply frequency's valley is about 1e-3 wide in the factor).
-TERM_STEP: dict[bool, float] = {True: 1e-3, False: 1e-4}
+#: Step of a Coulomb friction's finite difference [pu].
+FRICTION_STEP: float = 1e-3
+#: Step of a drift's finite difference, relative to its factor (small: the supply frequency's
+#: valley is about 1e-3 wide in the factor).
+DRIFT_STEP: float = 1e-4
 
 
 def part_term_sigma(
@@ -49,7 +51,7 @@ def part_term_sigma(
     """Standard deviation of the part term's value of ``est`` (friction [pu], or drift: factor - 1).
 
     One batch of simulations at the locus's step: the estimate, the term moved by
-    :data:`TERM_STEP`, each calibrated parameter by its response column's step and each extra by
+    :data:`FRICTION_STEP` or :data:`DRIFT_STEP`, each calibrated parameter by its response column's step and each extra by
     the locus's probe. The covariance of (term, parameters, extras) is ``pinv(J^T J)`` of the
     whitened residual's Jacobian, times ``dispersion * tau`` (``tau``: the integrated
     autocorrelation time of the estimate's whitened residual, per channel, at least 1); the
@@ -84,8 +86,7 @@ def part_term_sigma(
         """The estimate with the term at ``value`` and extras ``e``, from ``case_base``."""
         return with_input(with_term(case_base, est.field, value), resp.schedule(locus, est.x, e))
 
-    coulomb = is_coulomb(est.field)
-    h_term = TERM_STEP[coulomb] * (1.0 if coulomb else 1.0 + est.f)
+    h_term = FRICTION_STEP if is_coulomb(est.field) else DRIFT_STEP * (1.0 + est.f)
     centre = at(est.f, est.e)
     cases = [centre, at(est.f + h_term, est.e)]
     steps = [h_term]
