@@ -1,17 +1,47 @@
 """Benchmark: numba kernel vs scipy solve_ivp (LSODA, rtol 1e-8) on the 168-case grid.
 
 Run as ``backlash bench`` or ``python bench/bench_simulator.py``; the last line
-is ``speedup: <ratio>x``.
+is ``speedup: <ratio>x``. Per core, as issue 54 measures it::
+
+    NUMBA_NUM_THREADS=1 python bench/bench_simulator.py --json docs/validation/kernel-speed/report.json
+
+``--json FILE`` also writes the figures, the numba thread count and the commit, which
+``docs/gen.py`` renders into docs/identification.md (region ``kernel-speed``).
 """
 
 from __future__ import annotations
 
+import argparse
+import json
+import os
+import platform
+import subprocess
 import sys
+from pathlib import Path
 
 from engine.simulation.benchmark import run_benchmark
 
 
-def main() -> int:
+def _commit() -> str:
+    """The working tree's commit (short), with ``+`` when it has local changes; ``unknown`` outside git."""
+    root = Path(__file__).resolve().parents[1]
+    try:
+        head = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True, check=True
+        )
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"], cwd=root, capture_output=True, text=True
+        )
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return head.stdout.strip() + ("+" if dirty.stdout.strip() else "")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--json", type=Path, help="also write the figures to this JSON file")
+    args = ap.parse_args(argv)
+
     def progress(i: int, n: int) -> None:
         if i % 24 == 0 or i == n:
             sys.stderr.write(f"\rbaseline (solve_ivp): {i}/{n} cases")
@@ -21,6 +51,27 @@ def main() -> int:
 
     result = run_benchmark(progress=progress)
     sys.stdout.write("\n".join(result.lines()) + "\n")
+    if args.json:
+        import numba
+
+        report = {
+            "n_cases": result.n_cases,
+            "kernel_seconds": result.kernel_seconds,
+            "baseline_seconds": result.baseline_seconds,
+            "kernel_records_per_s": result.kernel_rate,
+            "baseline_records_per_s": result.baseline_rate,
+            "speedup": result.speedup,
+            "max_rel_error": result.max_rel_error,
+            "max_event_time_error_s": result.max_event_time_error,
+            "numba_threads": numba.config.NUMBA_NUM_THREADS,
+            "numba_num_threads_env": os.environ.get("NUMBA_NUM_THREADS"),
+            "cpus": os.cpu_count(),
+            "processor": platform.processor() or platform.machine(),
+            "commit": _commit(),
+            "command": "NUMBA_NUM_THREADS=1 python bench/bench_simulator.py --json " + args.json.as_posix(),
+        }
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(report, indent=1) + "\n")
     return 0
 
 

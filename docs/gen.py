@@ -444,6 +444,27 @@ def render_identification_accuracy(page: Page) -> str:
     return table(head, rows) + note + sources(page, [ACCURACY, "docs/validation/identification/README.md"])
 
 
+KERNEL_SPEED = "docs/validation/kernel-speed/report.json"
+
+
+def render_kernel_speed(page: Page) -> str:
+    """The simulator kernel against solve_ivp on the 168-case grid, per core (``bench/bench_simulator.py``)."""
+    r = read_json(KERNEL_SPEED)
+    threads = r["numba_threads"]
+    rows = [
+        ["numba kernel", f"{r['kernel_records_per_s']:.1f}", f"{r['kernel_seconds']:.3f} s (best of 3, compiled)"],
+        ["solve_ivp LSODA, rtol 1e-8", f"{r['baseline_records_per_s']:.1f}", f"{r['baseline_seconds']:.2f} s"],
+    ]
+    note = (
+        f"\n\n**{r['speedup']:.1f}x** in the same process, the kernel on {threads} numba thread"
+        f"{'s' if threads != 1 else ''} ({r['cpus']} cores), the baseline on one; agreement: max error "
+        f"{100 * r['max_rel_error']:.4f} % of peak-to-peak (limit 0.5 %), max |t_e difference| "
+        f"{r['max_event_time_error_s']:.2e} s (limit 1e-6 s). Code {r['commit']}; "
+        f"`{r['command']}`."
+    )
+    return table(["simulator", "records/s", "168 cases in"], rows) + note + sources(page, [KERNEL_SPEED])
+
+
 CONTINUOUS = "docs/validation/continuous-width/report.json"
 
 
@@ -880,6 +901,7 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "width-coverage": render_width_coverage,
     "confidence": render_confidence,
     "identification-accuracy": render_identification_accuracy,
+    "kernel-speed": render_kernel_speed,
     "continuous-width-channels": render_continuous_channels,
     "continuous-width-splits": render_continuous_splits,
     "p1-runs": render_p1_runs,
