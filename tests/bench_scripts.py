@@ -24,5 +24,6 @@ def load_bench(name: str) -> ModuleType:
     spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # as an import does: a dataclass of the script looks its module up there
     spec.loader.exec_module(module)
     return module
