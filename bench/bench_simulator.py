@@ -63,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
             "speedup": result.speedup,
             "max_rel_error": result.max_rel_error,
             "max_event_time_error_s": result.max_event_time_error,
-            "numba_threads": numba.config.NUMBA_NUM_THREADS,
+            "numba_threads": numba.get_num_threads(),
             "numba_num_threads_env": os.environ.get("NUMBA_NUM_THREADS"),
             "cpus": os.cpu_count(),
             "processor": platform.processor() or platform.machine(),
