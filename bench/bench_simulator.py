@@ -15,26 +15,11 @@ import argparse
 import json
 import os
 import platform
-import subprocess
 import sys
 from pathlib import Path
 
 from engine.simulation.benchmark import run_benchmark
-
-
-def _commit() -> str:
-    """The working tree's commit (short), with ``+`` when it has local changes; ``unknown`` outside git."""
-    root = Path(__file__).resolve().parents[1]
-    try:
-        head = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True, check=True
-        )
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"], cwd=root, capture_output=True, text=True
-        )
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-    return head.stdout.strip() + ("+" if dirty.stdout.strip() else "")
+from engine.validation.provenance import code_version
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -67,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
             "numba_num_threads_env": os.environ.get("NUMBA_NUM_THREADS"),
             "cpus": os.cpu_count(),
             "processor": platform.processor() or platform.machine(),
-            "commit": _commit(),
+            "commit": code_version()["describe"] or "unknown",
             "command": "NUMBA_NUM_THREADS=1 python bench/bench_simulator.py --json " + args.json.as_posix(),
         }
         args.json.parent.mkdir(parents=True, exist_ok=True)
