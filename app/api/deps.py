@@ -16,7 +16,7 @@ from app.records_io import (
     ACCEPTED_UNITS_DOC,
     UNITS_SYNTAX,
     RecordFormatError,
-    decode_csv_body,
+    csv_body_lines,
     parse_units,
     record_from_csv,
 )
@@ -251,7 +251,7 @@ async def csv_record(request: Request, params: CSVRecordParams) -> Record:
 
     def read() -> Record:
         return record_from_csv(
-            decode_csv_body(raw), params.sample_interval, params.event_index, params.conditions, units
+            csv_body_lines(raw), params.sample_interval, params.event_index, params.conditions, units
         )
 
     return await run_in_threadpool(read)

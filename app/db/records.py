@@ -3,6 +3,12 @@
 A record is kept as its request body (JSON, or the CSV text with the query parameters that
 complete it), compressed, so that a diagnosis can be run again (a retried job) and a stored record
 can be picked again in the report page, read by exactly the code that read it the first time.
+
+The whole body is kept, however long the record (issue 54), though a diagnosis holds only the excerpt
+around the event of a long CSV (:mod:`engine.records.streamed`): where the event lies, the noise level
+the locator uses and whether the record is refused all depend on every sample, so only the whole body
+reads again to the same answer, and nothing a user sent is lost. What that costs is bounded by the
+request body's limit (``BACKLASH_MAX_BODY_BYTES``, 32 MiB by default) and the compression.
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ from typing import Any, Literal
 from pydantic import TypeAdapter, ValidationError
 from pydantic_core import from_json
 
-from app.records_io import RecordFormatError, decode_csv_body, parse_units, record_from_csv
+from app.records_io import RecordFormatError, csv_body_lines, parse_units, record_from_csv
 from app.schemas.assets import AssetName, MeasuredAt
 from app.schemas.diagnose import BrfdDiagnoseCreate, DiagnoseCreate, PlantDiagnoseCreate
 from app.services import diagnosis, plant_diagnosis
@@ -152,13 +152,13 @@ def parse(request: DiagnosisRequest) -> ParsedDiagnosis:
 
 def _parse_csv(raw: bytes, params: dict[str, Any]) -> ParsedDiagnosis:
     asset, measured_at = named_asset(params.get("asset"), params.get("measured_at"))
-    text = decode_csv_body(raw)
+    lines = csv_body_lines(raw)  # the body is not decoded whole: a long record is read as it is parsed
     try:
         units = parse_units(params.get("units"))
     except RecordFormatError as exc:
         raise InvalidInputError(f"query parameter {exc}") from None
     record = record_from_csv(
-        text, params.get("sample_interval"), params.get("event_index"), params.get("conditions") or {}, units
+        lines, params.get("sample_interval"), params.get("event_index"), params.get("conditions") or {}, units
     )
     return ParsedDiagnosis(plant=DEFAULT_PLANT, record=record, asset=asset, measured_at=measured_at)
 
@@ -182,7 +182,10 @@ def named_asset(asset: str | None, measured_at: str | None) -> tuple[str | None,
 
 
 def n_samples(record: Any) -> int:
-    """Samples of a record of any plant."""
+    """Samples of a record of any plant (of the record as read, for the drive's excerpt of a long one)."""
+    origin = getattr(record, "origin", None)
+    if origin is not None:
+        return int(origin.n_samples)
     for attr in ("t", "time"):
         value = getattr(record, attr, None)
         if value is not None and hasattr(value, "__len__"):

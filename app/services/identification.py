@@ -247,8 +247,8 @@ def identify_from_store(
         "warnings": [w.to_dict() for w in warnings],
         "record": {
             "sample_interval": record.sample_interval,
-            "n_samples": record.n_samples,
-            "event_index": record.event_index,
+            "n_samples": record.origin.n_samples,  # in the record as read (an excerpt counts its own)
+            "event_index": record.origin.first + record.event_index,
             "event_location": record.event_location.to_dict() if record.event_location else None,
             "window": window.to_dict(),
             "patterns_read": (

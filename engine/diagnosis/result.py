@@ -203,9 +203,10 @@ class DiagnosisResult:
             return None
         ts = rec.sample_interval
         loc = rec.event_location
-        event: dict[str, Any] = {"index": rec.event_index, "located": loc is not None}
+        index = rec.origin.first + rec.event_index  # in the record as read (an excerpt's differs)
+        event: dict[str, Any] = {"index": index, "located": loc is not None}
         if loc is None:
-            event.update({"time": rec.event_index * ts, "sigma": 0.0})
+            event.update({"time": index * ts, "sigma": 0.0})
         else:
             cal = self.final  # the event instant of the model the answer ends with
             offset = cal.values.get(ALIGNMENT)
@@ -214,13 +215,13 @@ class DiagnosisResult:
             event.update(
                 {
                     "offset": offset,
-                    "time": rec.event_index * ts + (offset if offset is not None else 0.0),
+                    "time": index * ts + (offset if offset is not None else 0.0),
                     "sigma": sigma if sigma is not None and math.isfinite(sigma) else loc.sigma,
                 }
             )
         return {
             "sample_interval": ts,
-            "n_samples": rec.n_samples,
+            "n_samples": rec.origin.n_samples,
             "units": {c: rec.unit(c) for c in rec.channels},
             "event": event,
             "window": self.window.to_dict() if self.window is not None else None,

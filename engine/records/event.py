@@ -17,7 +17,8 @@ none of m_el and a1 needs its ``event_index``.
   of 1 ms (every sample within ``4 sigma + 10 %`` of the jump of the stretch's mean).
 
 sigma is the channel's white-noise level from its second differences (median
-absolute deviation, robust to the signal's impacts). Either way the event lies
+absolute deviation, robust to the signal's impacts; over the whole record, read
+in pieces of :data:`~engine.records.series.PIECE` samples when it is longer). Either way the event lies
 between the sample before the located one and the located one, so the time is
 known to within one sample: the reported uncertainty is that of a uniform
 distribution over the interval, ``Ts / sqrt(12)``; the gap diagnosis fits the
@@ -27,13 +28,15 @@ exact instant within the interval (:mod:`engine.diagnosis.space`).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from engine.records.errors import ProtocolError
+from engine.records.order import median
+from engine.records.series import PIECE, Series, as_series, pieces
 
 __all__ = ["LOCATING_CHANNELS", "EventLocation", "locate_event"]
 
@@ -82,44 +85,63 @@ class EventLocation:
         }
 
 
-def _noise(x: np.ndarray) -> float:
+def _noise(x: Series) -> float:
     """White-noise standard deviation from second differences (MAD; 0 for a noiseless record)."""
-    d2 = np.diff(x, 2)
-    return float(np.median(np.abs(d2)) / _MAD_NORMAL / math.sqrt(6.0)) if d2.size else 0.0
+    if x.size < 3:
+        return 0.0
+    if x.size <= PIECE:  # held in one piece: numpy's median
+        return float(np.median(np.abs(np.diff(x.read(0, x.size), 2))) / _MAD_NORMAL / math.sqrt(6.0))
+
+    def second_differences() -> Iterator[np.ndarray]:
+        return (np.abs(np.diff(piece, 2)) for _, piece in pieces(x, overlap=2))
+
+    return float(median(second_differences, x.size - 2) / _MAD_NORMAL / math.sqrt(6.0))
 
 
-def _from_m_el(x: np.ndarray, tail: int) -> int | None:
+def _from_m_el(x: Series, tail: int) -> int | None:
     sigma = _noise(x)
-    dev = np.abs(x - float(np.median(x[-tail:])))
-    thr = max(6.0 * sigma, 0.02 * float(np.max(dev)))
-    above = np.flatnonzero(dev > thr)
-    if above.size == 0 or above[-1] + 1 >= x.size:
-        return None
-    return int(above[-1] + 1)
-
-
-def _from_a1(x: np.ndarray, quiet: int) -> int | None:
-    sigma = _noise(x)
-    d = np.abs(np.diff(x))
-    if d.size == 0:
-        return None
-    thr = max(8.0 * sigma, 0.05 * float(np.max(d)))
-    for k in np.flatnonzero(d > thr) + 1:  # x[k] ends the jump
-        stretch = x[k : k + quiet]
-        if stretch.size < quiet:
+    level = float(np.median(x.read(x.size - tail, x.size)))
+    largest = max(float(np.max(np.abs(piece - level))) for _, piece in pieces(x))
+    thr = max(6.0 * sigma, 0.02 * largest)
+    last = None  # the last sample beyond the threshold: pieces from the end
+    for first in range((x.size - 1) // PIECE * PIECE, -1, -PIECE):
+        above = np.flatnonzero(np.abs(x.read(first, first + PIECE) - level) > thr)
+        if above.size:
+            last = first + int(above[-1])
             break
-        if np.max(np.abs(stretch - stretch.mean())) <= 4.0 * sigma + 0.1 * d[k - 1]:
-            return int(k)
+    if last is None or last + 1 >= x.size:
+        return None
+    return last + 1
+
+
+def _from_a1(x: Series, quiet: int) -> int | None:
+    sigma = _noise(x)
+    if x.size < 2:
+        return None
+    jumps = [float(np.max(np.abs(np.diff(piece)))) for _, piece in pieces(x, overlap=1) if piece.size > 1]
+    thr = max(8.0 * sigma, 0.05 * max(jumps))
+    for first, piece in pieces(x, overlap=quiet):  # x[first + j + 1] ends the jump d[first + j]
+        d = np.abs(np.diff(piece[: PIECE + 1]))
+        for j in np.flatnonzero(d > thr):
+            stretch = piece[j + 1 : j + 1 + quiet]
+            if stretch.size < quiet:
+                return None
+            if np.max(np.abs(stretch - stretch.mean())) <= 4.0 * sigma + 0.1 * d[j]:
+                return first + int(j) + 1
     return None
 
 
-def locate_event(channels: Mapping[str, np.ndarray], sample_interval: float) -> EventLocation:
+def locate_event(channels: Mapping[str, np.ndarray | Series], sample_interval: float) -> EventLocation:
     """Locate the event in a record's channels (model units; see the module notes).
 
     Parameters
     ----------
-    channels : mapping of str to ndarray
-        The record's channels, one common length.
+    channels : mapping of str to ndarray or Series
+        The record's channels, one common length: arrays, or series read in pieces (the columns of a
+        long record on disk, :mod:`engine.records.streamed`). Either way they are read
+        :data:`~engine.records.series.PIECE` samples at a time (no temporary array is longer), and the
+        answer is the same: the median of the second differences of a longer series is selected
+        exactly (:func:`engine.records.order.median`).
     sample_interval : float
         Ts [s].
 
@@ -139,7 +161,7 @@ def locate_event(channels: Mapping[str, np.ndarray], sample_interval: float) -> 
     for name in LOCATING_CHANNELS:
         if name not in channels:
             continue
-        x = np.asarray(channels[name], dtype=float)
+        x = as_series(channels[name])
         if name == "m_el":
             k = _from_m_el(x, max(3, min(x.size // 2, math.ceil(LEVEL_TIME / ts - 1e-9))))
             how = (

@@ -17,7 +17,7 @@ import numpy as np
 
 from engine.records.errors import RecordError
 
-__all__ = ["MAX_ABS_SAMPLE", "MAX_SAMPLES", "require_length", "require_magnitude"]
+__all__ = ["MAX_ABS_SAMPLE", "MAX_SAMPLES", "first_beyond", "magnitude_error", "require_length", "require_magnitude"]
 
 #: Largest accepted magnitude of a sample, in the engine's unit of its series (m/s^2, rad/s, m/s,
 #: pu, m, N, V, s). Physically motivated: no sensor of these plants reads anywhere near it (the
@@ -30,10 +30,13 @@ __all__ = ["MAX_ABS_SAMPLE", "MAX_SAMPLES", "require_length", "require_magnitude
 MAX_ABS_SAMPLE: Final[float] = 1e12
 
 
-#: Most samples per series of a record. A diagnosis reads only the test window (about 205 ms: 20 500
-#: samples at the finest accepted interval of 10 us), so no answer needs more; the cap keeps a
+#: Most samples per series of a record held whole. A diagnosis reads only the test window (about 205 ms:
+#: 20 500 samples at the finest accepted interval of 10 us), so no answer needs more; the cap keeps a
 #: record's memory, its answer and what is stored of it bounded (issue 51: a 10^7-sample record
 #: became a 4.6 GB worker). 10^6 samples is 10 s at 10 us: cut a longer record around the event.
+#: A record read in pieces (a CSV: :mod:`engine.records.streamed`) is not held whole and not capped
+#: (issue 54): only its excerpt around the event is kept, and the service's bodies are bounded by
+#: ``BACKLASH_MAX_BODY_BYTES``.
 MAX_SAMPLES: Final[int] = 1_000_000
 
 
@@ -77,13 +80,23 @@ def require_magnitude(values: np.ndarray, what: str, unit: str) -> None:
     RecordError
         Naming the series, the first offending sample (0-based), its value and what to check.
     """
-    too_large = np.abs(np.asarray(values, dtype=float)) > MAX_ABS_SAMPLE
-    if not np.any(too_large):
-        return
-    i = int(np.flatnonzero(too_large)[0])
-    value = float(np.asarray(values, dtype=float)[i])
-    raise RecordError(
-        f"{what} holds {value:.3g} {unit} at sample {i}: beyond +-{MAX_ABS_SAMPLE:.0e} {unit}, far more than any "
+    i = first_beyond(values)
+    if i is not None:
+        raise magnitude_error(what, unit, i, float(np.asarray(values, dtype=float)[i]))
+
+
+def first_beyond(values: np.ndarray) -> int | None:
+    """Index of the first sample of ``values`` (finite) beyond +-:data:`MAX_ABS_SAMPLE`, or None (no float
+    temporary as long as ``values``: two boolean masks)."""
+    x = np.asarray(values, dtype=float)
+    too_large = (x > MAX_ABS_SAMPLE) | (x < -MAX_ABS_SAMPLE)
+    return int(np.flatnonzero(too_large)[0]) if np.any(too_large) else None
+
+
+def magnitude_error(what: str, unit: str, index: int, value: float) -> RecordError:
+    """The refusal of :func:`require_magnitude`: sample ``index`` of the series ``what`` holds ``value`` [``unit``]."""
+    return RecordError(
+        f"{what} holds {value:.3g} {unit} at sample {index}: beyond +-{MAX_ABS_SAMPLE:.0e} {unit}, far more than any "
         "sensor of the plant reads, and too large to compute with; check the record's units and scaling "
         "(a wrong exponent, raw counts, a misplaced decimal point)"
     )

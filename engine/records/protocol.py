@@ -14,6 +14,12 @@ Everything about how a record was taken is settled here and nowhere else:
   :class:`~engine.records.event.EventLocation`.
 * **units**: per channel (:mod:`engine.records.units`), converted to MODEL.md's
   units here, once.
+
+The record is held whole, in one float64 array per channel: the arrays made here (from lists, or by a
+unit's factor) are kept by the :class:`~engine.records.record.Record` as they are, a caller's array in
+its model unit is copied once; the checks and the event locator make no temporary float array as long
+as the record, only boolean masks (:mod:`engine.records.event` reads it in pieces). A record too long to
+hold is read in pieces instead (:func:`engine.records.streamed.record_from_chunks`, the CSV reader's way).
 """
 
 from __future__ import annotations
@@ -28,17 +34,14 @@ from engine.constants import CHANNELS, SAMPLE_INTERVAL
 from engine.records.errors import RecordError
 from engine.records.event import locate_event
 from engine.records.record import Record
+from engine.records.time_column import TIME_TOLERANCE, TimeSteps
 from engine.records.units import UnitError, to_model_units
 
 __all__ = ["TIME_TOLERANCE", "interval_from_time", "record_from_data"]
 
-#: Largest deviation of a time column's steps from their mean, relative to the step, that still
-#: counts as a uniform grid (a time column printed with 6 significant digits passes).
-TIME_TOLERANCE: float = 1e-3
-
 
 def interval_from_time(t: Sequence[float] | np.ndarray) -> float:
-    """Sample interval [s] defined by a time column [s] (uniform, increasing).
+    """Sample interval [s] defined by a time column [s] (uniform, increasing; :mod:`engine.records.time_column`).
 
     Raises
     ------
@@ -53,23 +56,9 @@ def interval_from_time(t: Sequence[float] | np.ndarray) -> float:
         raise RecordError("the time column 't' must be a list of numbers (seconds)") from None
     if arr.ndim != 1 or arr.size < 2:
         raise RecordError(f"the time column 't' needs at least 2 values, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise RecordError(
-            f"the time column 't' holds a non-finite value at sample {int(np.flatnonzero(~np.isfinite(arr))[0])}"
-        )
-    steps = np.diff(arr)
-    ts = float((arr[-1] - arr[0]) / (arr.size - 1))
-    if not ts > 0 or np.any(steps <= 0):
-        bad = int(np.flatnonzero(steps <= 0)[0]) + 1 if np.any(steps <= 0) else 1
-        raise RecordError(f"the time column 't' must increase from sample to sample; it does not at sample {bad}")
-    dev = np.abs(steps - ts) / ts
-    if np.max(dev) > TIME_TOLERANCE:
-        bad = int(np.argmax(dev)) + 1
-        raise RecordError(
-            f"the time column 't' is not uniform: the step to sample {bad} is {steps[bad - 1]:.6g} s against a mean "
-            f"of {ts:.6g} s; resample the record onto a uniform grid first"
-        )
-    return ts
+    steps = TimeSteps()
+    steps.add(arr)
+    return steps.interval(again=lambda: (arr,))
 
 
 def _arrays(channels: Mapping[str, Any]) -> dict[str, np.ndarray]:
@@ -161,6 +150,9 @@ def record_from_data(
         model = to_model_units(arrays, units, conditions)
     except UnitError as exc:
         raise RecordError(str(exc)) from None
+    for name, arr in model.items():  # arrays made here, not the caller's: the record keeps them, uncopied
+        if arr is not arrays[name] or (arr is not channels[name] and arr.base is None):
+            arr.flags.writeable = False
     location = None
     if event_index is None:
         location = locate_event(model, ts)

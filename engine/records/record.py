@@ -7,6 +7,12 @@ other). Inside the engine the samples are always in MODEL.md's units;
 ``units`` remembers the units the record came in, and :meth:`Record.to_dict`
 writes them back in those units. Reading a record as a bench gives it (units,
 a time column, no event index) is :func:`engine.records.protocol.record_from_data`.
+
+A record may be an *excerpt* of a longer one (:class:`Excerpt`): a record too long to hold is read
+in pieces and only the stretch around its event that analyses read is kept
+(:mod:`engine.records.streamed`). Its samples, grid and event index are those of the excerpt; what it
+reports of itself (:meth:`Record.test_window`'s :class:`WindowUse`, :attr:`Record.origin`) counts
+samples in the record as it was read.
 """
 
 from __future__ import annotations
@@ -25,7 +31,23 @@ from engine.records.grid import GridError, SampleGrid
 from engine.records.limits import require_length, require_magnitude
 from engine.records.units import UnitError, factor, from_model_units
 
-__all__ = ["Record", "WindowUse"]
+__all__ = ["Excerpt", "Record", "WindowUse"]
+
+
+@dataclass(frozen=True)
+class Excerpt:
+    """Where a record lies in the record it was cut from (a long record read in pieces).
+
+    Attributes
+    ----------
+    first : int
+        The record's sample 0 is sample ``first`` of the record read.
+    n_samples : int
+        Samples per channel of the record read.
+    """
+
+    first: int
+    n_samples: int
 
 
 @dataclass(frozen=True)
@@ -85,7 +107,15 @@ class Record:
         Units the record was given in, per channel (a channel not named is in its
         model unit); :meth:`to_dict` writes the samples back in them.
     event_location : EventLocation or None
-        How the event was located from the data, when the record did not give ``event_index``.
+        How the event was located from the data, when the record did not give ``event_index``
+        (its ``index`` counts samples in the record as it was read: :attr:`origin`).
+    excerpt : Excerpt or None
+        Where the record lies in a longer record it was cut from (:attr:`origin`); None for a
+        record as it was read.
+
+    Channels are copied, and the copies made read-only, unless an array is already read-only and
+    owns its data (as the arrays :func:`~engine.records.protocol.record_from_data` makes, and every
+    record's channels): such an array is kept as it is, so a record read once is not copied again.
 
     Raises
     ------
@@ -104,6 +134,7 @@ class Record:
     event_time: float | None = None
     units: Mapping[str, str] = field(default_factory=dict)
     event_location: EventLocation | None = None
+    excerpt: Excerpt | None = None
 
     def __post_init__(self) -> None:
         if not self.channels:
@@ -129,8 +160,9 @@ class Record:
             if not np.all(np.isfinite(arr)):
                 bad = int(np.flatnonzero(~np.isfinite(arr))[0])
                 raise RecordError(f"channel {name!r} holds a non-finite value (NaN or inf) at sample {bad}")
-            arr = arr.copy()
-            arr.flags.writeable = False
+            if arr.flags.writeable or not arr.flags.owndata:  # else read-only and its own: nothing writes it
+                arr = arr.copy()
+                arr.flags.writeable = False
             clean[name] = arr
         object.__setattr__(self, "channels", {c: clean[c] for c in CHANNELS if c in clean})  # canonical order
         object.__setattr__(self, "conditions", {k: float(v) for k, v in dict(self.conditions).items()})
@@ -153,6 +185,13 @@ class Record:
             raise ProtocolError(str(exc)) from None
         object.__setattr__(self, "sample_interval", grid.sample_interval)
         object.__setattr__(self, "event_index", grid.event_index)
+        if self.excerpt is not None and not (
+            self.excerpt.first >= 0 and self.excerpt.first + grid.n_samples <= self.excerpt.n_samples
+        ):
+            raise RecordError(
+                f"an excerpt of {grid.n_samples} samples cannot start at sample {self.excerpt.first} of a record of "
+                f"{self.excerpt.n_samples}"
+            )
 
     # -- the grid ---------------------------------------------------------------------
     @property
@@ -169,6 +208,11 @@ class Record:
     def time(self) -> np.ndarray:
         """Sample times relative to the event, t - t_e [s]."""
         return self.grid.time
+
+    @property
+    def origin(self) -> Excerpt:
+        """Where this record lies in the record as it was read (itself, from sample 0, unless an excerpt)."""
+        return self.excerpt if self.excerpt is not None else Excerpt(0, self.n_samples)
 
     def replace(self, **changes: Any) -> Record:
         """Copy with some fields changed (validated again)."""
@@ -187,27 +231,31 @@ class Record:
             conditions=self.conditions,
             units={c: u for c, u in self.units.items() if c in channels},
             event_location=self.event_location if g == self.grid else None,
+            excerpt=self.excerpt if g == self.grid else None,
         )
 
     def test_window(self) -> tuple[Record, WindowUse]:
         """The record cut to the test window (4.8 ms before to 200 ms after the event), and which samples that is.
 
         Every analysis (identification, calibration, diagnosis) reads this window; a longer
-        record's other samples are ignored and :class:`WindowUse` says so.
+        record's other samples are ignored and :class:`WindowUse` says so, counting samples in the
+        record as it was read (:attr:`origin`).
         """
         win = self.grid.window()
         ts = self.sample_interval
+        origin = self.origin
         use = WindowUse(
-            win.start,
-            win.stop,
-            self.n_samples,
+            origin.first + win.start,
+            origin.first + win.stop,
+            origin.n_samples,
             (win.start - self.event_index) * ts,
             (win.stop - self.event_index) * ts,
         )
         if win.start == 0 and win.stop == self.n_samples:
             return self, use
         cut = {c: x[win] for c, x in self.channels.items()}
-        return dataclasses.replace(self, channels=cut, event_index=self.event_index - win.start), use
+        excerpt = None if self.excerpt is None else Excerpt(origin.first + win.start, origin.n_samples)
+        return dataclasses.replace(self, channels=cut, event_index=self.event_index - win.start, excerpt=excerpt), use
 
     # -- access -------------------------------------------------------------------------
     def __getitem__(self, channel: str) -> np.ndarray:

@@ -33,7 +33,7 @@ from engine.records.record import Record
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["MAX_DRIFT", "interval_ratio", "resample_to_grid", "to_protocol_grid"]
+__all__ = ["MAX_DRIFT", "interval_ratio", "reach", "resample_to_grid", "to_protocol_grid"]
 
 #: Largest drift [s] over the test window that the rational approximation of the interval ratio may cause.
 MAX_DRIFT: float = 1e-6
@@ -97,15 +97,34 @@ def resample_to_grid(x: np.ndarray, source: SampleGrid, target: SampleGrid) -> n
     return y[first : first + target.n_samples]
 
 
+def reach(sample_interval: float) -> int:
+    """Samples of ``sample_interval`` [s] beyond the test window on either side that :func:`to_protocol_grid`
+    reads: the 8 :func:`resample_to_grid` adds, the half-length of :func:`scipy.signal.resample_poly`'s
+    filter (``10 max(up, down)`` output samples, ``10 max(1, down / up)`` input samples) and 8 to spare
+    (at most 116 samples, at 10 us)."""
+    r = interval_ratio(sample_interval, PROTOCOL_GRID.sample_interval)
+    return 8 + math.ceil(10 * max(r.numerator, r.denominator) / r.numerator) + 8
+
+
 def to_protocol_grid(record: Record) -> Record:
     """The record's test window on MODEL.md's grid (2048 x 0.1 ms, event at 48), model units.
 
-    Returns the record's own test window unchanged when it is already on that grid.
+    Returns the record's own test window unchanged when it is already on that grid. Otherwise only
+    the window and :func:`reach` samples on either side are resampled, not the whole record, in
+    memory bounded by the window: the same numbers, since every output sample's filter lies within
+    them. But where the record ends less than :func:`reach` samples beyond the window, the filter
+    reads the resampler's extension of the record there (``padtype="line"``: a line whose slope runs
+    from the record's first sample to its last), so the record's other end is kept too.
     """
     window, _ = record.test_window()
     if window.grid.is_protocol():
         return window
-    channels = {c: resample_to_grid(x, record.grid, PROTOCOL_GRID) for c, x in record.channels.items()}
+    win, margin = record.grid.window(), reach(record.sample_interval)
+    short_before, short_after = win.start < margin, record.n_samples - win.stop < margin
+    first = 0 if short_after else max(0, win.start - margin)
+    stop = record.n_samples if short_before else min(record.n_samples, win.stop + margin)
+    source = SampleGrid(record.sample_interval, stop - first, record.event_index - first)
+    channels = {c: resample_to_grid(x[first:stop], source, PROTOCOL_GRID) for c, x in record.channels.items()}
     logger.debug(
         "resampled %d channels from %g s to %g s (scipy.signal.resample_poly)",
         len(channels),

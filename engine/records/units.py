@@ -102,12 +102,16 @@ def _check_units(units: Mapping[str, str], channels: Mapping[str, np.ndarray]) -
 def to_model_units(
     channels: Mapping[str, np.ndarray], units: Mapping[str, str], conditions: Mapping[str, float] | None = None
 ) -> dict[str, np.ndarray]:
-    """Channels in the units ``units`` (missing channel = model unit) converted to the model units."""
+    """Channels in the units ``units`` (missing channel = model unit) converted to the model units.
+
+    A channel already in its model unit (factor 1) is returned as it came, as a float array, not copied.
+    """
     _check_units(units, channels)
-    return {
-        c: np.asarray(x, dtype=float) * factor(c, units.get(c, CHANNEL_UNITS[c]), conditions)
-        for c, x in channels.items()
-    }
+    out = {}
+    for c, x in channels.items():
+        f = factor(c, units.get(c, CHANNEL_UNITS[c]), conditions)
+        out[c] = np.asarray(x, dtype=float) if f == 1.0 else np.asarray(x, dtype=float) * f
+    return out
 
 
 def from_model_units(
