@@ -39,6 +39,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import resource
 import subprocess
 import sys
@@ -213,6 +214,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--modes", default="read,api,arrays", help="what to measure (read includes the diagnosis)")
     p.add_argument("--data", type=Path, help="directory of the record files (kept; made when missing)")
     p.add_argument("--no-rss", action="store_true", help="skip the processes that measure the resident set")
+    p.add_argument("--json", type=Path, help="also write the rows, the command and the code version here")
     p.add_argument("--child", help=argparse.SUPPRESS)
     p.add_argument("--path", type=Path, help=argparse.SUPPRESS)
     p.add_argument("--traced", action="store_true", help=argparse.SUPPRESS)
@@ -254,6 +256,18 @@ def main(argv: list[str] | None = None) -> int:
         if tmp is not None:
             tmp.cleanup()
     _report(rows, lengths[0])
+    if args.json:
+        from engine.atomic import write_json_atomic
+        from engine.validation.provenance import code_version
+
+        doc = {
+            "command": "python bench/bench_memory.py " + " ".join(sys.argv[1:] if argv is None else argv),
+            "code_version": code_version(),
+            "cores": os.cpu_count(),
+            "baseline_samples": lengths[0],
+            "rows": [{"samples": n, **r} for n, r in rows.items()],
+        }
+        write_json_atomic(args.json, doc, indent=1)
     return 0
 
 

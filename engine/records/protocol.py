@@ -24,7 +24,6 @@ hold is read in pieces instead (:func:`engine.records.streamed.record_from_chunk
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -34,7 +33,7 @@ from engine.constants import CHANNELS, SAMPLE_INTERVAL
 from engine.records.errors import RecordError
 from engine.records.event import locate_event
 from engine.records.record import Record
-from engine.records.time_column import TIME_TOLERANCE, TimeSteps
+from engine.records.time_column import TIME_TOLERANCE, TimeSteps, sample_interval_of
 from engine.records.units import UnitError, to_model_units
 
 __all__ = ["TIME_TOLERANCE", "interval_from_time", "record_from_data"]
@@ -132,20 +131,12 @@ def record_from_data(
     conditions = {k: float(v) for k, v in dict(conditions or {}).items()}
     units = {str(k): str(v) for k, v in dict(units or {}).items()}
     n = next(iter(arrays.values())).size
+    from_time = None
     if time is not None:
-        ts_t = interval_from_time(time)
+        from_time = interval_from_time(time)
         if len(time) != n:
             raise RecordError(f"the time column 't' has {len(time)} values and the channels {n} samples")
-        if sample_interval is not None and not math.isclose(float(sample_interval), ts_t, rel_tol=TIME_TOLERANCE):
-            raise RecordError(
-                f"sample_interval {float(sample_interval):g} s contradicts the time column 't' (step {ts_t:.6g} s); "
-                f"give one of them"
-            )
-        ts = ts_t
-    else:
-        ts = SAMPLE_INTERVAL if sample_interval is None else float(sample_interval)
-    if not (math.isfinite(ts) and ts > 0):
-        raise RecordError(f"sample_interval must be a positive number of seconds, got {ts}")
+    ts = sample_interval_of(from_time, sample_interval, SAMPLE_INTERVAL)
     try:
         model = to_model_units(arrays, units, conditions)
     except UnitError as exc:

@@ -34,7 +34,6 @@ amplitude 100 in a test), and the identification's figures with them.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Iterator, Mapping
 
 import numpy as np
@@ -48,7 +47,7 @@ from engine.records.protocol import record_from_data
 from engine.records.record import Excerpt, Record
 from engine.records.series import pieces
 from engine.records.spill import Spill
-from engine.records.time_column import TIME_TOLERANCE, TimeSteps
+from engine.records.time_column import TimeSteps, sample_interval_of
 from engine.records.units import UnitError, factor, to_model_units
 
 __all__ = ["HOLD_SAMPLES", "MARGIN_SAMPLES", "READ_SPAN", "Chunk", "record_from_chunks"]
@@ -256,21 +255,11 @@ class _LongRecord:
 
     def _interval(self) -> float:
         """The sample interval [s]: record_from_data's rules."""
+        from_time = None
         if self.has_time:
             column = self.spill.columns[_TIME]
-            ts_t = self.steps.interval(again=lambda: (piece for _, piece in pieces(column)))
-            given = self.sample_interval
-            if given is not None and not math.isclose(float(given), ts_t, rel_tol=TIME_TOLERANCE):
-                raise RecordError(
-                    f"sample_interval {float(given):g} s contradicts the time column 't' (step {ts_t:.6g} s); "
-                    f"give one of them"
-                )
-            ts = ts_t
-        else:
-            ts = SAMPLE_INTERVAL if self.sample_interval is None else float(self.sample_interval)
-        if not (math.isfinite(ts) and ts > 0):
-            raise RecordError(f"sample_interval must be a positive number of seconds, got {ts}")
-        return ts
+            from_time = self.steps.interval(again=lambda: (piece for _, piece in pieces(column)))
+        return sample_interval_of(from_time, self.sample_interval, SAMPLE_INTERVAL)
 
     def _excerpt(self, grid: SampleGrid, location: EventLocation | None) -> Record:
         """What the analyses read of the record: the excerpt around its event, read back from the spill."""

@@ -12,13 +12,14 @@ side. Only a column that fails the uniformity check is read once more (:meth:`Ti
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable
 
 import numpy as np
 
 from engine.records.errors import RecordError
 
-__all__ = ["TIME_TOLERANCE", "TimeSteps"]
+__all__ = ["TIME_TOLERANCE", "TimeSteps", "sample_interval_of"]
 
 #: Largest deviation of a time column's steps from their mean, relative to the step, that still
 #: counts as a uniform grid (a time column printed with 6 significant digits passes).
@@ -113,3 +114,35 @@ class TimeSteps:
             offset += piece.size
             last = float(piece[-1]) if piece.size else last
         raise AssertionError("the worst step of the time column was not found again")
+
+
+def sample_interval_of(from_time: float | None, given: float | None, default: float) -> float:
+    """The record's sample interval [s] from its time column's and the one given, checked.
+
+    Parameters
+    ----------
+    from_time : float or None
+        The interval the time column defines [s] (:meth:`TimeSteps.interval`); None without a column.
+    given : float or None
+        The ``sample_interval`` the record gave [s], if any.
+    default : float
+        The interval of a record that gives neither [s].
+
+    Raises
+    ------
+    RecordError
+        The two contradict each other (beyond :data:`TIME_TOLERANCE`), or the interval is not a
+        positive finite number.
+    """
+    if from_time is not None:
+        if given is not None and not math.isclose(float(given), from_time, rel_tol=TIME_TOLERANCE):
+            raise RecordError(
+                f"sample_interval {float(given):g} s contradicts the time column 't' (step {from_time:.6g} s); "
+                f"give one of them"
+            )
+        ts = from_time
+    else:
+        ts = default if given is None else float(given)
+    if not (math.isfinite(ts) and ts > 0):
+        raise RecordError(f"sample_interval must be a positive number of seconds, got {ts}")
+    return ts
