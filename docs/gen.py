@@ -465,6 +465,53 @@ def render_kernel_speed(page: Page) -> str:
     return table(["simulator", "records/s", "168 cases in"], rows) + note + sources(page, [KERNEL_SPEED])
 
 
+MEMORY = "docs/validation/memory/report.json"
+
+
+def render_memory(page: Page) -> str:
+    """Peak memory of reading and diagnosing a CSV record against its length (``bench/bench_memory.py``)."""
+    r = read_json(MEMORY)
+    rows = r["rows"]
+    base = next(x for x in rows if x["samples"] == r["baseline_samples"])
+
+    def cell(x: dict, key: str) -> str:
+        if key not in x:
+            return "-"
+        return f"{x[key]:.1f} ({x[key] / base[key]:.2f}x)" if base.get(key) else f"{x[key]:.1f}"
+
+    out = []
+    for x in rows:
+        answer = x.get("verdict", "-") + (f", K {x['K_mm']} mm" if x.get("K_mm") is not None else "")
+        out.append(
+            [
+                f"{x['samples']:.0e}",
+                f"{x['file_mb']:.0f}",
+                cell(x, "read_peak_mb"),
+                cell(x, "read_rss_mb"),
+                cell(x, "api_peak_mb"),
+                cell(x, "diagnose_peak_mb"),
+                cell(x, "arrays_peak_mb"),
+                answer,
+            ]
+        )
+    head = [
+        "samples",
+        "file [MB]",
+        "CLI read, peak [MB]",
+        "CLI read, resident [MB]",
+        "API CSV read, peak [MB]",
+        "diagnosis, peak [MB]",
+        "JSON-like arrays, peak [MB]",
+        "answer",
+    ]
+    v = r["code_version"]
+    note = (
+        f"\n\nRatios against the {r['baseline_samples']:.0e}-sample record in the same run; code "
+        f"{v.get('describe') or v.get('commit')}, {r['cores']} cores; `{r['command']}`."
+    )
+    return table(head, out) + note + sources(page, [MEMORY])
+
+
 CONTINUOUS = "docs/validation/continuous-width/report.json"
 
 
@@ -902,6 +949,7 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "confidence": render_confidence,
     "identification-accuracy": render_identification_accuracy,
     "kernel-speed": render_kernel_speed,
+    "memory": render_memory,
     "continuous-width-channels": render_continuous_channels,
     "continuous-width-splits": render_continuous_splits,
     "p1-runs": render_p1_runs,
