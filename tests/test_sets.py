@@ -882,7 +882,10 @@ def test_seeded_triples_and_their_exchange_that_explain_spare_the_escalation_of_
 
     def fake_escalate(record, nominal, space, library, cands, cs):
         escalations.append(cs.n_escalate)
-        return cands
+        if len(escalations) == 1:
+            return cands
+        # the escalation of the singles finds a better basin for one of them (else the first sets stand)
+        return [single(cands[0].effect, 20.0, 10.0), *cands[1:]]
 
     monkeypatch.setattr(staged_module, "search_sets", fake_search)
     monkeypatch.setattr(staged_module, "escalate_candidates", fake_escalate)
@@ -924,9 +927,68 @@ def test_without_a_triple_so_far_there_is_no_first_exchange(monkeypatch: pytest.
     monkeypatch.setattr(staged_module, "escalate_candidates", lambda record, nominal, space, library, cands, cs: cands)
     stages: list[str] = []
     cands = [single(n, 50.0 + i, 10.0) for i, n in enumerate(("load_inertia", "supply_voltage", "sensor_gain"))]
-    settings = DiagnosisSettings(sets=SetSettings(first_triples=False))
+    settings = DiagnosisSettings(sets=SetSettings(first_triples=False, min_escalation_gain=None))
     staged_module.staged_search(None, fake_cal(100.0, k=3), None, CATALOGUE, cands, settings, stages.append)
     assert "first exchange" not in stages and stages[-2:] == ["escalation of the singles", "sets of up to three"]
+
+
+@pytest.mark.parametrize(
+    ("escalated", "first_pair", "second_search"),
+    [(50.0, 30.0, False), (49.0, 30.0, False), (45.0, 30.0, True), (10.0, 30.0, True), (50.0, 20.0, True)],
+)
+def test_the_sets_are_searched_again_only_when_a_single_improved_or_the_sets_closed_most_of_the_gap(
+    monkeypatch: pytest.MonkeyPatch, escalated: float, first_pair: float, second_search: bool
+) -> None:
+    """Issue 54: the search of sets from the escalated singles starts from the basins those singles
+    reached. It is skipped, and the first search's sets stand, only when the escalation closed less than
+    ``min_escalation_gain`` (10 %) of every single's excess chi2 over the noise and the best set so far
+    closed less than ``min_set_progress`` (half) of the best single's (singles at 50, a pair at 30 closes
+    0.41 of it, a pair at 20 0.61)."""
+    searches: list[int] = []
+
+    def fake_search(record, nominal, space, library, cands, cs, ss, previous=(), screens=None):
+        searches.append(ss.max_size)
+        return [pair(("load_inertia", "supply_voltage"), first_pair, (10.0, 10.0))] if len(searches) == 1 else []
+
+    calls: list[int] = []
+
+    def fake_escalate(record, nominal, space, library, cands, cs):
+        calls.append(1)
+        if len(calls) == 1:  # the early escalation
+            return cands
+        return [single(cands[0].effect, escalated, 10.0), *cands[1:]]  # chi2/n 50 -> escalated
+
+    monkeypatch.setattr(staged_module, "search_sets", fake_search)
+    monkeypatch.setattr(staged_module, "escalate_candidates", fake_escalate)
+    stages: list[str] = []
+    cands = [single(n, 50.0 + i, 10.0) for i, n in enumerate(("load_inertia", "supply_voltage", "sensor_gain"))]
+    settings = DiagnosisSettings(sets=SetSettings(first_triples=False))
+    staged_module.staged_search(None, fake_cal(100.0, k=3), None, CATALOGUE, cands, settings, stages.append)
+    assert stages[-1] == ("sets of up to three" if second_search else "escalation of the singles")
+    assert len(searches) == (2 if second_search else 1)
+
+
+def test_the_escalation_gain_is_the_share_of_the_excess_chi2_closed() -> None:
+    before = {
+        "load_inertia": single("load_inertia", 11.0, 10.0).calibration,
+        "supply_voltage": single("supply_voltage", 3.0, 10.0).calibration,
+    }
+    after = [single("load_inertia", 10.0, 10.0), single("supply_voltage", 2.0, 10.0), single("sensor_gain", 1.0, 10.0)]
+    # chi2/n 11 -> 10 closes about 1/10 of an excess of 10; 3 -> 2 closes about 1/2; sensor_gain had no fit before
+    assert staged_module.escalation_gain(before, after) == pytest.approx(0.5, rel=1e-3)
+    worse = [single("load_inertia", 12.0, 10.0)]
+    assert staged_module.escalation_gain(before, worse) == 0.0
+    assert staged_module.escalation_gain({}, after) == 0.0
+
+
+def test_the_progress_of_the_sets_is_the_share_of_the_best_singles_excess_they_closed() -> None:
+    cands = [single("load_inertia", 11.0, 10.0), single("supply_voltage", 21.0, 10.0)]
+    assert staged_module.set_progress(cands, [pair(("load_inertia", "supply_voltage"), 6.0, (10.0, 10.0))]) == (
+        pytest.approx(0.5)
+    )
+    assert staged_module.set_progress(cands, [pair(("load_inertia", "supply_voltage"), 0.9, (10.0, 10.0))]) == 1.0
+    assert staged_module.set_progress(cands, [pair(("load_inertia", "supply_voltage"), 30.0, (10.0, 10.0))]) == 0.0
+    assert staged_module.set_progress(cands, []) == 0.0
 
 
 def test_a_screen_beside_the_same_fit_is_not_simulated_again_in_a_later_search(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -28,7 +28,7 @@ from engine.simulation import EffectLibrary
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["MOVED_REL_TOL", "left_basin", "singles_of_sets", "staged_search"]
+__all__ = ["MOVED_REL_TOL", "escalation_gain", "left_basin", "set_progress", "singles_of_sets", "staged_search"]
 
 #: A single candidate's fit "moved" during the escalation (so that the pairs built from it are fitted
 #: again) when some value changed by more than this fraction (polishing moves values by ~0.1 %).
@@ -180,10 +180,23 @@ def staged_search(
     if any(explains(s, settings) for s in sets):
         return cands, sets
     seeded = {c.effect: c.calibration.values for c in cands if c.calibration is not None}
+    before = {c.effect: c.calibration for c in cands if c.calibration is not None}
     if needs_escalation(cands, cs):
         cands = escalate_candidates(record, nominal, space, library, cands, ss.escalation(cs))
         stage("escalation of the singles")
     if not explains_single(cands, settings):
+        gain, progress = escalation_gain(before, cands), set_progress(cands, sets)
+        logger.info(
+            "the escalation of the singles closed up to %.3g of a single's excess chi2; the best set so far "
+            "closed %.3g of the best single's",
+            gain,
+            progress,
+        )
+        if ss.min_escalation_gain is not None and gain < ss.min_escalation_gain and progress < ss.min_set_progress:
+            # the second search would start from the basins the first one started from, and the sets of
+            # up to three found so far left most of the best single's gap: the catalogue lacks what is missing
+            logger.info("the first search's sets stand (no second search of sets)")
+            return cands, sets
         # the best sets so far stand as fitted unless the escalation moved a single they came from; the
         # others are fitted again from the escalated singles (keeping every unmoved set lost seed-151
         # case0168: its true triple was found from a pair refitted there, docs/diagnosis.md 8b)
@@ -193,6 +206,62 @@ def staged_search(
         sets = _merge_sets(sets, again)
         stage("sets of up to three")
     return cands, sets
+
+
+def escalation_gain(before: Mapping[str, CalibrationResult], cands: Sequence[Candidate]) -> float:
+    """The largest share of a single candidate's excess chi2 that its escalation closed.
+
+    A single's excess is its seeded fit's chi2 above what noise alone leaves (its degrees of freedom,
+    ``n_data`` less its fitted parameters); the share closed is ``(chi2_before - chi2_after) / excess``,
+    0 for a fit the escalation did not improve and 1 for one it brought to the noise.
+
+    Parameters
+    ----------
+    before : mapping of str to CalibrationResult
+        Each single's fit before the escalation, by effect name.
+    cands : sequence of Candidate
+        The candidates after it.
+
+    Returns
+    -------
+    float
+        The largest share over the candidates (0 when none was fitted before and after).
+    """
+    best = 0.0
+    for c in cands:
+        old, new = before.get(c.effect), c.calibration
+        if old is None or new is None:
+            continue
+        excess = old.chi2 - (old.n_data - len(old.values))
+        if excess > 0:
+            best = max(best, (old.chi2 - new.chi2) / excess)
+    return best
+
+
+def set_progress(cands: Sequence[Candidate], sets: Sequence[CandidateSet]) -> float:
+    """The share of the best single candidate's excess chi2 that the best set so far closed.
+
+    The excess of a fit is its reduced chi2 less 1 (what noise alone leaves); the share closed is
+    ``1 - excess(best set) / excess(best single)``: 0 when no set fits better than the best single,
+    near 1 when a set comes close to the noise that no single approaches.
+
+    Parameters
+    ----------
+    cands : sequence of Candidate
+        The single candidates.
+    sets : sequence of CandidateSet
+        The sets fitted so far.
+
+    Returns
+    -------
+    float
+        The share, in [0, 1] (0 without a fitted single or set, or when the best single is at the noise).
+    """
+    single = min((c.calibration.reduced_chi2 for c in cands if c.calibration is not None), default=math.nan)
+    best = min((s.calibration.reduced_chi2 for s in sets if s.calibration is not None), default=math.nan)
+    if not (math.isfinite(single) and math.isfinite(best)) or single <= 1.0:
+        return 0.0
+    return float(min(max(1.0 - max(best - 1.0, 0.0) / (single - 1.0), 0.0), 1.0))
 
 
 def _merge_sets(first: Sequence[CandidateSet], second: Sequence[CandidateSet]) -> list[CandidateSet]:
