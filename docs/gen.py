@@ -465,6 +465,48 @@ def render_kernel_speed(page: Page) -> str:
     return table(["simulator", "records/s", "168 cases in"], rows) + note + sources(page, [KERNEL_SPEED])
 
 
+DIAGNOSIS_COST = ["docs/validation/diagnosis-cost/cost.json", "docs/validation/diagnosis-cost/left-out-37/cost.json"]
+
+
+def render_diagnosis_cost(page: Page) -> str:
+    """Each committed diagnosis-cost run: p50/p90 per kind and code, with intervals (``bench/bench_diagnosis_cost.py``)."""
+
+    def q(est: dict) -> str:
+        lo, hi = est.get("low"), est.get("high")
+        span = f" [{lo:.1f}, {hi:.1f}]" if lo is not None and hi is not None else " (n too small for an interval)"
+        return f"{est['value']:.1f} s{span}"
+
+    rows = []
+    for path in DIAGNOSIS_COST:
+        r = read_json(path)
+        codes = r["meta"]["codes"]
+        for kind, by_code in r["summary"].items():
+            for code in ("current", "baseline"):
+                if code not in by_code:
+                    continue
+                x = by_code[code]
+                ratio = by_code.get("ratio", {}).get("per_case_median_s")
+                rows.append(
+                    [
+                        kind,
+                        f"{codes[code]['describe']} ({code})",
+                        str(x["n"]),
+                        f"{x['right']}/{x['n']}",
+                        q(x["seconds"]["p50"]),
+                        q(x["seconds"]["p90"]),
+                        f"{ratio:.2f}x" if code == "current" and ratio is not None else "",
+                    ]
+                )
+    head = ["kind", "code", "n", "right", "p50", "p90 (target 10 s)", "per-case median time, current / baseline"]
+    note = (
+        "\n\nOne diagnosis at a time on 2 cores, the two codes alternating record by record; 95 % order-statistic "
+        "intervals. Verdicts that differ between the two codes in a run: "
+        + "; ".join(str(len(read_json(p)["verdict_changes"])) for p in DIAGNOSIS_COST)
+        + " (in the order of the sources)."
+    )
+    return table(head, rows) + note + sources(page, DIAGNOSIS_COST)
+
+
 MEMORY = "docs/validation/memory/report.json"
 
 
@@ -950,6 +992,7 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "identification-accuracy": render_identification_accuracy,
     "kernel-speed": render_kernel_speed,
     "memory": render_memory,
+    "diagnosis-cost": render_diagnosis_cost,
     "continuous-width-channels": render_continuous_channels,
     "continuous-width-splits": render_continuous_splits,
     "p1-runs": render_p1_runs,
