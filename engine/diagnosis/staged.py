@@ -179,7 +179,6 @@ def staged_search(
         stage("first exchange")
     if any(explains(s, settings) for s in sets):
         return cands, sets
-    seeded = {c.effect: c.calibration.values for c in cands if c.calibration is not None}
     before = {c.effect: c.calibration for c in cands if c.calibration is not None}
     if needs_escalation(cands, cs):
         cands = escalate_candidates(record, nominal, space, library, cands, ss.escalation(cs))
@@ -200,7 +199,11 @@ def staged_search(
         # the best sets so far stand as fitted unless the escalation moved a single they came from; the
         # others are fitted again from the escalated singles (keeping every unmoved set lost seed-151
         # case0168: its true triple was found from a pair refitted there, docs/diagnosis.md 8b)
-        moved = {c.effect for c in cands if c.calibration is not None and left_basin(seeded, c)}
+        moved = {
+            c.effect
+            for c in cands
+            if c.calibration is not None and left_basin({n: cal.values for n, cal in before.items()}, c)
+        }
         keep = [s for s in sets if not moved & set(s.effects)]
         again = search_sets(record, nominal, space, library, cands, cs, ss, keep, screens)
         sets = _merge_sets(sets, again)
@@ -211,9 +214,9 @@ def staged_search(
 def escalation_gain(before: Mapping[str, CalibrationResult], cands: Sequence[Candidate]) -> float:
     """The largest share of a single candidate's excess chi2 that its escalation closed.
 
-    A single's excess is its seeded fit's chi2 above what noise alone leaves (its degrees of freedom,
-    ``n_data`` less its fitted parameters); the share closed is ``(chi2_before - chi2_after) / excess``,
-    0 for a fit the escalation did not improve and 1 for one it brought to the noise.
+    A single's excess is its seeded fit's chi2 above what noise alone leaves (:func:`_excess`); the
+    share closed is ``(chi2_before - chi2_after) / excess``, 0 for a fit the escalation did not improve
+    and 1 for one it brought to the noise.
 
     Parameters
     ----------
@@ -232,7 +235,7 @@ def escalation_gain(before: Mapping[str, CalibrationResult], cands: Sequence[Can
         old, new = before.get(c.effect), c.calibration
         if old is None or new is None:
             continue
-        excess = old.chi2 - (old.n_data - len(old.values))
+        excess = _excess(old)
         if excess > 0:
             best = max(best, (old.chi2 - new.chi2) / excess)
     return best
@@ -241,7 +244,7 @@ def escalation_gain(before: Mapping[str, CalibrationResult], cands: Sequence[Can
 def set_progress(cands: Sequence[Candidate], sets: Sequence[CandidateSet]) -> float:
     """The share of the best single candidate's excess chi2 that the best set so far closed.
 
-    The excess of a fit is its reduced chi2 less 1 (what noise alone leaves); the share closed is
+    The excess of a fit is its chi2 above what noise alone leaves (:func:`_excess`); the share closed is
     ``1 - excess(best set) / excess(best single)``: 0 when no set fits better than the best single,
     near 1 when a set comes close to the noise that no single approaches.
 
@@ -257,11 +260,16 @@ def set_progress(cands: Sequence[Candidate], sets: Sequence[CandidateSet]) -> fl
     float
         The share, in [0, 1] (0 without a fitted single or set, or when the best single is at the noise).
     """
-    single = min((c.calibration.reduced_chi2 for c in cands if c.calibration is not None), default=math.nan)
-    best = min((s.calibration.reduced_chi2 for s in sets if s.calibration is not None), default=math.nan)
-    if not (math.isfinite(single) and math.isfinite(best)) or single <= 1.0:
+    single = min((_excess(c.calibration) for c in cands if c.calibration is not None), default=math.nan)
+    best = min((_excess(s.calibration) for s in sets if s.calibration is not None), default=math.nan)
+    if not (math.isfinite(single) and math.isfinite(best)) or single <= 0.0:
         return 0.0
-    return float(min(max(1.0 - max(best - 1.0, 0.0) / (single - 1.0), 0.0), 1.0))
+    return float(min(max(1.0 - max(best, 0.0) / single, 0.0), 1.0))
+
+
+def _excess(cal: CalibrationResult) -> float:
+    """A fit's chi2 above what noise alone leaves, its number of data (reduced chi2 1) [noise variances]."""
+    return cal.chi2 - cal.n_data
 
 
 def _merge_sets(first: Sequence[CandidateSet], second: Sequence[CandidateSet]) -> list[CandidateSet]:
