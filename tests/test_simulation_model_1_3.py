@@ -70,7 +70,7 @@ def test_the_leakages_switch_the_extended_path_on_without_a_slot() -> None:
     assert P[kern.P_EXTENDED] == 1.0
     assert P[kern.P_X_S] == NOMINAL.x_s + value and P[kern.P_X_R] == NOMINAL.x_r + value
     assert P[kern.P_X_M] == NOMINAL.x_m
-    assert np.count_nonzero(P[kern.P_U_NEG :]) == 0
+    assert np.count_nonzero(P[kern.P_U_NEG : kern.P_XTALK2 + 1]) == 0
 
 
 def test_the_progressive_contact_is_stiffer_by_one_plus_the_value_at_x_ref() -> None:

@@ -320,7 +320,7 @@ def test_the_extended_path_with_every_term_zero_is_model_1_0_bit_for_bit(
     cases = [Case(NOMINAL), Case(PlantParameters(K=0.0025, J1=0.7612, c=0.8), SensorParameters(1e-3, 1000.0))]
     P = np.stack([parameter_vector(c, solver) if grid is None else parameter_vector(c, solver, grid) for c in cases])
     assert np.all(P[:, kern.P_EXTENDED] == 0.0)
-    assert np.all(P[:, kern.P_FLICKER :] == 0.0)
+    assert np.all(P[:, kern.P_FLICKER : kern.P_XTALK2 + 1] == 0.0)
     forced = P.copy()
     forced[:, kern.P_EXTENDED] = 1.0
     runs = []
@@ -358,7 +358,7 @@ SLOTS: dict[str, dict[str, int]] = {
     },
 }
 #: The slots of each version, appended after the previous version's: range(start, stop).
-SLOT_RANGES = {"1.2": (kern.P_T_SWITCH_OFF + 1, kern.P_ECC1 + 1), "1.3": (kern.P_ECC1 + 1, kern.N_PARAMS)}
+SLOT_RANGES = {"1.2": (kern.P_T_SWITCH_OFF + 1, kern.P_ECC1 + 1), "1.3": (kern.P_ECC1 + 1, kern.P_XTALK2 + 1)}
 #: The values without a slot: the leakages enter x_s and x_r (tests/test_simulation_model_1_3.py).
 NO_SLOT = {"1.2": set(), "1.3": {"x_leak"}}
 
@@ -387,7 +387,7 @@ def test_each_value_switches_the_extended_path_on_in_its_own_slot(version: Versi
     P = parameter_vector(e.apply(Case(NOMINAL), value))
     assert P[kern.P_EXTENDED] == 1.0
     assert P[SLOTS[version.version][e.field]] == value
-    assert np.count_nonzero(P[kern.P_U_NEG :]) == 1
+    assert np.count_nonzero(P[kern.P_U_NEG : kern.P_XTALK2 + 1]) == 1
     assert P[kern.P_X_S] == plain[kern.P_X_S] and P[kern.P_X_R] == plain[kern.P_X_R]
 
 

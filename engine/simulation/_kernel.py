@@ -57,9 +57,7 @@ from engine.constants import (
     DISTURBANCE_MAX_KNOTS,
     F_FLICKER,
     LOAD_RIPPLE_HZ,
-    OMEGA_B,
     SWITCH_OFF_DECAY_TIME,
-    W_B,
     W_SMOOTH,
     W_STRIBECK,
     X_REF,
@@ -108,7 +106,13 @@ P_PROG12 = P_TAU_S1 + 1
 P_TAU_DRY2 = P_PROG12 + 1
 P_B_3 = P_TAU_DRY2 + 1
 P_XTALK2 = P_B_3 + 1
-N_PARAMS = P_XTALK2 + 1
+# base values of the per-unit system (MODEL.md section 1): electrical base angular frequency w_b
+# [rad/s] and mechanical base speed Omega_b = w_b / p [rad/s]. Parameters, not constants, so that a
+# drive described as data (another supply frequency, another pole count) runs on the same kernel;
+# the reference plant's values multiply exactly as the constants did (same records bit for bit).
+P_W_B = P_XTALK2 + 1
+P_OMEGA_B = P_W_B + 1
+N_PARAMS = P_OMEGA_B + 1
 
 # locus codes of the unknown input (P_DIST_LOCUS): what d(t) is and where it enters
 DIST_NONE = 0
@@ -297,7 +301,7 @@ def rhs(t, y, P, motor_on):
         isb = (xr * psb - xm * prb) / det
         ira = (xs * pra - xm * psa) / det
         irb = (xs * prb - xm * psb) / det
-        ang = P[P_F] * W_B * t
+        ang = P[P_F] * P[P_W_B] * t
         u = P[P_U]
         if locus == DIST_SUPPLY:
             u = u * (1.0 + dd)
@@ -308,10 +312,10 @@ def rhs(t, y, P, motor_on):
         if ext and P[P_U_NEG] != 0.0:  # negative sequence: u (e^{j ang} + u_neg e^{-j ang})
             usa += P[P_U_NEG] * u * math.cos(ang)
             usb -= P[P_U_NEG] * u * math.sin(ang)
-        dpsa = W_B * (usa - P[P_R_S] * isa)
-        dpsb = W_B * (usb - P[P_R_S] * isb)
-        dpra = W_B * (-P[P_R_R] * ira - w1 * prb)
-        dprb = W_B * (-P[P_R_R] * irb + w1 * pra)
+        dpsa = P[P_W_B] * (usa - P[P_R_S] * isa)
+        dpsb = P[P_W_B] * (usb - P[P_R_S] * isb)
+        dpra = P[P_W_B] * (-P[P_R_R] * ira - w1 * prb)
+        dprb = P[P_W_B] * (-P[P_R_R] * irb + w1 * pra)
         m_el = psa * isb - psb * isa
     else:
         dpsa = 0.0
@@ -375,14 +379,14 @@ def rhs(t, y, P, motor_on):
     dw2 = m_2 / P[P_T2]
     dw3 = m_3 / P[P_T3]
     r = P[P_RADIUS]
-    ch0 = r * OMEGA_B * dw1
-    ch2 = OMEGA_B * w1
+    ch0 = r * P[P_OMEGA_B] * dw1
+    ch2 = P[P_OMEGA_B] * w1
     if ext and P[P_ECC1] != 0.0:  # once-per-revolution error of the speed encoder
-        ch2 = OMEGA_B * w1 * (1.0 + P[P_ECC1] * math.sin(y[7]))
-    ch3 = r * OMEGA_B * dw3
+        ch2 = P[P_OMEGA_B] * w1 * (1.0 + P[P_ECC1] * math.sin(y[7]))
+    ch3 = r * P[P_OMEGA_B] * dw3
     if ext and P[P_XTALK2] != 0.0:  # cross-axis sensitivity of the load accelerometer to a1
         ch3 += P[P_XTALK2] * ch0
-    ch4 = r * OMEGA_B * w3
+    ch4 = r * P[P_OMEGA_B] * w3
     fc = P[P_LOWPASS]
     if fc > 0.0:
         a = 2.0 * math.pi * fc
@@ -393,7 +397,7 @@ def rhs(t, y, P, motor_on):
         f4 = a * (ch4 - y[14])
     else:
         f0 = f1 = f2 = f3 = f4 = 0.0
-    dy = (dpsa, dpsb, dpra, dprb, dw1, dw2, dw3, OMEGA_B * w1, OMEGA_B * w2, OMEGA_B * w3, f0, f1, f2, f3, f4)
+    dy = (dpsa, dpsb, dpra, dprb, dw1, dw2, dw3, P[P_OMEGA_B] * w1, P[P_OMEGA_B] * w2, P[P_OMEGA_B] * w3, f0, f1, f2, f3, f4)
     return dy, (ch0, m_el, ch2, ch3, ch4)
 
 
