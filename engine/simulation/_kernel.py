@@ -397,7 +397,23 @@ def rhs(t, y, P, motor_on):
         f4 = a * (ch4 - y[14])
     else:
         f0 = f1 = f2 = f3 = f4 = 0.0
-    dy = (dpsa, dpsb, dpra, dprb, dw1, dw2, dw3, P[P_OMEGA_B] * w1, P[P_OMEGA_B] * w2, P[P_OMEGA_B] * w3, f0, f1, f2, f3, f4)
+    dy = (
+        dpsa,
+        dpsb,
+        dpra,
+        dprb,
+        dw1,
+        dw2,
+        dw3,
+        P[P_OMEGA_B] * w1,
+        P[P_OMEGA_B] * w2,
+        P[P_OMEGA_B] * w3,
+        f0,
+        f1,
+        f2,
+        f3,
+        f4,
+    )
     return dy, (ch0, m_el, ch2, ch3, ch4)
 
 
