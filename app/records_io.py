@@ -492,6 +492,26 @@ def read_record(
     return record_from_json(text, sample_interval, event_index, conditions, units)
 
 
+def stated_drive(path: str | Path) -> str | None:
+    """The fingerprint of the drive a JSON record file states it was made on, or None.
+
+    A simulated record carries ``drive`` (``{"fingerprint": ..., "description": ...}``, as ``backlash simulate
+    --drive`` and ``POST /v1/simulate`` write it); a CSV file, a record without it, or a file that does not parse
+    (the record reader says what is wrong with it) states none.
+    """
+    path = Path(path)
+    if path.suffix.lower() != ".json":
+        return None
+    try:
+        data = json.loads(path.read_text(encoding="utf-8-sig"))
+    except (OSError, ValueError):
+        return None
+    drive = data.get("drive") if isinstance(data, dict) else None
+    if isinstance(drive, dict) and isinstance(drive.get("fingerprint"), str):
+        return str(drive["fingerprint"])
+    return None
+
+
 def write_record(record: Record, path: str | Path, with_time: bool = False) -> None:
     """Write a record file, JSON or CSV by the extension.
 

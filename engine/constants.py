@@ -24,8 +24,10 @@ from typing import Final
 MODEL_VERSION: Final[str] = "1.3"
 
 # --- base quantities -------------------------------------------------------
+#: Rated supply frequency [Hz], the electrical base (MODEL.md section 1.1).
+RATED_FREQUENCY: Final[float] = 50.0
 #: Electrical base angular frequency w_b [rad/s] (50 Hz supply).
-W_B: Final[float] = 2.0 * math.pi * 50.0
+W_B: Final[float] = 2.0 * math.pi * RATED_FREQUENCY
 #: Pole pairs p [-] (chosen in MODEL.md).
 POLE_PAIRS: Final[int] = 2
 #: Mechanical base speed Omega_b = w_b / p [rad/s]; 1 pu speed.

@@ -106,6 +106,10 @@ def test_defaults_are_model_md_constants():
         "prog12": 0.0,
         "tau_dry2": 0.0,
         "b_3": 0.0,
+        # the per-unit base values (issue 52: parameters, MODEL.md's by default)
+        "w_b": const.W_B,
+        "pole_pairs": const.POLE_PAIRS,
+        "tm_per_j": const.TM_PER_J,
     }
     assert PlantParameters().as_dict() == expected
     assert SolverSettings().max_step == SAMPLE_INTERVAL / 3

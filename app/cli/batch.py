@@ -6,14 +6,19 @@ import argparse
 from pathlib import Path
 
 from app import output
-from app.cli.common import EXIT_OK, CommandError, add_dask_options, examples
+from app.cli.common import EXIT_OK, CommandError, add_dask_options, add_drive_option, examples, read_drive
 from engine.plants import DEFAULT_PLANT, PLANTS
 
 
 def cmd_diagnose_batch(args: argparse.Namespace) -> int:
     """Diagnose the records; write ``OUT/<record>.json`` per record and ``OUT/summary.{csv,md}``."""
+    from app.services import diagnosis
     from app.services.batch import find_records, run_batch
 
+    if args.drive is not None:
+        if args.plant != DEFAULT_PLANT:
+            raise CommandError(f"--drive describes a backlash drive; it does not apply with --plant {args.plant}")
+        diagnosis.check_drive(read_drive(args))  # the diagnosis runs on the reference plant only: refused otherwise
     try:
         files = find_records(args.source)
     except FileNotFoundError as exc:
@@ -46,5 +51,6 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument(
         "--plant", choices=sorted({DEFAULT_PLANT, *PLANTS}), default=DEFAULT_PLANT, help="the plant the records are of"
     )
+    add_drive_option(p)
     add_dask_options(p)
     p.set_defaults(func=cmd_diagnose_batch)

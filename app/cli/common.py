@@ -13,6 +13,7 @@ from engine.constants import SAMPLE_INTERVAL
 if TYPE_CHECKING:
     from app.core.config import Settings
     from engine.records import Record
+    from engine.simulation.drive import DriveDescription
     from engine.storage import PatternStore
 
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
@@ -124,6 +125,39 @@ def add_dask_options(p: argparse.ArgumentParser) -> None:
         metavar="tcp://HOST:PORT",
         help=f"an existing Dask scheduler to send the work to (default ${SCHEDULER_ENV}, else a local cluster)",
     )
+
+
+def add_drive_option(p: argparse.ArgumentParser) -> None:
+    """``--drive FILE``: the user's drive description (TOML or JSON; docs/drive-description.md)."""
+    p.add_argument(
+        "--drive",
+        type=Path,
+        metavar="FILE",
+        help="drive description, .toml or .json (docs/drive-description.md): the drive's own parameters, base "
+        "values and test protocol; keys left out keep MODEL.md's values (default: MODEL.md's reference plant)",
+    )
+
+
+def read_drive(args: argparse.Namespace) -> DriveDescription | None:
+    """The ``--drive`` file's description, or None without the option.
+
+    Raises
+    ------
+    engine.simulation.ParameterError
+        An unreadable file or an impossible description (the message names the file and what to fix).
+    """
+    if getattr(args, "drive", None) is None:
+        return None
+    from engine.simulation.drive import load_drive
+
+    return load_drive(args.drive)
+
+
+def record_drive(path: Path) -> str | None:
+    """The fingerprint of the drive a JSON record file states it was made on (:func:`app.records_io.stated_drive`)."""
+    from app.records_io import stated_drive
+
+    return stated_drive(path)
 
 
 def add_db_option(p: argparse.ArgumentParser) -> None:

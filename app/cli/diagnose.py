@@ -8,7 +8,17 @@ from pathlib import Path
 from typing import Any
 
 from app import output
-from app.cli.common import EXIT_OK, CommandError, add_record_options, effects_help, examples, read_record
+from app.cli.common import (
+    EXIT_OK,
+    CommandError,
+    add_drive_option,
+    add_record_options,
+    effects_help,
+    examples,
+    read_drive,
+    read_record,
+    record_drive,
+)
 from engine.atomic import write_json_atomic
 from engine.plants import DEFAULT_PLANT, PLANTS
 
@@ -20,7 +30,11 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     from engine.simulation import CATALOGUE
 
     if args.plant != DEFAULT_PLANT:
+        if args.drive is not None:
+            raise CommandError(f"--drive describes a backlash drive; it does not apply with --plant {args.plant}")
         return _diagnose_plant(args)
+    drive = read_drive(args)
+    diagnosis.check_drive(drive, record_drive(args.record))  # before the record is read: refused at once
     record = read_record(args)
     for name in args.effects or ():
         CATALOGUE[name]  # UnknownEffectError names the known effects before any work is done
@@ -32,7 +46,10 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     )
     result = diagnosis.run(record, args.effects, bounds or None)
     plots = [str(p) for p in diagnosis.write_plots(record, result, args.plots)] if args.plots else []
-    return _answer(args, result.to_dict(), plots)
+    answer = result.to_dict()
+    if drive is not None:  # the drive it was diagnosed on, kept with the answer
+        answer["drive"] = drive.provenance()
+    return _answer(args, answer, plots)
 
 
 def _diagnose_plant(args: argparse.Namespace) -> int:
@@ -101,6 +118,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         ),
     )
     add_record_options(p)
+    add_drive_option(p)
     p.add_argument(
         "--effects",
         nargs="+",

@@ -11,9 +11,12 @@ from app.cli.common import (
     EXIT_OK,
     CommandError,
     add_db_option,
+    add_drive_option,
     add_record_options,
     examples,
+    read_drive,
     read_record,
+    record_drive,
     settings,
 )
 from engine.constants import CHANNELS
@@ -29,11 +32,14 @@ def cmd_identify(args: argparse.Namespace) -> int:
     from engine.storage import PatternStore
 
     if args.plant != DEFAULT_PLANT:
+        if args.drive is not None:
+            raise CommandError(f"--drive describes a backlash drive; it does not apply with --plant {args.plant}")
         return _identify_plant(args)
     if args.joint:
         raise CommandError("--joint applies with --plant (a plant whose records share one width), not to the drive")
     if args.channel is None:
         raise CommandError("give --channel (one of " + ", ".join(CHANNELS) + ")")
+    drive = read_drive(args)
     record = read_record(args)
     path = settings(args).db_path
     if not path.exists():  # no empty store left behind, and the CLI's way to fill one
@@ -49,6 +55,8 @@ def cmd_identify(args: argparse.Namespace) -> int:
         args.kind,
         continuous=args.continuous,
         any_set=args.any_set,
+        drive=drive,
+        record_drive=record_drive(args.record),
     )
     output.write_json(answer)
     for w in answer.get("warnings") or ():  # on stderr, where a person sees them beside the JSON
@@ -111,5 +119,6 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         action="store_true",
         help="also the calibrated K as a continuous width with its uncertainty (a few seconds)",
     )
+    add_drive_option(p)
     add_db_option(p)
     p.set_defaults(func=cmd_identify)

@@ -5,7 +5,18 @@ from __future__ import annotations
 import argparse
 
 from app import output
-from app.cli.common import EXIT_OK, add_db_option, effect, effects_help, examples, finite, open_store, param
+from app.cli.common import (
+    EXIT_OK,
+    add_db_option,
+    add_drive_option,
+    effect,
+    effects_help,
+    examples,
+    finite,
+    open_store,
+    param,
+    read_drive,
+)
 from engine.constants import CHANNELS
 from engine.identification.training import DEFAULT_KIND, IDENTIFIERS
 
@@ -14,18 +25,19 @@ def cmd_train(args: argparse.Namespace) -> int:
     """Train one pattern set, store it, and write its description (progress on stderr)."""
     from app.services import training
     from app.services.patterns import describe
-    from engine.constants import J1_GRID
     from engine.identification.training import DEFAULT_KIND
 
     named = {"learning_rate": args.l, "delta1": args.delta1, "max_epochs": args.max_epochs}
     params = {**dict(args.param or []), **{k: v for k, v in named.items() if v is not None}}
+    drive = read_drive(args)
     spec = training.TrainingSpec(
         channel=args.channel,
         c=args.c,
-        J1_values=tuple(args.J1 or J1_GRID),
+        J1_values=tuple(args.J1 or training.default_j1_values(drive)),
         kind=args.kind or DEFAULT_KIND,
         params=params,
         effects=dict(args.effect or []),
+        drive=drive,
     )
     training.check(spec)
     store = open_store(args)
@@ -46,6 +58,11 @@ def cmd_pattern_sets(args: argparse.Namespace) -> int:
     store = open_store(args)
     if args.action == "list":
         sets = store.list(channel=args.channel, c=args.c, kind=args.kind)
+        drive = read_drive(args)
+        if drive is not None:  # only the sets trained for that drive
+            from engine.identification.selection import drive_fingerprint
+
+            sets = [s for s in sets if drive_fingerprint(s) == drive.fingerprint]
         output.write_json({"data": [describe(s) for s in sets], "count": len(sets)})
     elif args.action == "show":
         output.write_json(describe(get_pattern_set(store, args.id)))
@@ -69,7 +86,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     p.add_argument("--channel", required=True, choices=CHANNELS)
     p.add_argument("--c", type=finite, required=True, help="apparent-viscosity group [pu]")
-    p.add_argument("--J1", type=finite, nargs="+", help="J1 values [kg m^2] (default the paper's grid)")
+    p.add_argument(
+        "--J1", type=finite, nargs="+", help="J1 values [kg m^2] (default the paper's grid, scaled to the drive's J1)"
+    )
+    add_drive_option(p)
     p.add_argument(
         "--kind", choices=sorted(IDENTIFIERS), help=f"identifier kind (default {DEFAULT_KIND}: the template identifier)"
     )
@@ -108,6 +128,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--channel", choices=CHANNELS)
     p.add_argument("--c", type=finite)
     p.add_argument("--kind", choices=sorted(IDENTIFIERS), help="only sets of this identifier kind")
+    add_drive_option(p)
     add_db_option(p)
     p.set_defaults(func=cmd_pattern_sets)
 

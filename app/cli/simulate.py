@@ -13,7 +13,18 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from app import output
-from app.cli.common import EXIT_OK, CommandError, add_unit_options, effect, effects_help, examples, finite, units_of
+from app.cli.common import (
+    EXIT_OK,
+    CommandError,
+    add_drive_option,
+    add_unit_options,
+    effect,
+    effects_help,
+    examples,
+    finite,
+    read_drive,
+    units_of,
+)
 from engine.constants import (
     C1_NOMINAL,
     C_NOMINAL,
@@ -26,9 +37,12 @@ from engine.constants import (
 
 if TYPE_CHECKING:
     from app.services.simulation import Rendering
+    from engine.simulation.drive import DriveDescription
 
 
-def _specs(args: argparse.Namespace) -> list[tuple[float, float | None, float | None, float | None, dict[str, float]]]:
+def _specs(
+    args: argparse.Namespace,
+) -> list[tuple[float | None, float | None, float | None, float | None, dict[str, float]]]:
     """(K, J1, c, c1, effects) of every case: from ``--cases`` or from the single-case options."""
     if args.cases is not None:
         from app.schemas.simulate import SimulateBatchCreate
@@ -40,19 +54,20 @@ def _specs(args: argparse.Namespace) -> list[tuple[float, float | None, float | 
                 f'{args.cases}: expected a JSON list of cases like [{{"K": 0.005, "J1": 0.87, "effects": {{}}}}]: {exc}'
             ) from None
         return [(c.K, c.J1, c.c, c.c1, c.effects) for c in body.cases]
-    if args.K is None:
-        raise CommandError("give the backlash width with --K (or a file of cases with --cases)")
+    if args.K is None and args.drive is None:
+        raise CommandError("give the backlash width with --K (or a file of cases with --cases, or a --drive whose K)")
     return [(args.K, args.J1, args.c, args.c1, dict(args.effect or []))]
 
 
-def _rendering(args: argparse.Namespace) -> Rendering:
-    """The rendering options of the command line."""
-    from app.services.simulation import Rendering
+def _rendering(args: argparse.Namespace, drive: DriveDescription | None) -> Rendering:
+    """The rendering options of the command line; the span not given is the drive's protocol's (else MODEL.md's)."""
+    from app.services.simulation import Rendering, protocol_span
 
+    span = protocol_span(drive)
     return Rendering(
-        sample_interval=args.sample_interval,
-        before=args.before,
-        after=args.after,
+        sample_interval=span["sample_interval"] if args.sample_interval is None else args.sample_interval,
+        before=span["before"] if args.before is None else args.before,
+        after=span["after"] if args.after is None else args.after,
         units=units_of(args),
         channels=args.channels,
         include_event_index=args.event_index,
@@ -68,12 +83,16 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from app.records_io import write_record
     from app.services import simulation
 
+    drive = read_drive(args)
     specs = _specs(args)
-    rendering = _rendering(args)
-    cases = simulation.prepare([simulation.make_case(*s[:4]) for s in specs], [s[4] for s in specs])
-    records = simulation.render(cases, rendering)
+    rendering = _rendering(args, drive)
+    cases = simulation.prepare([simulation.make_case(*s[:4], drive) for s in specs], [s[4] for s in specs])
+    records = simulation.render(cases, rendering, drive)
     if args.cases is not None:
-        data: dict[str, Any] = {"data": [simulation.to_public(r, rendering) for r in records], "count": len(records)}
+        data: dict[str, Any] = {
+            "data": [simulation.to_public(r, rendering, drive) for r in records],
+            "count": len(records),
+        }
         if args.out is None:
             output.write_json(data)
         else:
@@ -82,13 +101,16 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         return EXIT_OK
     record = records[0]
     if args.out is None:
-        output.write_json(simulation.to_public(record, rendering))
+        output.write_json(simulation.to_public(record, rendering, drive))
     elif Path(args.out).suffix.lower() == ".json":
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.out).write_text(json.dumps(simulation.to_public(record, rendering), allow_nan=False), "utf-8")
+        public = simulation.to_public(record, rendering, drive)
+        Path(args.out).write_text(json.dumps(public, allow_nan=False), "utf-8")
         output.info(f"wrote the record (event at t_e = {record.event_time:.6f} s) to {args.out}")
     else:
         write_record(record, args.out, with_time=args.time_column)
+        if drive is not None:
+            output.info(f"the CSV form does not hold the drive description {drive.fingerprint[:12]}; .json keeps it")
         where = f"sample {record.event_index}" if args.event_index else "a sample the CSV does not state"
         output.info(
             f"wrote the record (event at t_e = {record.event_time:.6f} s, {where}; Ts = {record.sample_interval:g} s"
@@ -109,12 +131,14 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
             "backlash simulate --K 0.0055 --effect load_inertia=1.3 --snr-db 40 --out rec.csv",
             "backlash simulate --K 0.005 --channels a1 omega1 --omega1-unit rpm --known c1 --out drive.csv",
             "backlash simulate --cases cases.json --out records.json",
+            "backlash simulate --drive docs/examples/drive-60hz-conveyor.toml --out conveyor.json",
         ),
     )
-    p.add_argument("--K", type=finite, help="backlash zone width [m]")
-    p.add_argument("--J1", type=finite, help=f"motor-side inertia [kg m^2] (default {J1_NOMINAL:g})")
-    p.add_argument("--c", type=finite, help=f"apparent viscosity [pu] (default {C_NOMINAL:g})")
-    p.add_argument("--c1", type=finite, help=f"absorber discontinuity [pu] (default {C1_NOMINAL:g})")
+    add_drive_option(p)
+    p.add_argument("--K", type=finite, help="backlash zone width [m] (default with --drive: the drive's)")
+    p.add_argument("--J1", type=finite, help=f"motor-side inertia [kg m^2] (default the drive's, else {J1_NOMINAL:g})")
+    p.add_argument("--c", type=finite, help=f"apparent viscosity [pu] (default the drive's, else {C_NOMINAL:g})")
+    p.add_argument("--c1", type=finite, help=f"absorber discontinuity [pu] (default the drive's, else {C1_NOMINAL:g})")
     p.add_argument(
         "--effect",
         type=effect,
@@ -127,20 +151,19 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument(
         "--sample-interval",
         type=finite,
-        default=SAMPLE_INTERVAL,
-        help=f"Ts [s] of the rendered record, 10 us to 1 ms (default {SAMPLE_INTERVAL:g})",
+        help=f"Ts [s] of the rendered record, 10 us to 1 ms (default the drive's protocol's, else {SAMPLE_INTERVAL:g})",
     )
     p.add_argument(
         "--before",
         type=finite,
-        default=PRE_EVENT_TIME,
-        help=f"time rendered before the event [s] (default and least {PRE_EVENT_TIME:g})",
+        help=f"time rendered before the event [s] (default the drive's protocol's, else {PRE_EVENT_TIME:g}; "
+        f"least {PRE_EVENT_TIME:g})",
     )
     p.add_argument(
         "--after",
         type=finite,
-        default=POST_EVENT_TIME,
-        help=f"time rendered from the event on [s] (default and least {POST_EVENT_TIME:g})",
+        help=f"time rendered from the event on [s] (default the drive's protocol's, else {POST_EVENT_TIME:g}; "
+        f"least {POST_EVENT_TIME:g})",
     )
     add_unit_options(p, "to write")
     p.add_argument("--channels", nargs="+", choices=CHANNELS, help="channels to keep (default all)")

@@ -104,6 +104,13 @@ class ConditionsIn(BaseModel):
         return {k: v for k, v in self.model_dump().items() if v is not None}
 
 
+class DriveProvenanceIn(BaseModel):
+    """The drive a record was simulated on, as the simulation writes it (``drive`` of its answer)."""
+
+    fingerprint: str = Field(max_length=64, description="SHA-256 of the drive description's values.")
+    description: dict[str, Any] | None = Field(default=None, description="The description (not read).")
+
+
 class RecordIn(BaseModel):
     """A backlash-test record in the service's JSON record format, as a bench gives it."""
 
@@ -140,6 +147,11 @@ class RecordIn(BaseModel):
     )
     asset: AssetName | None = None
     measured_at: MeasuredAt | None = None
+    drive: DriveProvenanceIn | None = Field(
+        default=None,
+        description="The drive a simulated record was made on, as POST /v1/simulate writes it (its fingerprint and "
+        "description): it must be the request's drive.",
+    )
 
     def to_record(self) -> Record:
         """The engine's record, read by :func:`engine.records.record_from_data`.

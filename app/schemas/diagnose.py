@@ -9,6 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from app.schemas.assets import AssetName, MeasuredAt
 from app.schemas.common import Number, NumberSeries, RecordIn, Sample
+from app.schemas.drive import DriveIn
 from engine.diagnosis.space import DEFAULT_BOUNDS
 from engine.plants.brfd import BrfdRecord
 from engine.plants.brfd.record import from_json_object
@@ -44,6 +45,12 @@ class DiagnoseCreate(BaseModel):
             "c 0.5-2.0 pu, c1 0-0.6 pu); a record's conditions fix a parameter outright."
         ),
         examples=[{"K": [0.002, 0.008], "J1": [0.7, 0.9]}],
+    )
+    drive: DriveIn | None = Field(
+        default=None,
+        description="The description of the drive the record is of (docs/drive-description.md). The diagnosis "
+        "calibrates on MODEL.md's reference plant only: a description of another drive is refused (422); the "
+        "reference plant's (e.g. an empty one) is kept with the diagnosis.",
     )
 
 

@@ -9,6 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from app.schemas.common import ChannelName, RecordIn
 from app.schemas.diagnose import BrfdRecordIn
+from app.schemas.drive import DriveIn
 from engine.constants import C_NOMINAL, K_GRID
 
 
@@ -34,6 +35,12 @@ class IdentifyCreate(BaseModel):
         default=False,
         description="Also estimate K as a continuous width by fitting the simulator to the channel (a few "
         "seconds): K, its standard deviation and the fit.",
+    )
+    drive: DriveIn | None = Field(
+        default=None,
+        description="The description of the drive the record is of (docs/drive-description.md); default MODEL.md's "
+        "reference plant. Only a pattern set trained for this drive identifies the record; its nominal c is the "
+        "c used when the record gives none. The continuous width is not yet calibrated on a described drive.",
     )
 
 
@@ -97,6 +104,10 @@ class IdentificationPublic(BaseModel):
     pattern_set: str = Field(description="Id of the pattern set used.")
     kind: str = Field(description="Identifier kind of the pattern set.")
     pattern_set_c: float = Field(description="c of the pattern set used [pu].")
+    drive: str | None = Field(
+        default=None,
+        description="Fingerprint of the drive description the pattern set was trained for, the record's drive.",
+    )
     selection: Literal["requested", "exact", "nearest"] = Field(
         description="requested: named in the request; exact: its c equals c_used; "
         "nearest: the stored set with the nearest c."

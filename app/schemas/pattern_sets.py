@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, StrictInt, model_validator
 
 from app.schemas.common import ChannelName, InertiaJ1, Number, ViscosityC
+from app.schemas.drive import DriveIn
 from app.schemas.simulate import Effects
 from engine.constants import C_GROUPS, C_NOMINAL, J1_GRID
 from engine.identification.training import DEFAULT_KIND, IDENTIFIERS
@@ -52,7 +53,8 @@ class PatternSetCreate(BaseModel):
         default=None,
         min_length=1,
         max_length=32,
-        description=f"Motor-side inertias of the training cases [kg m^2]; default the paper's grid {list(J1_GRID)}.",
+        description=f"Motor-side inertias of the training cases [kg m^2]; default the paper's grid {list(J1_GRID)} "
+        "(with a drive, scaled to its nominal J1).",
     )
     kind: IdentifierKind = Field(
         default=DEFAULT_KIND, description=f"Identifier kind: {', '.join(IDENTIFIERS)} (default {DEFAULT_KIND})."
@@ -80,6 +82,7 @@ class PatternSetCreate(BaseModel):
     effects: Effects = Field(
         default_factory=dict, description="Unmodelled effects (catalogue name -> value) applied to every training case."
     )
+    drive: DriveIn | None = None
 
     def _named_params(self) -> dict[str, Any]:
         named = {"learning_rate": self.l, "delta1": self.delta1, "max_epochs": self.max_epochs}

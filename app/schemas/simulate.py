@@ -20,6 +20,7 @@ from app.schemas.common import (
     WidthK,
     stated_range,
 )
+from app.schemas.drive import DriveIn, DrivePublic
 from app.services.simulation import MAX_RENDERED_SAMPLES, SIMULATED_EFFECTS, Rendering
 from engine.constants import (
     C1_NOMINAL,
@@ -129,12 +130,17 @@ class RenderIn(BaseModel):
             raise ValueError(str(exc)) from None
         return value
 
-    def rendering(self) -> Rendering:
-        """The service's :class:`~app.services.simulation.Rendering` of these options."""
+    def rendering(self, span: dict[str, float] | None = None) -> Rendering:
+        """The service's :class:`~app.services.simulation.Rendering` of these options.
+
+        ``span`` gives ``sample_interval``, ``before`` and ``after`` [s] where the request leaves them out (a drive's
+        protocol: :func:`app.services.simulation.protocol_span`); default MODEL.md's.
+        """
+        given = {k: getattr(self, k) for k in ("sample_interval", "before", "after")}
+        if span is not None:
+            given.update({k: v for k, v in span.items() if k not in self.model_fields_set})
         return Rendering(
-            sample_interval=self.sample_interval,
-            before=self.before,
-            after=self.after,
+            **given,
             units=dict(self.units),
             channels=None if self.channels is None else list(self.channels),
             include_event_index=self.include_event_index,
@@ -162,6 +168,8 @@ class SimulateCreate(SimulateCase, RenderIn):
         },
     )
 
+    drive: DriveIn | None = None
+
     time_column: StrictBool = Field(
         default=False,
         description="CSV form (Accept: text/csv): add a first column t, the time of each sample [s] from the "
@@ -186,6 +194,8 @@ class SimulateBatchCreate(RenderIn):
         },
     )
 
+    drive: DriveIn | None = None
+
     cases: list[SimulateCase] = Field(
         min_length=1,
         max_length=MAX_BATCH_CASES_LIMIT,
@@ -209,6 +219,9 @@ class SimulationPublic(RecordPublic):
     """The simulated record; ``conditions`` carry its J1, c, c1 and K, ``event_time`` is t_e."""
 
     event_time: float = Field(description="t_e [s] since the motor was switched on.")
+    drive: DrivePublic | None = Field(
+        default=None, description="The drive description it was simulated on, when the request gave one."
+    )
 
 
 class SimulationsPublic(BaseModel):

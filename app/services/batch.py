@@ -58,8 +58,10 @@ def find_records(source: str) -> list[Path]:
 
 def _read(plant_name: str, path: Path) -> Any:
     if plant_name == DEFAULT_PLANT:
-        from app.records_io import read_record
+        from app.records_io import read_record, stated_drive
+        from app.services.identification import check_record_drive
 
+        check_record_drive(stated_drive(path), None)  # a record of a described drive: refused (IncompatibleError)
         return read_record(path)
     from app.services.plant_diagnosis import read_file
 

@@ -13,6 +13,39 @@ from engine.diagnosis.plots import plot_gap_budget, plot_missing_term, plot_over
 from engine.diagnosis.space import Bounds
 from engine.records import Record
 from engine.simulation import CATALOGUE, EffectLibrary
+from engine.simulation.drive import DriveDescription
+
+
+def check_drive(drive: DriveDescription | None, record_drive: str | None = None) -> None:
+    """Whether the diagnosis can run for ``drive``: the record must be of it, and it must be the reference plant.
+
+    The diagnosis calibrates on MODEL.md's reference plant (its nominal plant, its search box, the patterns it
+    retrains): a described drive other than the reference is refused rather than diagnosed on the wrong plant.
+
+    Parameters
+    ----------
+    drive : DriveDescription or None
+        The request's drive (None: the reference plant).
+    record_drive : str or None
+        The fingerprint of the drive the record states it was made on, if any.
+
+    Raises
+    ------
+    IncompatibleError
+        The record states another drive (:func:`app.services.identification.check_record_drive`).
+    InvalidInputError
+        A drive other than MODEL.md's reference plant.
+    """
+    from app.services.errors import InvalidInputError
+    from app.services.identification import check_record_drive
+
+    check_record_drive(record_drive, drive)
+    if drive is not None and not drive.is_reference:
+        raise InvalidInputError(
+            f"the gap diagnosis calibrates on MODEL.md's reference plant only; the drive {drive.name!r} "
+            f"({drive.fingerprint[:12]}) differs from it, and its diagnosis (nominal plant, search box, patterns) is "
+            "not implemented yet: simulate, train and identify on it instead (docs/drive-description.md)"
+        )
 
 
 def run(

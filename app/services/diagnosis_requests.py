@@ -22,12 +22,13 @@ from pydantic_core import from_json
 from app.records_io import RecordFormatError, csv_body_lines, parse_units, record_from_csv
 from app.schemas.assets import AssetName, MeasuredAt
 from app.schemas.diagnose import BrfdDiagnoseCreate, DiagnoseCreate, PlantDiagnoseCreate
-from app.services import diagnosis, plant_diagnosis
+from app.services import diagnosis, plant_diagnosis, simulation
 from app.services.errors import InvalidInputError
 from app.services.plant_diagnosis import PlantRecords
 from engine.diagnosis.space import check_bounds
 from engine.plants import DEFAULT_PLANT, get_plant
 from engine.simulation import CATALOGUE
+from engine.simulation.drive import DriveDescription
 
 __all__ = ["DiagnosisOutcome", "DiagnosisRequest", "ParsedDiagnosis", "compute", "parse", "run_sync"]
 
@@ -74,6 +75,7 @@ class ParsedDiagnosis:
     asset: str | None = None
     measured_at: datetime | None = None
     name: str | None = None
+    drive: DriveDescription | None = None
 
 
 @dataclass(frozen=True)
@@ -140,6 +142,8 @@ def parse(request: DiagnosisRequest) -> ParsedDiagnosis:
     for name in body.effects or ():
         CATALOGUE[name]  # UnknownEffectError (422) names the known effects
     check_bounds(body.bounds)  # BoundsError (422) says what to fix before any work is done
+    drive = simulation.drive_of(body.drive)  # ParameterError (422) says what to fix
+    diagnosis.check_drive(drive, None if body.record.drive is None else body.record.drive.fingerprint)
     return ParsedDiagnosis(
         plant=DEFAULT_PLANT,
         record=body.record.to_record(),
@@ -147,6 +151,7 @@ def parse(request: DiagnosisRequest) -> ParsedDiagnosis:
         bounds=body.bounds,
         asset=body.record.asset,
         measured_at=body.record.measured_at,
+        drive=drive,
     )
 
 
@@ -205,6 +210,8 @@ def compute(
         if parsed.plant == DEFAULT_PLANT:
             result = diagnosis.run(parsed.record, parsed.effects, parsed.bounds, progress=progress)
             answer = result.to_dict()
+            if parsed.drive is not None:  # the drive it was diagnosed on, kept with the diagnosis
+                answer["drive"] = parsed.drive.provenance()
             if figures and progress is not None:
                 progress(1.0, "drawing the figures")
             paths = diagnosis.write_plots(parsed.record, result, out_dir) if figures else []

@@ -10,14 +10,16 @@ import numpy as np
 
 from app.services.errors import IncompatibleError, InvalidInputError, NotFoundError
 from app.services.patterns import identifier_from_pattern_set
+from app.services.simulation import check_units
 from engine.constants import C_NOMINAL, K_GRID, MODEL_VERSION
 from engine.diagnosis import plausibility
 from engine.diagnosis.plausibility import PlausibilityWarning
 from engine.identification import IdentificationResult
-from engine.identification.selection import MAX_C_DISTANCE, is_plain, nearest_pattern_set
+from engine.identification.selection import MAX_C_DISTANCE, drive_fingerprint, is_plain, nearest_pattern_set
 from engine.identification.training import DEFAULT_KIND
 from engine.identification.width import estimate_width, nearest_grid_width
 from engine.records import Record, to_protocol_grid
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 from engine.storage import PatternSet, PatternSetNotFound, PatternStore
 
 
@@ -59,6 +61,29 @@ def get_pattern_set(store: PatternStore, set_id: str) -> PatternSet:
         raise NotFoundError(not_found_message(set_id)) from None
 
 
+def check_record_drive(record_drive: str | None, drive: DriveDescription | None) -> None:
+    """A record that states the drive it was made on (``record_drive``, a fingerprint) must be of ``drive``.
+
+    Raises
+    ------
+    IncompatibleError
+        The record was made on another drive than the request's (MODEL.md's reference plant when ``drive`` is None).
+    """
+    wanted = (drive or REFERENCE_DRIVE).fingerprint
+    if record_drive is not None and record_drive != wanted:
+        raise IncompatibleError(
+            f"the record was made on drive {record_drive[:12]}, the request is for drive {wanted[:12]} "
+            f"({(drive or REFERENCE_DRIVE).name}); give the record's own drive description (drive)",
+            cli=f"the record was made on drive {record_drive[:12]}, the command is for drive {wanted[:12]} "
+            f"({(drive or REFERENCE_DRIVE).name}); give the record's own drive description with --drive FILE",
+        )
+
+
+def _drive_label(fingerprint: str, drive: DriveDescription | None = None) -> str:
+    name = (drive or REFERENCE_DRIVE).name if drive is not None or fingerprint == REFERENCE_DRIVE.fingerprint else None
+    return f"{fingerprint[:12]}" + (f" ({name})" if name else "")
+
+
 def select_pattern_set(
     store: PatternStore,
     channel: str,
@@ -66,6 +91,7 @@ def select_pattern_set(
     set_id: str | None = None,
     kind: str | None = None,
     any_set: bool = False,
+    drive: DriveDescription | None = None,
 ) -> Selection:
     """The set named by ``set_id``, else the stored set of ``channel`` whose c is nearest the record's c.
 
@@ -75,7 +101,13 @@ def select_pattern_set(
     effects, its J1 grid) unless ``any_set``; among equally near sets the default kind wins,
     then the newest. A set farther than :data:`~engine.identification.selection.MAX_C_DISTANCE`
     from the record's c is refused (:class:`IncompatibleError`).
+
+    Only a set trained for ``drive`` (MODEL.md's reference plant when None) identifies the record: a requested
+    set of another drive is refused (:class:`IncompatibleError`), and the automatic choice looks only at the
+    drive's sets (:func:`engine.identification.selection.drive_fingerprint`). Without a c in the record's
+    conditions, the drive's nominal c is used.
     """
+    wanted = (drive or REFERENCE_DRIVE).fingerprint
     if set_id is not None:
         requested = get_pattern_set(store, set_id)
         if requested.channel != channel:
@@ -90,17 +122,41 @@ def select_pattern_set(
                 f"pattern set {set_id!r} was trained on model version {requested.model_version}, this engine implements "
                 f"{MODEL_VERSION}; train a new set"
             )
+        trained_for = drive_fingerprint(requested)
+        if trained_for != wanted:
+            raise IncompatibleError(
+                f"pattern set {set_id!r} was trained for drive {_drive_label(trained_for)}, the record is of drive "
+                f"{_drive_label(wanted, drive)}: a set identifies only records of its own drive; train a set for "
+                "this drive (POST /v1/pattern-sets with its drive description)",
+                cli=f"pattern set {set_id!r} was trained for drive {_drive_label(trained_for)}, the record is of drive "
+                f"{_drive_label(wanted, drive)}: a set identifies only records of its own drive; train a set for "
+                "this drive (backlash train --drive FILE)",
+            )
         return Selection(requested, "requested", None, None)
     c = record.conditions.get("c")
     source: Literal["record", "nominal"] = "record" if c is not None else "nominal"
-    c_used = float(c) if c is not None else C_NOMINAL
+    c_used = float(c) if c is not None else (C_NOMINAL if drive is None else drive.c)
     ps = nearest_pattern_set(
-        store, channel, c_used, kind=kind, model_version=MODEL_VERSION, prefer_kind=DEFAULT_KIND, plain_only=not any_set
+        store,
+        channel,
+        c_used,
+        kind=kind,
+        model_version=MODEL_VERSION,
+        prefer_kind=DEFAULT_KIND,
+        plain_only=not any_set,
+        drive=wanted,
     )
     train = f'POST /v1/pattern-sets {{"channel": "{channel}", "c": {c_used:g}}}'
     if ps is None:
         what = f"channel {channel!r}" + (f" and kind {kind!r}" if kind else "")
-        others = [s for s in store.list(channel, kind=kind, model_version=MODEL_VERSION) if not is_plain(s)]
+        if drive is not None and not drive.is_reference:
+            what += f" and drive {_drive_label(wanted, drive)}"
+            train = train[:-1] + ', "drive": {...}}'
+        others = [
+            s
+            for s in store.list(channel, kind=kind, model_version=MODEL_VERSION)
+            if not is_plain(s) and drive_fingerprint(s) == wanted
+        ]
         skipped = (
             f"; {len(others)} set(s) trained with effects or on another J1 grid are chosen only when named "
             f"(pattern_set: {', '.join(s.id for s in others[:3])})"
@@ -111,9 +167,10 @@ def select_pattern_set(
             f"no pattern set for {what} (model version {MODEL_VERSION}) trained as the paper trains (no effects, "
             f"its J1 grid) is stored{skipped}; train one first, e.g. "
         )
+        drive_option = "" if drive is None or drive.is_reference else " --drive FILE"
         raise NotFoundError(
             f"{head}{train}, or allow any set (any_set)",
-            cli=f"{head}backlash train --channel {channel} --c {c_used:g}, or allow any set (--any-set)",
+            cli=f"{head}backlash train --channel {channel} --c {c_used:g}{drive_option}, or allow any set (--any-set)",
         )
     distance = abs(ps.c - c_used)
     if distance > MAX_C_DISTANCE + 1e-12:
@@ -202,8 +259,15 @@ def identify_from_store(
     kind: str | None = None,
     continuous: bool = False,
     any_set: bool = False,
+    drive: DriveDescription | None = None,
+    record_drive: str | None = None,
 ) -> dict:
     """Choose the pattern set (:func:`select_pattern_set`), identify, and describe the outcome (JSON-ready).
+
+    ``drive`` is the drive the record is of (MODEL.md's reference plant when None); ``record_drive`` the
+    fingerprint the record states of the drive it was made on, if any (a simulated record's), which must be
+    ``drive``'s (:func:`check_record_drive`). The continuous width is calibrated on the reference plant only
+    (its search box and nominal plant are not yet the drive's): it is refused for another drive.
 
     With ``continuous``, also the calibrated K as a continuous width (:func:`continuous_width`, a few seconds).
     The answer's ``warnings`` (a list, empty when none) say what makes the record doubtful for the plant:
@@ -212,7 +276,14 @@ def identify_from_store(
     ``{"code", "message", "channel"}``.
     """
     check_record(record, channel)
-    sel = select_pattern_set(store, channel, record, set_id=set_id, kind=kind, any_set=any_set)
+    check_record_drive(record_drive, drive)
+    check_units(record.units, drive)
+    if continuous and drive is not None and not drive.is_reference:
+        raise InvalidInputError(
+            "the continuous width is calibrated on MODEL.md's reference plant only, not yet on a described drive: "
+            "leave continuous out (and asset, which asks for it)"
+        )
+    sel = select_pattern_set(store, channel, record, set_id=set_id, kind=kind, any_set=any_set, drive=drive)
     res = identify(record, channel, sel.pattern_set)
     analysed, window = record.test_window()
     if not (np.all(np.isfinite(res.D)) and np.isfinite(res.rms)):
@@ -238,6 +309,7 @@ def identify_from_store(
         "pattern_set": sel.pattern_set.id,
         "kind": sel.pattern_set.kind,
         "pattern_set_c": sel.pattern_set.c,
+        "drive": drive_fingerprint(sel.pattern_set),
         "selection": sel.how,
         "c_used": sel.c_used,
         "c_source": sel.c_source,

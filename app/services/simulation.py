@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Collection, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -25,11 +25,15 @@ from engine.simulation import (
     CATALOGUE,
     HELD_BACK,
     Case,
+    ParameterError,
     SimulationResult,
+    SolverSettings,
     add_white_noise,
     apply_effects,
     simulate_batch,
 )
+from engine.simulation.drive import DriveDescription
+from engine.simulation.simulator import DEFAULT_SOLVER
 
 logger = logging.getLogger(__name__)
 
@@ -95,10 +99,67 @@ class Rendering:
             raise ProtocolError(str(exc)) from None
 
 
-def make_case(K: float, J1: float | None = None, c: float | None = None, c1: float | None = None) -> Case:
-    """A case of the reference plant with the given values and MODEL.md's defaults for the rest."""
-    given = {"K": K, "J1": J1, "c": c, "c1": c1}
-    return Case.from_overrides({k: v for k, v in given.items() if v is not None})
+def make_case(
+    K: float | None,
+    J1: float | None = None,
+    c: float | None = None,
+    c1: float | None = None,
+    drive: DriveDescription | None = None,
+) -> Case:
+    """A case with the given K [m], J1 [kg m^2], c [pu] and c1 [pu], the rest the drive's nominal values.
+
+    Without ``drive``, the reference plant (MODEL.md's values; ``K`` is then required). With it, every value not
+    given (``K`` included) is the description's (:meth:`DriveDescription.plant`).
+
+    Raises
+    ------
+    engine.simulation.ParameterError
+        No ``K`` without a drive (the message says to give one).
+    """
+    given = {k: float(v) for k, v in {"K": K, "J1": J1, "c": c, "c1": c1}.items() if v is not None}
+    if drive is None:
+        if K is None:
+            raise ParameterError("give the backlash width K [m] (or a drive description, whose K is the default)")
+        return Case.from_overrides(given)
+    return Case(drive.plant(**given))
+
+
+def check_units(units: Mapping[str, str], drive: DriveDescription | None) -> None:
+    """Refuse a channel in a unit whose base is MODEL.md's rather than the described drive's: omega1 in pu.
+
+    Raises
+    ------
+    InvalidInputError
+        omega1 in ``pu`` with a drive other than the reference plant (the unit table converts it with
+        MODEL.md's 157.08 rad/s, :mod:`engine.records.units`).
+    """
+    if drive is not None and not drive.is_reference and units.get("omega1") == "pu":
+        raise InvalidInputError(
+            "omega1 in pu is converted with MODEL.md's base speed (157.08 rad/s), not the described drive's "
+            f"({drive.omega_b:.6g} rad/s): give omega1 in rad/s or rpm"
+        )
+
+
+def drive_of(data: Mapping[str, Any] | None) -> DriveDescription | None:
+    """The drive description of a request's ``drive`` object (None when absent).
+
+    Raises
+    ------
+    engine.simulation.ParameterError
+        A description the engine refuses; the message names the key and what to fix.
+    """
+    return None if data is None else DriveDescription.from_mapping(data)
+
+
+def protocol_span(drive: DriveDescription | None) -> dict[str, float]:
+    """The rendering's ``sample_interval`` [s], ``before`` [s] and ``after`` [s] of a drive's test protocol.
+
+    MODEL.md's (0.1 ms, 4.8 ms, 200 ms) without a drive.
+    """
+    if drive is None:
+        return {"sample_interval": SAMPLE_INTERVAL, "before": PRE_EVENT_TIME, "after": POST_EVENT_TIME}
+    ts, e = drive.sample_interval, drive.event_index
+    return {"sample_interval": ts, "before": e * ts, "after": (drive.n_samples - e) * ts}
 
 
 #: Effects a simulation request may name: the catalogue and the held-back family of model 1.1.
@@ -122,15 +183,19 @@ def prepare(cases: Sequence[Case], effects: Sequence[Mapping[str, float] | None]
     ]
 
 
-def run(cases: Sequence[Case], grid: SampleGrid = PROTOCOL_GRID) -> SimulationResult:
-    """Simulate prepared cases (see :func:`prepare`) on ``grid``.
+def run(
+    cases: Sequence[Case], grid: SampleGrid = PROTOCOL_GRID, solver: SolverSettings = DEFAULT_SOLVER
+) -> SimulationResult:
+    """Simulate prepared cases (see :func:`prepare`) on ``grid`` with ``solver``.
 
     Raises ``SimulationError`` for cases without an event.
     """
-    return simulate_batch(list(cases), grid=grid)
+    return simulate_batch(list(cases), grid=grid, solver=solver)
 
 
-def render(cases: Sequence[Case], rendering: Rendering | None = None) -> list[Record]:
+def render(
+    cases: Sequence[Case], rendering: Rendering | None = None, drive: DriveDescription | None = None
+) -> list[Record]:
     """Simulate prepared cases and render their records as ``rendering`` says.
 
     Parameters
@@ -139,6 +204,10 @@ def render(cases: Sequence[Case], rendering: Rendering | None = None) -> list[Re
         Prepared cases (:func:`prepare`).
     rendering : Rendering, optional
         Default: MODEL.md's grid, all channels in model units, no noise.
+    drive : DriveDescription, optional
+        The drive the cases were built from (:func:`make_case`): its ``t_event_max`` [s] bounds the
+        simulated time, and its base torque [N m] is stated in the records' conditions unless the
+        rendering states one.
 
     Returns
     -------
@@ -158,6 +227,9 @@ def render(cases: Sequence[Case], rendering: Rendering | None = None) -> list[Re
     """
     r = Rendering() if rendering is None else rendering
     grid = r.grid()
+    check_units(r.units, drive)
+    if drive is not None and r.base_torque is None:
+        r = replace(r, base_torque=drive.torque_base)
     total = grid.n_samples * len(cases)
     if total > MAX_RENDERED_SAMPLES:
         raise InvalidInputError(
@@ -165,7 +237,7 @@ def render(cases: Sequence[Case], rendering: Rendering | None = None) -> list[Re
             f"{r.before:g} s before the event to {r.after:g} s after it) make {total} samples per channel; at most "
             f"{MAX_RENDERED_SAMPLES} are rendered per request: shorten the span, lengthen the interval or split the cases"
         )
-    records = run(cases, grid).records
+    records = run(cases, grid, DEFAULT_SOLVER if drive is None else drive.solver()).records
     rng = np.random.default_rng(r.seed)
     return [_dress(record, r, rng) for record in records]
 
@@ -186,19 +258,30 @@ def _dress(record: Record, r: Rendering, rng: np.random.Generator) -> Record:
     return record.replace(channels=channels, conditions=conditions, units=dict(r.units))
 
 
-def to_public(record: Record, rendering: Rendering | None = None) -> dict[str, Any]:
-    """A rendered record in the JSON record format, without ``event_index`` when the rendering leaves it out."""
+def to_public(
+    record: Record, rendering: Rendering | None = None, drive: DriveDescription | None = None
+) -> dict[str, Any]:
+    """A rendered record in the JSON record format, without ``event_index`` when the rendering leaves it out.
+
+    With ``drive``, the record carries ``drive``: the description's fingerprint and content
+    (:meth:`DriveDescription.provenance`), so that where it came from is kept with it.
+    """
     out = record.to_dict()
     if rendering is not None and not rendering.include_event_index:
         out.pop("event_index", None)
+    if drive is not None:
+        out["drive"] = drive.provenance()
     return out
 
 
 __all__ = [
     "MAX_RENDERED_SAMPLES",
     "Rendering",
+    "check_units",
+    "drive_of",
     "make_case",
     "prepare",
+    "protocol_span",
     "render",
     "run",
     "to_public",

@@ -25,7 +25,9 @@ from app.services.patterns import check_identifier
 from engine.constants import J1_GRID, K_GRID
 from engine.identification import training as engine_training
 from engine.identification.training import DEFAULT_KIND
-from engine.simulation import Case, paper_grid
+from engine.simulation import Case
+from engine.simulation.drive import DriveDescription
+from engine.simulation.simulator import DEFAULT_SOLVER
 from engine.storage import PatternSet, PatternStore
 
 
@@ -39,7 +41,9 @@ class TrainingSpec:
 
     ``params`` are the identifier's hyper-parameters by name (e.g. the paper kind's
     ``learning_rate``, ``delta1``, ``max_epochs``); missing ones take the identifier's
-    defaults. ``effects`` (catalogue name -> value) are applied to every training case.
+    defaults. ``effects`` (catalogue name -> value) are applied to every training case. ``drive``: the
+    drive description the set is trained for (default MODEL.md's reference plant); it is stored with the set,
+    which then identifies only records of that drive.
     """
 
     channel: str
@@ -48,6 +52,7 @@ class TrainingSpec:
     kind: str = DEFAULT_KIND
     params: Mapping[str, Any] = field(default_factory=dict)
     effects: Mapping[str, float] = field(default_factory=dict)
+    drive: DriveDescription | None = None
 
     def cases(self) -> list[Case]:
         """The training cases with the effects applied, validated (6 widths x J1 values, width-major).
@@ -58,8 +63,13 @@ class TrainingSpec:
             raise InvalidInputError("J1_values is empty; give at least one inertia J1 [kg m^2]")
         if len(set(self.J1_values)) != len(self.J1_values):
             raise InvalidInputError(f"J1_values {list(self.J1_values)} repeat a value; give distinct inertias")
-        grid = paper_grid(self.c, tuple(self.J1_values))
+        grid = engine_training.training_cases(self.c, tuple(self.J1_values), self.drive)
         return simulation.prepare(grid, [self.effects] * len(grid))
+
+
+def default_j1_values(drive: DriveDescription | None) -> tuple[float, ...]:
+    """The training inertias when a request gives none [kg m^2]: the paper's grid, scaled to the drive's nominal J1."""
+    return J1_GRID if drive is None else drive.j1_grid()
 
 
 def check(spec: TrainingSpec) -> None:
@@ -75,7 +85,7 @@ def compute_pattern_set(spec: TrainingSpec, progress: ProgressFn = _no_progress)
         0.02,
         f"simulating {len(cases)} cases ({len(K_GRID)} widths x {len(spec.J1_values)} J1 values) at c = {spec.c:g}",
     )
-    grid = simulation.run(cases)
+    grid = simulation.run(cases, solver=DEFAULT_SOLVER if spec.drive is None else spec.drive.solver())
     return engine_training.train_pattern_set(
         spec.channel,
         spec.c,
@@ -85,6 +95,7 @@ def compute_pattern_set(spec: TrainingSpec, progress: ProgressFn = _no_progress)
         effects=dict(spec.effects),
         grid=grid,
         progress=progress,
+        drive=spec.drive,
     )
 
 
@@ -142,10 +153,12 @@ def job_spec(spec: TrainingSpec, set_id: str) -> dict[str, Any]:
         "kind": spec.kind,
         "params": dict(spec.params),
         "effects": dict(spec.effects),
+        "drive": None if spec.drive is None else spec.drive.to_dict(),
     }
 
 
 def _spec_of(stored: dict[str, Any]) -> TrainingSpec:
+    drive = stored.get("drive")  # absent from the specs of jobs queued before drive descriptions
     return TrainingSpec(
         channel=stored["channel"],
         c=float(stored["c"]),
@@ -153,6 +166,7 @@ def _spec_of(stored: dict[str, Any]) -> TrainingSpec:
         kind=stored["kind"],
         params=dict(stored["params"]),
         effects={k: float(v) for k, v in stored["effects"].items()},
+        drive=None if drive is None else DriveDescription.from_mapping(drive),
     )
 
 

@@ -12,13 +12,22 @@ from __future__ import annotations
 import logging
 import math
 
-from engine.constants import C_GROUPS, J1_GRID, MODEL_VERSION
+from engine.constants import C_GROUPS, MODEL_VERSION
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 from engine.storage import PatternSet, PatternSetNotFound, PatternSetSummary, PatternStore
 from engine.storage.validation import require_c, require_channel, require_text
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["MAX_C_DISTANCE", "TIE_ABS_TOL", "TIE_REL_TOL", "is_plain", "nearest_c_group", "nearest_pattern_set"]
+__all__ = [
+    "MAX_C_DISTANCE",
+    "TIE_ABS_TOL",
+    "TIE_REL_TOL",
+    "drive_fingerprint",
+    "is_plain",
+    "nearest_c_group",
+    "nearest_pattern_set",
+]
 
 #: Two sets are equally near ``c`` for ``prefer_kind`` when their distances to it agree to
 #: these tolerances (``math.isclose``) [-] and [pu].
@@ -32,15 +41,27 @@ TIE_ABS_TOL = 1e-12
 MAX_C_DISTANCE = 0.25
 
 
+def drive_fingerprint(summary: PatternSetSummary | PatternSet) -> str:
+    """The fingerprint of the drive a set was trained for (``params["drive"]``); MODEL.md's reference plant's when
+    the set names none (every set trained before drive descriptions existed)."""
+    return DriveDescription.fingerprint_of((summary.params or {}).get("drive"))
+
+
+def _drive_of(summary: PatternSetSummary | PatternSet) -> DriveDescription:
+    stored = (summary.params or {}).get("drive")
+    return REFERENCE_DRIVE if stored is None else DriveDescription.from_mapping(stored["description"])
+
+
 def is_plain(summary: PatternSetSummary | PatternSet) -> bool:
     """Whether a set was trained as the paper trains: no effects, on the paper's J1 grid (any order).
 
     Only such sets are chosen automatically; a set trained with effects or on another J1 grid
-    identifies a record only when it is asked for by id.
+    identifies a record only when it is asked for by id. For a set trained for a described drive, the
+    paper's grid is the drive's (:meth:`DriveDescription.j1_grid`: scaled to its nominal J1).
     """
     effects = (summary.params or {}).get("effects") or {}
     grid = sorted(float(v) for v in summary.j1_values)
-    paper = sorted(J1_GRID)
+    paper = sorted(_drive_of(summary).j1_grid())
     same_grid = len(grid) == len(paper) and all(
         math.isclose(a, b, rel_tol=1e-9) for a, b in zip(grid, paper, strict=True)
     )
@@ -85,6 +106,7 @@ def nearest_pattern_set(
     *,
     prefer_kind: str | None = None,
     plain_only: bool = False,
+    drive: str | None = None,
 ) -> PatternSet | None:
     """Return the stored set of ``channel`` whose ``c`` is nearest to the requested one.
 
@@ -106,6 +128,9 @@ def nearest_pattern_set(
     prefer_kind : str or None
         Among equally near sets (distances equal to :data:`TIE_REL_TOL` / :data:`TIE_ABS_TOL`),
         the nearest set of this kind wins over sets of other kinds (``None``: no preference).
+    drive : str or None
+        Only sets trained for the drive of this fingerprint (:func:`drive_fingerprint`); ``None``: MODEL.md's
+        reference plant. A set of another drive is never returned.
 
     Returns
     -------
@@ -130,7 +155,10 @@ def nearest_pattern_set(
     version = require_text(model_version, "model_version")
     channel = require_channel(channel)
     while True:
-        candidates = store.list(channel, kind=kind, model_version=version)
+        wanted = REFERENCE_DRIVE.fingerprint if drive is None else drive
+        candidates = [
+            s for s in store.list(channel, kind=kind, model_version=version) if drive_fingerprint(s) == wanted
+        ]
         if plain_only:
             candidates = [s for s in candidates if is_plain(s)]
         if not candidates:

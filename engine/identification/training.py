@@ -19,7 +19,8 @@ from engine.constants import CHANNELS, J1_GRID, K_GRID, MODEL_VERSION
 from engine.identification.base import Identifier
 from engine.identification.paper import PaperIdentifier
 from engine.identification.template import TemplateIdentifier
-from engine.simulation import SimulationResult, paper_grid, simulate_batch
+from engine.simulation import Case, SimulationResult, paper_grid, simulate_batch
+from engine.simulation.drive import DriveDescription
 from engine.storage import PatternSet
 
 logger = logging.getLogger(__name__)
@@ -65,11 +66,31 @@ def make_identifier(kind: str, channel: str, **params: Any) -> Identifier:
     return cls(channel=channel, **params)
 
 
+def training_cases(c: float, J1_values: Sequence[float], drive: DriveDescription | None = None) -> list[Case]:
+    """The six widths x ``J1_values`` [kg m^2] at apparent viscosity ``c`` [pu], width-major.
+
+    On MODEL.md's reference plant (:func:`engine.simulation.paper_grid`), or on ``drive``'s nominal plant
+    with K, J1 and c set (:meth:`DriveDescription.plant`).
+    """
+    if drive is None:
+        return paper_grid(c, tuple(J1_values))
+    return [Case(drive.plant(K=K, J1=float(J1), c=float(c))) for K in K_GRID for J1 in J1_values]
+
+
 def simulate_training_grid(
-    c: float, J1_values: Sequence[float] = J1_GRID, effects: Mapping[str, float] | None = None
+    c: float,
+    J1_values: Sequence[float] = J1_GRID,
+    effects: Mapping[str, float] | None = None,
+    drive: DriveDescription | None = None,
 ) -> SimulationResult:
-    """The six widths x ``J1_values`` at apparent viscosity ``c`` [pu], with optional effects."""
-    return simulate_batch(paper_grid(c, tuple(J1_values)), effects=effects)
+    """The six widths x ``J1_values`` at apparent viscosity ``c`` [pu], with optional effects.
+
+    With ``drive``, on its nominal plant, within its ``t_event_max``; the records are on MODEL.md's grid
+    whatever the drive's protocol (pattern sets compare records resampled onto it).
+    """
+    if drive is None:
+        return simulate_batch(paper_grid(c, tuple(J1_values)), effects=effects)
+    return simulate_batch(training_cases(c, J1_values, drive), effects=effects, solver=drive.solver())
 
 
 def train_pattern_set(
@@ -81,6 +102,7 @@ def train_pattern_set(
     effects: Mapping[str, float] | None = None,
     grid: SimulationResult | None = None,
     progress: Progress | None = None,
+    drive: DriveDescription | None = None,
 ) -> PatternSet:
     """Train one identifier on one channel of one c group and package it (unsaved).
 
@@ -102,6 +124,11 @@ def train_pattern_set(
         Already simulated training grid (skips the simulation).
     progress : callable, optional
         ``progress(fraction, message)``.
+    drive : DriveDescription, optional
+        The drive the set is trained for (default MODEL.md's reference plant); stored in the set's
+        ``params["drive"]`` (:meth:`DriveDescription.provenance`), so that it never identifies records of
+        another drive (:func:`engine.identification.selection.drive_fingerprint`). ``grid``, when given,
+        must have been simulated on it.
     """
     params = dict(params or {})
     est = make_identifier(kind, channel, **params)
@@ -109,7 +136,7 @@ def train_pattern_set(
         raise ValueError("J1_values needs at least one inertia")
     if progress:
         progress(0.05, f"simulating {len(K_GRID) * len(J1_values)} training cases")
-    grid = grid if grid is not None else simulate_training_grid(c, J1_values, effects)
+    grid = grid if grid is not None else simulate_training_grid(c, J1_values, effects, drive)
     if progress:
         progress(0.4, f"fitting the {kind} identifier on {channel}")
     y = np.array([case.plant.K for case in grid.cases])
@@ -118,6 +145,8 @@ def train_pattern_set(
     if progress:
         progress(0.95, "packaging the pattern set")
     stored_params = {**est.get_params(), "effects": dict(effects or {})}
+    if drive is not None:
+        stored_params["drive"] = drive.provenance()
     return PatternSet(
         kind=kind,
         channel=channel,

@@ -175,9 +175,9 @@ class PlantParameters:
     K : float
         Backlash zone width [m]; the clutch dead zone has half-width b = K / r [rad].
     J1 : float
-        Motor-side inertia [kg m^2]; T_1 = J1 * TM_PER_J [s] (TM_PER_J = 0.86 / 0.87 s / (kg m^2)).
+        Motor-side inertia [kg m^2]; T_1 = J1 * tm_per_j [s] (MODEL.md: 0.86 / 0.87 s / (kg m^2)).
     J2 : float
-        Drive-wheel inertia [kg m^2]; T_2 = J2 * TM_PER_J [s].
+        Drive-wheel inertia [kg m^2]; T_2 = J2 * tm_per_j [s].
     T3 : float
         Mechanical time constant of the mass m2 referred to the motor shaft [s].
     c : float
@@ -194,7 +194,7 @@ class PlantParameters:
         Stator and rotor resistance, total stator and rotor reactance, magnetising
         reactance [pu].
     u, f : float
-        Supply voltage amplitude [pu] and frequency [pu of 50 Hz].
+        Supply voltage amplitude [pu] and frequency [pu of the rated frequency, w_b / (2 pi); MODEL.md: 50 Hz].
     tau_C1 : float
         Extension: Coulomb friction torque on the motor shaft, tau_C1 * tanh(w_1 / W_SMOOTH) [pu].
     b_1 : float
@@ -253,6 +253,15 @@ class PlantParameters:
     b_3 : float
         Extension (1.3): quadratic drag on the load, b_3 * w_3 * abs(w_3) against its motion
         [pu torque / pu speed^2].
+    w_b : float
+        Base value (issue 52): electrical base angular frequency w_b [rad/s], 2 pi times the rated
+        supply frequency (MODEL.md: 2 pi 50).
+    pole_pairs : int
+        Base value (issue 52): pole pairs p [-]; the mechanical base speed is Omega_b = w_b / p [rad/s]
+        (MODEL.md: 2).
+    tm_per_j : float
+        Base value (issue 52): mechanical time constant per unit inertia, T_i = J_i * tm_per_j
+        [s / (kg m^2)], i.e. Omega_b / M_b with M_b the base torque [N m] (MODEL.md: 0.86 / 0.87).
     """
 
     K: float = const.K_NOMINAL
@@ -293,16 +302,24 @@ class PlantParameters:
     prog12: float = 0.0
     tau_dry2: float = 0.0
     b_3: float = 0.0
+    w_b: float = const.W_B
+    pole_pairs: int = const.POLE_PAIRS
+    tm_per_j: float = TM_PER_J
 
     @property
     def T1(self) -> float:
         """Mechanical time constant of the motor side [s]."""
-        return self.J1 * TM_PER_J
+        return self.J1 * self.tm_per_j
 
     @property
     def T2(self) -> float:
         """Mechanical time constant of the drive wheel [s]."""
-        return self.J2 * TM_PER_J
+        return self.J2 * self.tm_per_j
+
+    @property
+    def omega_b(self) -> float:
+        """Mechanical base speed Omega_b = w_b / p [rad/s]: 1 pu of speed."""
+        return self.w_b / self.pole_pairs
 
     @property
     def b(self) -> float:
@@ -358,6 +375,11 @@ class PlantParameters:
             raise ParameterError("x_s * x_r must exceed x_m^2 (leakage reactances must be positive)")
         _check_range("u", self.u, 0.05, 2.0, "pu")
         _check_range("f", self.f, 0.05, 2.0, "pu")
+        _check_range("w_b", self.w_b, 2.0 * math.pi * 1.0, 2.0 * math.pi * 1000.0, "rad/s")
+        if self.pole_pairs != int(self.pole_pairs):
+            raise ParameterError(f"pole_pairs = {self.pole_pairs} must be a whole number of pole pairs")
+        _check_range("pole_pairs", self.pole_pairs, 1, 64, "")
+        _check_range("tm_per_j", self.tm_per_j, 1e-4, 1e4, "s/(kg m^2)")
         return self
 
     def replace(self, **changes: Any) -> PlantParameters:

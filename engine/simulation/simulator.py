@@ -24,7 +24,7 @@ from typing import Final
 
 import numpy as np
 
-from engine.constants import CHANNELS, OMEGA_B, W_B
+from engine.constants import CHANNELS
 from engine.records import PROTOCOL_GRID, Record, SampleGrid
 from engine.simulation import _kernel as kern
 from engine.simulation.effects import CATALOGUE, EffectLibrary, apply_effects
@@ -206,8 +206,8 @@ def parameter_vector(
     # model 1.3 (appended after 1.2's)
     P[kern.P_FLICKER], P[kern.P_TAU_S1], P[kern.P_PROG12] = p.u_flicker, p.tau_S1, p.prog12
     P[kern.P_TAU_DRY2], P[kern.P_B_3], P[kern.P_XTALK2] = p.tau_dry2, p.b_3, s.xtalk2
-    # base values of the per-unit system (after the zeroing above)
-    P[kern.P_W_B], P[kern.P_OMEGA_B] = W_B, OMEGA_B
+    # base values of the per-unit system (after the zeroing above): the plant's (MODEL.md's by default)
+    P[kern.P_W_B], P[kern.P_OMEGA_B] = p.w_b, p.omega_b
     extended = (
         dist is not None
         or any(P[kern.P_TAU_RIPPLE3 : kern.P_M_OFF + 1] != 0.0)

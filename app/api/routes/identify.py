@@ -21,7 +21,7 @@ from app.api.openapi import body_schema
 from app.schemas.common import ChannelName, ErrorPublic
 from app.schemas.identify import IdentificationPublic, IdentifyCreate, PlantIdentifyCreate, PlantWidthPublic
 from app.services import assets as asset_service
-from app.services import identification, plant_identification
+from app.services import identification, plant_identification, simulation
 from app.services.diagnosis_requests import named_asset, named_plant
 from app.services.errors import InvalidInputError
 
@@ -85,7 +85,16 @@ async def identify(
             raise InvalidInputError("with a CSV body, give the channel to identify from as query parameter ?channel=")
         record = await csv_record(request, csv_params)
         asset, measured_at = named_asset(csv_params.asset, csv_params.measured_at)
-        args = (record, channel, pattern_set, kind, continuous or asset is not None, any_set)
+        args: tuple[Any, ...] = (
+            record,
+            channel,
+            pattern_set,
+            kind,
+            continuous or asset is not None,
+            any_set,
+            None,
+            None,
+        )
     else:
         reject_query(request, (*CSV_QUERY, "channel", "pattern_set", "kind", "continuous", "any_set"))
         if await run_in_threadpool(named_plant, await request.body()) is not None:
@@ -99,6 +108,7 @@ async def identify(
             return await _keep(store, answer, other.record.asset, other.record.measured_at, None)
         body = await json_body(request, IdentifyCreate)
         asset, measured_at = body.record.asset, body.record.measured_at
+        drive = await run_in_threadpool(simulation.drive_of, body.drive)
         args = (
             await run_in_threadpool(body.record.to_record),
             body.channel,
@@ -106,6 +116,8 @@ async def identify(
             body.kind,
             body.continuous or asset is not None,
             body.any_set,
+            drive,
+            None if body.record.drive is None else body.record.drive.fingerprint,
         )
     answer = await run_in_threadpool(identification.identify_from_store, store, *args)
     return await _keep(store, answer, asset, measured_at, args[1])

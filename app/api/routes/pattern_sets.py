@@ -13,12 +13,11 @@ from app.core.config import API_V1_STR
 from app.jobs import JobManager, JobState
 from app.schemas.common import ChannelName, ErrorPublic
 from app.schemas.pattern_sets import PatternSetCreate, PatternSetPublic, PatternSetsPublic, TrainingAccepted
-from app.services import training
+from app.services import simulation, training
 from app.services.errors import NotFoundError
 from app.services.identification import not_found_message
 from app.services.patterns import describe, pattern_set_room
 from app.services.training import TRAIN_JOB
-from engine.constants import J1_GRID
 from engine.storage import PatternSetNotFound
 
 router = APIRouter(prefix="/pattern-sets", tags=["pattern-sets"])
@@ -79,13 +78,15 @@ def create_pattern_set(
     The service keeps at most ``BACKLASH_MAX_PATTERN_SETS`` sets, counting the ones being trained: beyond,
     507 (delete unused ones first; nothing is queued).
     """
+    drive = simulation.drive_of(body.drive)
     spec = training.TrainingSpec(
         channel=body.channel,
         c=body.c,
-        J1_values=tuple(body.J1_values) if body.J1_values is not None else J1_GRID,
+        J1_values=tuple(body.J1_values) if body.J1_values is not None else training.default_j1_values(drive),
         kind=body.kind,
         params=body.identifier_params(),
         effects=dict(body.effects),
+        drive=drive,
     )
     training.check(spec)
     set_id = uuid.uuid4().hex

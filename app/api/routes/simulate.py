@@ -14,23 +14,26 @@ from app.schemas.simulate import SimulateBatchCreate, SimulateCase, SimulateCrea
 from app.services import simulation
 from app.services.errors import InvalidInputError
 from engine.records import Record
+from engine.simulation.drive import DriveDescription
 
 router = APIRouter(prefix="/simulate", tags=["simulate"])
 
 _ERRORS: dict[int | str, dict[str, Any]] = {
     422: {
         "model": ErrorPublic,
-        "description": "Out-of-range parameter, unknown effect or unit, a grid that cannot hold the test, "
-        "or no backlash event",
+        "description": "Out-of-range parameter, unknown effect or unit, an impossible drive description, a grid "
+        "that cannot hold the test, or no backlash event",
     }
 }
 
 
-def _simulate(cases: list[SimulateCase], rendering: simulation.Rendering) -> list[Record]:
+def _simulate(
+    cases: list[SimulateCase], rendering: simulation.Rendering, drive: DriveDescription | None
+) -> list[Record]:
     prepared = simulation.prepare(
-        [simulation.make_case(c.K, c.J1, c.c, c.c1) for c in cases], [c.effects for c in cases]
+        [simulation.make_case(c.K, c.J1, c.c, c.c1, drive) for c in cases], [c.effects for c in cases]
     )
-    return simulation.render(prepared, rendering)
+    return simulation.render(prepared, rendering, drive)
 
 
 def _wants_csv(request: Request) -> bool:
@@ -49,8 +52,9 @@ def _wants_csv(request: Request) -> bool:
         200: {
             "content": {"text/csv": {"schema": {"type": "string"}}},
             "description": "The record (CSV form with Accept: text/csv; headers X-Sample-Interval, "
-            "X-Event-Index (unless include_event_index is false), X-Event-Time and, when some channel is not "
-            "in its model unit, X-Units as CHANNEL:UNIT pairs separated by commas)",
+            "X-Event-Index (unless include_event_index is false), X-Event-Time, when some channel is not "
+            "in its model unit, X-Units as CHANNEL:UNIT pairs separated by commas, and with a drive description "
+            "X-Drive-Fingerprint)",
         },
     },
 )
@@ -64,17 +68,26 @@ def simulate(body: Annotated[SimulateCreate, Depends(json_model(SimulateCreate))
     With ``Accept: text/csv`` the record comes in CSV form (a header row of channel names,
     optionally ``t`` first with ``time_column``; one row per sample) and Ts, the event index,
     t_e and the units in response headers.
+
+    With ``drive`` (a drive description, docs/drive-description.md) the case is that drive's nominal
+    plant (the K, J1, c and c1 given override it), simulated within its ``t_event_max`` and rendered on
+    its protocol's grid unless ``sample_interval``, ``before`` or ``after`` are given; the record carries
+    ``drive`` (the description's fingerprint and content) and states the drive's base torque. A
+    description the engine refuses is a 422 that names the key and what to fix.
     """
-    rendering = body.rendering()
-    record = _simulate([body], rendering)[0]
+    drive = simulation.drive_of(body.drive)
+    rendering = body.rendering(simulation.protocol_span(drive))
+    record = _simulate([body], rendering, drive)[0]
     if _wants_csv(request):
         headers = {"X-Sample-Interval": repr(record.sample_interval), "X-Event-Time": repr(record.event_time)}
         if rendering.include_event_index:
             headers["X-Event-Index"] = str(record.event_index)
         if record.units:
             headers["X-Units"] = format_units(record.units)
+        if drive is not None:
+            headers["X-Drive-Fingerprint"] = drive.fingerprint
         return Response(record_to_csv(record, with_time=body.time_column), media_type="text/csv", headers=headers)
-    return simulation.to_public(record, rendering)
+    return simulation.to_public(record, rendering, drive)
 
 
 @router.post(
@@ -96,6 +109,7 @@ def simulate_batch(
             f"the batch has {len(body.cases)} cases; at most {settings.max_batch_cases} are allowed per request "
             "(BACKLASH_MAX_BATCH_CASES): split it into several requests"
         )
-    rendering = body.rendering()
-    records = _simulate(body.cases, rendering)
-    return {"data": [simulation.to_public(r, rendering) for r in records], "count": len(records)}
+    drive = simulation.drive_of(body.drive)
+    rendering = body.rendering(simulation.protocol_span(drive))
+    records = _simulate(body.cases, rendering, drive)
+    return {"data": [simulation.to_public(r, rendering, drive) for r in records], "count": len(records)}

@@ -1,0 +1,227 @@
+"""A drive description on the service and the command line: simulate on the user's drive, refuse a bad one."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import httpx
+import numpy as np
+import pytest
+
+from app import cli
+from engine.simulation.drive import REFERENCE_DRIVE, load_drive
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "docs" / "examples" / "drive-60hz-conveyor.toml"
+
+
+@pytest.fixture(scope="module")
+def example() -> dict[str, Any]:
+    return load_drive(EXAMPLE).to_dict()
+
+
+def test_simulate_on_a_described_drive_keeps_its_protocol_and_provenance(
+    client: httpx.Client, example: dict[str, Any], sim_record: dict[str, Any]
+) -> None:
+    r = client.post("/v1/simulate", json={"K": 0.004, "drive": example})
+    assert r.status_code == 200, r.text
+    rec = r.json()
+    drive = load_drive(EXAMPLE)
+    assert rec["drive"] == {"fingerprint": drive.fingerprint, "description": example}
+    assert rec["sample_interval"] == drive.sample_interval and rec["event_index"] == drive.event_index
+    assert all(len(v) == drive.n_samples for v in rec["channels"].values())
+    # the drive's nominal J1, c, c1 and its base torque are the record's conditions
+    assert rec["conditions"] == {
+        "J1": drive.J1,
+        "c": drive.c,
+        "c1": drive.c1,
+        "K": 0.004,
+        "base_torque": pytest.approx(drive.torque_base),
+    }
+    assert rec["channels"]["v2"][:2000] != sim_record["channels"]["v2"][:2000]
+    # the empty description is the reference plant: the same samples as without one
+    ref = client.post("/v1/simulate", json={"K": 0.005, "drive": {}}).json()
+    assert ref["channels"] == sim_record["channels"]
+    assert ref["drive"]["fingerprint"] == REFERENCE_DRIVE.fingerprint
+    assert "drive" not in sim_record
+
+
+def test_the_csv_form_names_the_drive_in_a_header(client: httpx.Client, example: dict[str, Any]) -> None:
+    r = client.post("/v1/simulate", json={"K": 0.004, "drive": example}, headers={"Accept": "text/csv"})
+    assert r.status_code == 200, r.text
+    assert r.headers["X-Drive-Fingerprint"] == load_drive(EXAMPLE).fingerprint
+    assert r.headers["X-Sample-Interval"] == repr(5e-5) and r.headers["X-Event-Index"] == "96"
+    plain = client.post("/v1/simulate", json={"K": 0.004}, headers={"Accept": "text/csv"})
+    assert "X-Drive-Fingerprint" not in plain.headers
+
+
+def test_a_request_span_overrides_the_drive_protocol(client: httpx.Client, example: dict[str, Any]) -> None:
+    r = client.post("/v1/simulate/batch", json={"cases": [{"K": 0.003}], "sample_interval": 1e-4, "drive": example})
+    assert r.status_code == 200, r.text
+    rec = r.json()["data"][0]
+    # the request's 0.1 ms instead of the drive's 50 us, over the drive's span: 4.8 ms before, 200 ms from the event
+    assert rec["sample_interval"] == 1e-4 and rec["event_index"] == 48
+    assert len(rec["channels"]["a1"]) == 48 + 2000
+    assert rec["drive"]["description"]["protocol"]["sample_interval"] == 5e-5
+
+
+@pytest.mark.parametrize(
+    ("drive", "message"),
+    [
+        ({"motor": {"x_m": 2.0, "x_s": 1.9}}, "x_m = 2.0 must be smaller than motor.x_s"),
+        ({"mechanics": {"J1": 0.0}}, "mechanics.J1 = 0.0 must be positive"),
+        ({"mechanic": {"J1": 1.0}}, "unknown section 'mechanic'"),
+    ],
+)
+def test_a_bad_description_is_refused_with_what_to_fix(client: httpx.Client, drive: dict, message: str) -> None:
+    r = client.post("/v1/simulate", json={"K": 0.005, "drive": drive})
+    assert r.status_code == 422
+    assert message in r.json()["detail"]
+
+
+def test_omega1_in_pu_is_refused_for_another_drive(client: httpx.Client, example: dict[str, Any]) -> None:
+    r = client.post("/v1/simulate", json={"K": 0.004, "drive": example, "units": {"omega1": "pu"}})
+    assert r.status_code == 422 and "give omega1 in rad/s or rpm" in r.json()["detail"]
+
+
+def test_cli_simulate_with_a_drive_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "conveyor.json"
+    assert cli.main(["simulate", "--drive", str(EXAMPLE), "--out", str(out)]) == 0
+    rec = json.loads(out.read_text("utf-8"))
+    drive = load_drive(EXAMPLE)
+    assert rec["drive"]["fingerprint"] == drive.fingerprint
+    assert rec["conditions"]["K"] == drive.K  # no --K: the drive's nominal width
+    assert rec["event_index"] == drive.event_index and len(rec["channels"]["omega1"]) == drive.n_samples
+    omega1 = np.array(rec["channels"]["omega1"])
+    assert np.all(np.isfinite(omega1)) and np.max(np.abs(omega1)) < drive.omega_b
+    assert math.isclose(rec["conditions"]["base_torque"], drive.torque_base)
+
+
+def test_cli_refuses_a_bad_drive_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[mechanics]\nk12 = -5\n", encoding="utf-8")
+    assert cli.main(["simulate", "--drive", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.toml" in err and "mechanics.k12 = -5.0 must be positive" in err
+
+
+@pytest.fixture
+def env(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Path:
+    """No BACKLASH_* variables but the database path."""
+    import os
+
+    for k in list(os.environ):
+        if k.startswith("BACKLASH_"):
+            monkeypatch.delenv(k)
+    db = tmp_path / "db" / "patterns.sqlite3"
+    monkeypatch.setenv("BACKLASH_DB_PATH", str(db))
+    return db
+
+
+def _train(capsys: pytest.CaptureFixture[str], *extra: str) -> dict[str, Any]:
+    argv = ["train", "--channel", "v2", "--c", "1.0", "--kind", "paper", "--max-epochs", "200", *extra]
+    code = cli.main(argv)
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    return json.loads(out)
+
+
+def test_a_pattern_set_identifies_only_records_of_its_own_drive(
+    env: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    drive = load_drive(EXAMPLE)
+    own = _train(capsys, "--drive", str(EXAMPLE), "--J1", "0.95", "0.9")
+    assert own["params"]["drive"]["fingerprint"] == drive.fingerprint
+    reference = _train(capsys, "--J1", "0.87", "0.8482")
+    assert "drive" not in reference["params"]
+    rec = tmp_path / "conveyor.json"
+    assert cli.main(["simulate", "--drive", str(EXAMPLE), "--K", "0.005", "--out", str(rec)]) == 0
+    capsys.readouterr()
+
+    # the drive's record with the drive's set: identified, and the answer names the drive
+    code = cli.main(["identify", str(rec), "--channel", "v2", "--drive", str(EXAMPLE), "--any-set"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    answer = json.loads(out)
+    assert answer["pattern_set"] == own["id"] and answer["drive"] == drive.fingerprint
+    # named across drives, either way: refused, saying which drives
+    code = cli.main(
+        ["identify", str(rec), "--channel", "v2", "--drive", str(EXAMPLE), "--pattern-set", reference["id"]]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and "a set identifies only records of its own drive" in err and drive.fingerprint[:12] in err
+    ref_rec = tmp_path / "reference.json"
+    assert cli.main(["simulate", "--K", "0.005", "--out", str(ref_rec)]) == 0
+    capsys.readouterr()
+    code = cli.main(["identify", str(ref_rec), "--channel", "v2", "--pattern-set", own["id"]])
+    assert code == 2 and "trained for drive " + drive.fingerprint[:12] in capsys.readouterr().err
+    # the record states its drive: identifying it as the reference drive's is refused
+    code = cli.main(["identify", str(rec), "--channel", "v2", "--any-set"])
+    assert code == 2 and "give the record's own drive description with --drive" in capsys.readouterr().err
+    # the automatic choice for the reference drive never picks the drive's set
+    code = cli.main(["identify", str(ref_rec), "--channel", "v2", "--any-set"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert json.loads(out)["pattern_set"] == reference["id"]
+    # listing by drive
+    assert cli.main(["pattern-sets", "list", "--drive", str(EXAMPLE)]) == 0
+    assert [s["id"] for s in json.loads(capsys.readouterr().out)["data"]] == [own["id"]]
+    assert cli.main(["pattern-sets", "list"]) == 0
+    assert len(json.loads(capsys.readouterr().out)["data"]) == 2
+
+
+def test_diagnosis_refuses_another_drive_before_any_work(
+    client: httpx.Client, example: dict[str, Any], sim_record: dict[str, Any]
+) -> None:
+    record = {k: sim_record[k] for k in ("sample_interval", "event_index", "channels", "conditions")}
+    for route in ("/v1/diagnose", "/v1/diagnoses"):
+        r = client.post(route, json={"record": record, "drive": example})
+        assert r.status_code == 422, (route, r.text)
+        assert "calibrates on MODEL.md's reference plant only" in r.json()["detail"]
+    # a record that states another drive is refused for the reference plant
+    stated = {**record, "drive": {"fingerprint": load_drive(EXAMPLE).fingerprint}}
+    r = client.post("/v1/diagnose", json={"record": stated})
+    assert r.status_code == 422 and "the record was made on drive" in r.json()["detail"]
+
+
+def test_identify_over_http_compares_the_record_drive(client: httpx.Client, example: dict[str, Any]) -> None:
+    rec = client.post("/v1/simulate", json={"K": 0.004, "drive": example}).json()
+    body = {k: rec[k] for k in ("sample_interval", "event_index", "channels", "conditions", "drive")}
+    r = client.post("/v1/identify", json={"record": body, "channel": "v2"})
+    assert r.status_code == 422 and "give the record's own drive description (drive)" in r.json()["detail"]
+    r = client.post("/v1/identify", json={"record": body, "channel": "v2", "drive": example, "continuous": True})
+    assert r.status_code == 422 and "not yet on a described drive" in r.json()["detail"]
+    # a speed in pu would be read with MODEL.md's base speed, not this drive's
+    in_pu = {**body, "channels": {"omega1": body["channels"]["omega1"]}, "units": {"omega1": "pu"}}
+    r = client.post("/v1/identify", json={"record": in_pu, "channel": "omega1", "drive": example})
+    assert r.status_code == 422 and "give omega1 in rad/s or rpm" in r.json()["detail"]
+
+
+def test_cli_diagnose_refuses_another_drive(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rec = tmp_path / "conveyor.json"
+    assert cli.main(["simulate", "--drive", str(EXAMPLE), "--out", str(rec)]) == 0
+    capsys.readouterr()
+    assert cli.main(["diagnose", str(rec), "--drive", str(EXAMPLE)]) == 2
+    assert "calibrates on MODEL.md's reference plant only" in capsys.readouterr().err
+    assert cli.main(["diagnose", str(rec)]) == 2  # the record states its drive: not the reference plant's
+    assert "give the record's own drive description with --drive" in capsys.readouterr().err
+
+
+def test_diagnose_batch_refuses_another_drive(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    records = tmp_path / "records"
+    records.mkdir()
+    assert cli.main(["simulate", "--drive", str(EXAMPLE), "--out", str(records / "conveyor.json")]) == 0
+    capsys.readouterr()
+    assert cli.main(["diagnose-batch", str(records), "--out", str(tmp_path / "a"), "--drive", str(EXAMPLE)]) == 2
+    assert "calibrates on MODEL.md's reference plant only" in capsys.readouterr().err
+    # without --drive, the record that states its drive is refused in the summary (nothing is diagnosed)
+    assert cli.main(["diagnose-batch", str(records), "--out", str(tmp_path / "b"), "--workers", "0"]) == 0
+    summary = (tmp_path / "b" / "summary.csv").read_text("utf-8")
+    assert "refused" in summary and "the record was made on drive" in summary
+
+
+def test_training_over_http_refuses_a_bad_description_before_queueing(client: httpx.Client) -> None:
+    r = client.post("/v1/pattern-sets", json={"channel": "v2", "c": 1.0, "drive": {"motor": {"pole_pairs": 0.5}}})
+    assert r.status_code == 422 and "motor.pole_pairs must be a whole number" in r.json()["detail"]
