@@ -38,6 +38,14 @@ sensitivity to a1. (The seventh, higher leakage reactances, needs no term: the s
 ``P_X_S`` and ``P_X_R``.) With all of them zero the kernel performs model 1.2's floating-point
 operations.
 
+Every function but the entry points compiles without numba's reference-counting runtime
+(``_nrt=False``, a CPU target option of numba's, used where a function allocates nothing): with it,
+the parameter vector P was reference-counted at every call and every inlined call of a step, atomic
+increments and decrements that made up 30 % of the kernel's time (``perf``); without it, the same
+floating-point operations in the same order, so the same records bit for bit, 1.2x per core. Such a
+function must not allocate an array (the entry point :func:`simulate_one` owns every array and keeps
+it alive while they run).
+
 The parameter vector layout is given by the ``P_*`` indices below and built by
 :func:`engine.simulation.simulator.parameter_vector`; it carries the record's
 sample grid too (``P_TS``, ``P_EVENT_INDEX``), and the number of samples is the
@@ -47,6 +55,7 @@ length of the output array, so one compiled kernel renders any grid.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit, prange
@@ -62,6 +71,10 @@ from engine.constants import (
     W_STRIBECK,
     X_REF,
 )
+
+#: numba's option for the kernel's functions but its entry points: no reference-counting runtime
+#: (``_nrt``, a CPU target option numba's own stubs do not list; see the module docstring).
+_NO_NRT: dict[str, Any] = {"_nrt": False}
 
 # parameter vector layout
 P_R_S, P_R_R, P_X_S, P_X_R, P_X_M, P_U, P_F = 0, 1, 2, 3, 4, 5, 6
@@ -140,7 +153,7 @@ MIN_RING = 64
 _RING_MARGIN = 4
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def ring_size(P):
     """Checkpoints to keep so that one lies at or before the record's first sample instant.
 
@@ -155,7 +168,7 @@ def ring_size(P):
     return max(MIN_RING, math.ceil(span / CHECKPOINT_INTERVAL) + _RING_MARGIN)
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def smooth_sign(w):
     """tanh(w / W_SMOOTH), MODEL.md's smoothed sign; exactly +-1 in double precision beyond |w| > 20 W_SMOOTH.
 
@@ -177,7 +190,7 @@ def smooth_sign(w):
     return z if x >= 0.0 else -z
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def disturbance(t, P):
     """The unknown input d(t) of the schedule in P (unit of its locus, see ``DIST_*``).
 
@@ -199,7 +212,7 @@ def disturbance(t, P):
     return (1.0 - frac) * left + frac * right
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def step_to_knot(t, h, P):
     """The step h [s] from t, shortened to end at the next kink of the unknown input if it lies within.
 
@@ -218,7 +231,7 @@ def step_to_knot(t, h, P):
     return min(h, t_knot - t)
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def clutch_deflection(t, y, P, motor_on):
     """theta_1 - theta_2 less the offset of the backlash zone [rad] (model 1.1: fixed plus unknown input)."""
     d = y[7] - y[8] - P[P_CLUTCH_OFFSET]
@@ -227,7 +240,7 @@ def clutch_deflection(t, y, P, motor_on):
     return d
 
 
-@njit(cache=True, fastmath=False, inline="always")
+@njit(cache=True, fastmath=False, **_NO_NRT, inline="always")
 def contact_push(d, dw, P, ext):
     """The clutch's contact torque before its clip, k12 x + d12 dw [pu], at a deflection d outside the zone.
 
@@ -244,7 +257,7 @@ def contact_push(d, dw, P, ext):
     return spring + P[P_D12] * dw
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def electromagnetic_torque(y, P):
     """m_el = psi_s_alpha i_s_beta - psi_s_beta i_s_alpha [pu] of the fluxes in y (model 1.2: saturated x_m)."""
     xs = P[P_X_S]
@@ -261,7 +274,7 @@ def electromagnetic_torque(y, P):
     return y[0] * isb - y[1] * isa
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def rhs(t, y, P, motor_on):
     """Right-hand side dy/dt and the five channel values at (t, y).
 
@@ -431,10 +444,10 @@ def rhs(t, y, P, motor_on):
 #: :func:`rhs` compiled to be inlined (numba IR) into :func:`rk4_step`, its one hot caller: the
 #: four evaluations of a step then optimise as one body (the same floating-point operations).
 #: Other callers use :func:`rhs`, so the kernel compiles in seconds, not minutes.
-_rhs_inlined = njit(cache=True, fastmath=False, inline="always")(rhs.py_func)
+_rhs_inlined = njit(cache=True, fastmath=False, **_NO_NRT, inline="always")(rhs.py_func)
 
 
-@njit(cache=True, fastmath=False, inline="always")
+@njit(cache=True, fastmath=False, **_NO_NRT, inline="always")
 def _axpy(y, a, k):
     """The state y + a k, element by element (tuples of N_STATES floats)."""
     return (
@@ -456,7 +469,7 @@ def _axpy(y, a, k):
     )
 
 
-@njit(cache=True, fastmath=False, inline="always")
+@njit(cache=True, fastmath=False, **_NO_NRT, inline="always")
 def _rk4_sum(y, h6, k1, k2, k3, k4):
     """RK4's new state y + h/6 (k1 + 2 k2 + 2 k3 + k4), element by element, evaluated left to right."""
     return (
@@ -478,7 +491,7 @@ def _rk4_sum(y, h6, k1, k2, k3, k4):
     )
 
 
-@njit(cache=True, fastmath=False, inline="always")
+@njit(cache=True, fastmath=False, **_NO_NRT, inline="always")
 def rk4_step(t, y, h, P, motor_on):
     """One classical Runge-Kutta step of size h [s] from (t, y); returns the new state (a tuple).
 
@@ -493,7 +506,7 @@ def rk4_step(t, y, h, P, motor_on):
     return _rk4_sum(y, h / 6.0, k1, k2, k3, k4)
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def zone(t, y, P, motor_on):
     """Clutch mode of state y at time t [s] (the zone's offset may depend on t and on ``motor_on``).
 
@@ -513,10 +526,10 @@ def zone(t, y, P, motor_on):
     return -1 if contact_push(d, dw, P, ext) < 0.0 else -2
 
 
-_zone_inlined = njit(cache=True, fastmath=False, inline="always")(zone.py_func)
+_zone_inlined = njit(cache=True, fastmath=False, **_NO_NRT, inline="always")(zone.py_func)
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def hybrid_step(t, y, h, P, motor_on, z0):
     """One RK4 step of at most h from (t, y) that stops at a clutch-zone change.
 
@@ -570,7 +583,7 @@ def hybrid_step(t, y, h, P, motor_on, z0):
             h_try = hi
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def advance(t, y, t_end, P, motor_on):
     """Integrate the state y (a tuple) from t to t_end [s] with hybrid steps no longer than P[P_STEP].
 
@@ -599,7 +612,7 @@ def advance(t, y, t_end, P, motor_on):
 _REST = (0.0,) * N_STATES
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def _state_from_row(a, j):
     """Row j of the 2-D array a as a state tuple."""
     return (
