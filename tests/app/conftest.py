@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -83,3 +84,14 @@ def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config
     module = getattr(boxed[0], "module", None)
     if module is not None and hasattr(module, "start_build"):
         module.start_build()
+
+
+@pytest.fixture
+def env(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Path:
+    """No BACKLASH_* variables but the database path (of the CLI tests); returns the database path."""
+    for k in list(os.environ):
+        if k.startswith("BACKLASH_"):
+            monkeypatch.delenv(k)
+    db = tmp_path / "db" / "patterns.sqlite3"
+    monkeypatch.setenv("BACKLASH_DB_PATH", str(db))
+    return db

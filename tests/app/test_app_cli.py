@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import csv
 import json
-import os
 import subprocess
 import sys
 import types
@@ -18,17 +17,6 @@ from servicekit import SMALL_TRAINING, clean_env
 from app import cli
 from engine.constants import CHANNELS, N_SAMPLES
 from engine.simulation import HELD_BACK
-
-
-@pytest.fixture
-def env(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Path:
-    """No BACKLASH_* variables but the database path; returns the database path."""
-    for k in list(os.environ):
-        if k.startswith("BACKLASH_"):
-            monkeypatch.delenv(k)
-    db = tmp_path / "db" / "patterns.sqlite3"
-    monkeypatch.setenv("BACKLASH_DB_PATH", str(db))
-    return db
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:

@@ -107,19 +107,6 @@ def test_cli_refuses_a_bad_drive_file(tmp_path: Path, capsys: pytest.CaptureFixt
     assert "bad.toml" in err and "mechanics.k12 = -5.0 must be positive" in err
 
 
-@pytest.fixture
-def env(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Path:
-    """No BACKLASH_* variables but the database path."""
-    import os
-
-    for k in list(os.environ):
-        if k.startswith("BACKLASH_"):
-            monkeypatch.delenv(k)
-    db = tmp_path / "db" / "patterns.sqlite3"
-    monkeypatch.setenv("BACKLASH_DB_PATH", str(db))
-    return db
-
-
 def _train(capsys: pytest.CaptureFixture[str], *extra: str) -> dict[str, Any]:
     argv = ["train", "--channel", "v2", "--c", "1.0", "--kind", "paper", "--max-epochs", "200", *extra]
     code = cli.main(argv)
