@@ -465,7 +465,11 @@ def render_kernel_speed(page: Page) -> str:
     return table(["simulator", "records/s", "168 cases in"], rows) + note + sources(page, [KERNEL_SPEED])
 
 
-DIAGNOSIS_COST = ["docs/validation/diagnosis-cost/cost.json", "docs/validation/diagnosis-cost/left-out-37/cost.json"]
+DIAGNOSIS_COST = [
+    "docs/validation/diagnosis-cost/cost.json",
+    "docs/validation/diagnosis-cost/left-out-37/cost.json",
+    "docs/validation/diagnosis-cost/kernel-53b8207/cost.json",
+]
 
 
 def render_diagnosis_cost(page: Page) -> str:
