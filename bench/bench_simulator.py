@@ -18,7 +18,7 @@ import platform
 import sys
 from pathlib import Path
 
-from engine.simulation.benchmark import run_benchmark
+from engine.simulation.benchmark import BASELINE_CHUNK, run_benchmark
 from engine.validation.provenance import code_version
 
 
@@ -42,6 +42,7 @@ def main(argv: list[str] | None = None) -> int:
         report = {
             "n_cases": result.n_cases,
             "kernel_seconds": result.kernel_seconds,
+            "kernel_runs": 1 + -(-result.n_cases // BASELINE_CHUNK),
             "baseline_seconds": result.baseline_seconds,
             "kernel_records_per_s": result.kernel_rate,
             "baseline_records_per_s": result.baseline_rate,
