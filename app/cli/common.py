@@ -153,13 +153,6 @@ def read_drive(args: argparse.Namespace) -> DriveDescription | None:
     return load_drive(args.drive)
 
 
-def record_drive(path: Path) -> str | None:
-    """The fingerprint of the drive a JSON record file states it was made on (:func:`app.records_io.stated_drive`)."""
-    from app.records_io import stated_drive
-
-    return stated_drive(path)
-
-
 def add_db_option(p: argparse.ArgumentParser) -> None:
     """``--db``: the pattern-store file."""
     from engine.storage import DEFAULT_STORE_PATH, STORE_PATH_ENV

@@ -17,8 +17,8 @@ from app.cli.common import (
     examples,
     read_drive,
     read_record,
-    record_drive,
 )
+from app.records_io import stated_drive
 from engine.atomic import write_json_atomic
 from engine.plants import DEFAULT_PLANT, PLANTS
 
@@ -34,7 +34,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
             raise CommandError(f"--drive describes a backlash drive; it does not apply with --plant {args.plant}")
         return _diagnose_plant(args)
     drive = read_drive(args)
-    diagnosis.check_drive(drive, record_drive(args.record))  # before the record is read: refused at once
+    diagnosis.check_drive(drive, stated_drive(args.record))  # before the record is read: refused at once
     record = read_record(args)
     for name in args.effects or ():
         CATALOGUE[name]  # UnknownEffectError names the known effects before any work is done

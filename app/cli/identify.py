@@ -16,9 +16,9 @@ from app.cli.common import (
     examples,
     read_drive,
     read_record,
-    record_drive,
     settings,
 )
+from app.records_io import stated_drive
 from engine.constants import CHANNELS
 from engine.identification.training import IDENTIFIERS
 from engine.plants import DEFAULT_PLANT, PLANTS
@@ -56,7 +56,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         continuous=args.continuous,
         any_set=args.any_set,
         drive=drive,
-        record_drive=record_drive(args.record),
+        record_drive=stated_drive(args.record),
     )
     output.write_json(answer)
     for w in answer.get("warnings") or ():  # on stderr, where a person sees them beside the JSON

@@ -69,19 +69,22 @@ def check_record_drive(record_drive: str | None, drive: DriveDescription | None)
     IncompatibleError
         The record was made on another drive than the request's (MODEL.md's reference plant when ``drive`` is None).
     """
-    wanted = (drive or REFERENCE_DRIVE).fingerprint
-    if record_drive is not None and record_drive != wanted:
+    wanted = drive or REFERENCE_DRIVE
+    if record_drive is not None and record_drive != wanted.fingerprint:
+        label = f"{wanted.fingerprint[:12]} ({wanted.name})"
         raise IncompatibleError(
-            f"the record was made on drive {record_drive[:12]}, the request is for drive {wanted[:12]} "
-            f"({(drive or REFERENCE_DRIVE).name}); give the record's own drive description (drive)",
-            cli=f"the record was made on drive {record_drive[:12]}, the command is for drive {wanted[:12]} "
-            f"({(drive or REFERENCE_DRIVE).name}); give the record's own drive description with --drive FILE",
+            f"the record was made on drive {record_drive[:12]}, the request is for drive {label}; give the record's "
+            "own drive description (drive)",
+            cli=f"the record was made on drive {record_drive[:12]}, the command is for drive {label}; give the "
+            "record's own drive description with --drive FILE",
         )
 
 
 def _drive_label(fingerprint: str, drive: DriveDescription | None = None) -> str:
-    name = (drive or REFERENCE_DRIVE).name if drive is not None or fingerprint == REFERENCE_DRIVE.fingerprint else None
-    return f"{fingerprint[:12]}" + (f" ({name})" if name else "")
+    """A fingerprint's first 12 digits, with the name of ``drive`` (or of the reference plant's fingerprint)."""
+    if drive is None and fingerprint == REFERENCE_DRIVE.fingerprint:
+        drive = REFERENCE_DRIVE
+    return fingerprint[:12] + (f" ({drive.name})" if drive is not None else "")
 
 
 def select_pattern_set(

@@ -32,7 +32,7 @@ from engine.simulation import (
     apply_effects,
     simulate_batch,
 )
-from engine.simulation.drive import DriveDescription
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 from engine.simulation.simulator import DEFAULT_SOLVER
 
 logger = logging.getLogger(__name__)
@@ -154,12 +154,11 @@ def drive_of(data: Mapping[str, Any] | None) -> DriveDescription | None:
 def protocol_span(drive: DriveDescription | None) -> dict[str, float]:
     """The rendering's ``sample_interval`` [s], ``before`` [s] and ``after`` [s] of a drive's test protocol.
 
-    MODEL.md's (0.1 ms, 4.8 ms, 200 ms) without a drive.
+    MODEL.md's (0.1 ms, 4.8 ms, 200 ms) without a drive: the reference description's protocol.
     """
-    if drive is None:
-        return {"sample_interval": SAMPLE_INTERVAL, "before": PRE_EVENT_TIME, "after": POST_EVENT_TIME}
-    ts, e = drive.sample_interval, drive.event_index
-    return {"sample_interval": ts, "before": e * ts, "after": (drive.n_samples - e) * ts}
+    grid = (drive or REFERENCE_DRIVE).grid()
+    ts, e = grid.sample_interval, grid.event_index
+    return {"sample_interval": ts, "before": e * ts, "after": (grid.n_samples - e) * ts}
 
 
 #: Effects a simulation request may name: the catalogue and the held-back family of model 1.1.
