@@ -80,6 +80,21 @@ def check_record_drive(record_drive: str | None, drive: DriveDescription | None)
         )
 
 
+def reference_envelope_warning(drive: DriveDescription) -> PlausibilityWarning:
+    """The warning that a described drive's record is checked against MODEL.md's reference plant's envelopes.
+
+    The plausibility checks (:func:`engine.diagnosis.plausibility.check_record`: channel peaks and rise
+    times) compare the record with simulations of the reference plant's plausible box, not of ``drive``'s; a
+    record ``drive`` could not produce may pass them, and one it could may be flagged.
+    """
+    return PlausibilityWarning(
+        "reference_envelope",
+        f"the record's plausibility checks (channel peaks, rise times) are MODEL.md's reference plant's, not the "
+        f"described drive {drive.name!r}'s: a record this drive cannot produce may pass them; check the record's "
+        "units and sample interval against the drive's own simulation (backlash simulate --drive FILE)",
+    )
+
+
 def _drive_label(fingerprint: str, drive: DriveDescription | None = None) -> str:
     """A fingerprint's first 12 digits, with the name of ``drive`` (or of the reference plant's fingerprint)."""
     if drive is None and fingerprint == REFERENCE_DRIVE.fingerprint:
@@ -296,6 +311,8 @@ def identify_from_store(
             "far outside what the pattern set was trained on; check the record's units and values"
         )
     warnings = plausibility.check_record(_one_channel(record, channel))
+    if drive is not None and not drive.is_reference:
+        warnings.append(reference_envelope_warning(drive))
     width = None
     if continuous:
         width, fit_warnings = continuous_width_checked(record, channel)

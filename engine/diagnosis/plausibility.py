@@ -200,7 +200,7 @@ class PlausibilityWarning:
     Attributes
     ----------
     code : str
-        Short stable id: ``constant_channel``, ``channel_scale``, ``sample_interval``, ``misfit``.
+        Short stable id: ``constant_channel``, ``channel_scale``, ``sample_interval``, ``misfit`` (and the service's ``reference_envelope``).
     message : str
         One or two sentences: the suspicion, with the numbers behind it, and what to check.
     channel : str or None

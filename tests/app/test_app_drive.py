@@ -133,6 +133,8 @@ def test_a_pattern_set_identifies_only_records_of_its_own_drive(
     assert code == 0, err
     answer = json.loads(out)
     assert answer["pattern_set"] == own["id"] and answer["drive"] == drive.fingerprint
+    # its plausibility checks are the reference plant's, and the answer says so
+    assert "reference_envelope" in [w["code"] for w in answer["warnings"]]
     # named across drives, either way: refused, saying which drives
     code = cli.main(
         ["identify", str(rec), "--channel", "v2", "--drive", str(EXAMPLE), "--pattern-set", reference["id"]]
@@ -152,6 +154,7 @@ def test_a_pattern_set_identifies_only_records_of_its_own_drive(
     out, err = capsys.readouterr()
     assert code == 0, err
     assert json.loads(out)["pattern_set"] == reference["id"]
+    assert "reference_envelope" not in [w["code"] for w in json.loads(out)["warnings"]]
     # listing by drive
     assert cli.main(["pattern-sets", "list", "--drive", str(EXAMPLE)]) == 0
     assert [s["id"] for s in json.loads(capsys.readouterr().out)["data"]] == [own["id"]]
