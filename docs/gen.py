@@ -471,6 +471,29 @@ def render_kernel_speed(page: Page) -> str:
     return table(["simulator", "records/s", "168 cases in"], rows) + note + sources(page, [KERNEL_SPEED])
 
 
+#: Repeated runs of the kernel bench, two codes alternating (``docs/validation/kernel-speed/runs/<code>-<i>.json``).
+KERNEL_SPEED_RUNS = "docs/validation/kernel-speed/runs"
+
+
+def render_kernel_speed_runs(page: Page) -> str:
+    """Each committed run of the kernel bench: the ratio to solve_ivp and both rates (``bench/bench_simulator.py``)."""
+    paths = sorted(str(p) for p in Path(KERNEL_SPEED_RUNS).glob("*.json"))
+    rows = []
+    for path in paths:
+        r = read_json(path)
+        rows.append(
+            [
+                Path(path).stem,
+                r["commit"],
+                f"{r['speedup']:.1f}x",
+                f"{r['kernel_records_per_s']:.0f}",
+                f"{r['baseline_records_per_s']:.1f}",
+            ]
+        )
+    head = ["run", "code", "against solve_ivp", "kernel, records/s", "solve_ivp, records/s"]
+    return table(head, rows) + sources(page, paths)
+
+
 DIAGNOSIS_COST = [
     "docs/validation/diagnosis-cost/cost.json",
     "docs/validation/diagnosis-cost/left-out-37/cost.json",
@@ -1001,6 +1024,7 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "confidence": render_confidence,
     "identification-accuracy": render_identification_accuracy,
     "kernel-speed": render_kernel_speed,
+    "kernel-speed-runs": render_kernel_speed_runs,
     "memory": render_memory,
     "diagnosis-cost": render_diagnosis_cost,
     "continuous-width-channels": render_continuous_channels,
