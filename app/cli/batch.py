@@ -12,20 +12,18 @@ from engine.plants import DEFAULT_PLANT, PLANTS
 
 def cmd_diagnose_batch(args: argparse.Namespace) -> int:
     """Diagnose the records; write ``OUT/<record>.json`` per record and ``OUT/summary.{csv,md}``."""
-    from app.services import diagnosis
     from app.services.batch import find_records, run_batch
 
-    if args.drive is not None:
-        if args.plant != DEFAULT_PLANT:
-            raise CommandError(f"--drive describes a backlash drive; it does not apply with --plant {args.plant}")
-        diagnosis.check_drive(read_drive(args))  # the diagnosis runs on the reference plant only: refused otherwise
+    if args.drive is not None and args.plant != DEFAULT_PLANT:
+        raise CommandError(f"--drive describes a backlash drive; it does not apply with --plant {args.plant}")
+    drive = read_drive(args)  # ParameterError says what to fix before any record is read
     try:
         files = find_records(args.source)
     except FileNotFoundError as exc:
         raise CommandError(str(exc)) from None
     output.info(f"diagnosing {len(files)} record(s) of plant {args.plant} into {args.out}")
     try:
-        rows = run_batch(files, args.out, args.plant, args.workers, args.scheduler)
+        rows = run_batch(files, args.out, args.plant, args.workers, args.scheduler, drive)
     except ValueError as exc:
         raise CommandError(str(exc)) from None
     output.write((args.out / "summary.md").read_text())

@@ -28,6 +28,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     from app.services import diagnosis
     from engine.diagnosis.space import check_bounds
     from engine.simulation import CATALOGUE
+    from engine.simulation.drive import REFERENCE_DRIVE
 
     if args.plant != DEFAULT_PLANT:
         if args.drive is not None:
@@ -39,12 +40,12 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     for name in args.effects or ():
         CATALOGUE[name]  # UnknownEffectError names the known effects before any work is done
     bounds = dict(args.bound or ())
-    check_bounds(bounds)  # BoundsError says what to fix before any work is done
+    check_bounds(bounds, drive or REFERENCE_DRIVE)  # BoundsError says what to fix before any work is done
     output.info(
         "diagnosing (calibration, then one fit per candidate effect, sets of effects when none fits; "
         "typically 5-60 s on 2 cores)"
     )
-    result = diagnosis.run(record, args.effects, bounds or None)
+    result = diagnosis.run(record, args.effects, bounds or None, drive=drive)
     plots = [str(p) for p in diagnosis.write_plots(record, result, args.plots)] if args.plots else []
     answer = result.to_dict()
     if drive is not None:  # the drive it was diagnosed on, kept with the answer

@@ -48,9 +48,9 @@ class DiagnoseCreate(BaseModel):
     )
     drive: DriveIn | None = Field(
         default=None,
-        description="The description of the drive the record is of (docs/drive-description.md). The diagnosis "
-        "calibrates on MODEL.md's reference plant only: a description of another drive is refused (422); the "
-        "reference plant's (e.g. an empty one) is kept with the diagnosis.",
+        description="The description of the drive the record is of (docs/drive-description.md; default MODEL.md's "
+        "reference plant): the diagnosis calibrates on its nominal plant and search box, checks the record "
+        "against its envelopes, and keeps it with the diagnosis (``drive`` in the answer).",
     )
 
 

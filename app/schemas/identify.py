@@ -64,9 +64,8 @@ class WarningOut(BaseModel):
     """A suspicion that the record is not what the plant can produce, and what to check."""
 
     code: str = Field(
-        description="Short stable id: constant_channel, channel_scale, sample_interval, misfit, "
-        "reference_envelope (a described drive's record checked against the reference plant's envelopes; "
-        "app.services.identification) (engine.diagnosis.plausibility)."
+        description="Short stable id: constant_channel, channel_scale, sample_interval, misfit "
+        "(engine.diagnosis.plausibility)."
     )
     message: str = Field(description="The suspicion, with the numbers behind it, and what to check.")
     channel: str | None = Field(default=None, description="The channel it concerns (null: the whole record).")

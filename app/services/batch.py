@@ -19,6 +19,7 @@ from typing import Any
 from engine.atomic import write_json_atomic
 from engine.diagnosis.batch import SUMMARY_COLUMNS, diagnose_one, summary_row
 from engine.plants import DEFAULT_PLANT, get_plant
+from engine.simulation.drive import DriveDescription
 
 __all__ = ["RECORD_SUFFIXES", "find_records", "run_batch"]
 
@@ -56,12 +57,12 @@ def find_records(source: str) -> list[Path]:
     return sorted(files)
 
 
-def _read(plant_name: str, path: Path) -> Any:
+def _read(plant_name: str, path: Path, drive: DriveDescription | None = None) -> Any:
     if plant_name == DEFAULT_PLANT:
         from app.records_io import read_record, stated_drive
         from app.services.identification import check_record_drive
 
-        check_record_drive(stated_drive(path), None)  # a record of a described drive: refused (IncompatibleError)
+        check_record_drive(stated_drive(path), drive)  # a record of another drive: refused (IncompatibleError)
         return read_record(path)
     from app.services.plant_diagnosis import read_file
 
@@ -74,8 +75,13 @@ def run_batch(
     plant_name: str = DEFAULT_PLANT,
     workers: int | None = None,
     scheduler: str | None = None,
+    drive: DriveDescription | None = None,
 ) -> list[dict[str, Any]]:
-    """Diagnose every file without an answer in ``out_dir`` yet; write the answers and the summary; return its rows."""
+    """Diagnose every file without an answer in ``out_dir`` yet; write the answers and the summary; return its rows.
+
+    ``drive``: the backlash drive every record was measured on (None: MODEL.md's reference plant); a record that
+    states another drive is refused.
+    """
     from engine.distributed import dask_client, map_cases
 
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -90,7 +96,7 @@ def run_batch(
             rows[name] = summary_row(name, json.loads(answer_path.read_text()))
             continue
         try:
-            inputs[name] = (plant_name, _read(plant_name, f))
+            inputs[name] = (plant_name, _read(plant_name, f, drive), drive)
         except (ValueError, OSError) as exc:  # RecordError, RecordFormatError, a unit error, an unreadable file
             logger.warning("%s refused: %s", f, exc)
             rows[name] = {c: None for c in SUMMARY_COLUMNS} | {"record": name, "status": "refused", "detail": str(exc)}

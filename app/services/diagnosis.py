@@ -13,14 +13,14 @@ from engine.diagnosis.plots import plot_gap_budget, plot_missing_term, plot_over
 from engine.diagnosis.space import Bounds
 from engine.records import Record
 from engine.simulation import CATALOGUE, EffectLibrary
-from engine.simulation.drive import DriveDescription
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 
 
 def check_drive(drive: DriveDescription | None, record_drive: str | None = None) -> None:
-    """Whether the diagnosis can run for ``drive``: the record must be of it, and it must be the reference plant.
+    """Whether the diagnosis can run for ``drive``: the record must state no drive, or this one.
 
-    The diagnosis calibrates on MODEL.md's reference plant (its nominal plant, its search box, the patterns it
-    retrains): a described drive other than the reference is refused rather than diagnosed on the wrong plant.
+    The diagnosis calibrates on the drive's own nominal plant, search box and envelopes (issue 52); a record
+    made on another drive is refused rather than diagnosed on the wrong plant.
 
     Parameters
     ----------
@@ -33,19 +33,10 @@ def check_drive(drive: DriveDescription | None, record_drive: str | None = None)
     ------
     IncompatibleError
         The record states another drive (:func:`app.services.identification.check_record_drive`).
-    InvalidInputError
-        A drive other than MODEL.md's reference plant.
     """
-    from app.services.errors import InvalidInputError
     from app.services.identification import check_record_drive
 
     check_record_drive(record_drive, drive)
-    if drive is not None and not drive.is_reference:
-        raise InvalidInputError(
-            f"the gap diagnosis calibrates on MODEL.md's reference plant only; the drive {drive.name!r} "
-            f"({drive.fingerprint[:12]}) differs from it, and its diagnosis (nominal plant, search box, patterns) is "
-            "not implemented yet: simulate, train and identify on it instead (docs/drive-description.md)"
-        )
 
 
 def run(
@@ -53,14 +44,24 @@ def run(
     effects: Sequence[str] | None = None,
     bounds: Bounds | None = None,
     progress: Callable[[float, str], None] | None = None,
+    drive: DriveDescription | None = None,
 ) -> DiagnosisResult:
     """Diagnose ``record`` against the catalogue (or the named subset of it), with identification before/after.
 
     ``bounds`` narrows or moves the calibration's search box (:func:`engine.diagnosis.space.check_bounds`);
-    ``progress(fraction, stage)`` hears of each stage.
+    ``progress(fraction, stage)`` hears of each stage; ``drive`` is the drive the record was measured on (None:
+    MODEL.md's reference plant).
     """
     library = CATALOGUE if not effects else EffectLibrary([CATALOGUE[name] for name in effects])
-    return engine_diagnose(record, library=library, identify=identification_hook(), bounds=bounds, progress=progress)
+    plant = REFERENCE_DRIVE if drive is None else drive
+    return engine_diagnose(
+        record,
+        library=library,
+        identify=identification_hook(drive=plant),
+        bounds=bounds,
+        progress=progress,
+        drive=plant,
+    )
 
 
 def diagnose(record: Record, effects: Sequence[str] | None = None, bounds: Bounds | None = None) -> dict[str, Any]:

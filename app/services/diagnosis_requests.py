@@ -28,7 +28,7 @@ from app.services.plant_diagnosis import PlantRecords
 from engine.diagnosis.space import check_bounds
 from engine.plants import DEFAULT_PLANT, get_plant
 from engine.simulation import CATALOGUE
-from engine.simulation.drive import DriveDescription
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 
 __all__ = ["DiagnosisOutcome", "DiagnosisRequest", "ParsedDiagnosis", "compute", "parse", "run_sync"]
 
@@ -141,8 +141,8 @@ def parse(request: DiagnosisRequest) -> ParsedDiagnosis:
     body = DiagnoseCreate.model_validate_json(request.body)
     for name in body.effects or ():
         CATALOGUE[name]  # UnknownEffectError (422) names the known effects
-    check_bounds(body.bounds)  # BoundsError (422) says what to fix before any work is done
     drive = simulation.drive_of(body.drive)  # ParameterError (422) says what to fix
+    check_bounds(body.bounds, drive or REFERENCE_DRIVE)  # BoundsError (422) says what to fix before any work
     diagnosis.check_drive(drive, None if body.record.drive is None else body.record.drive.fingerprint)
     return ParsedDiagnosis(
         plant=DEFAULT_PLANT,
@@ -208,7 +208,7 @@ def compute(
     with tempfile.TemporaryDirectory(prefix="backlash-figures-") as tmp:
         out_dir = Path(tmp)
         if parsed.plant == DEFAULT_PLANT:
-            result = diagnosis.run(parsed.record, parsed.effects, parsed.bounds, progress=progress)
+            result = diagnosis.run(parsed.record, parsed.effects, parsed.bounds, progress=progress, drive=parsed.drive)
             answer = result.to_dict()
             if parsed.drive is not None:  # the drive it was diagnosed on, kept with the diagnosis
                 answer["drive"] = parsed.drive.provenance()

@@ -80,21 +80,6 @@ def check_record_drive(record_drive: str | None, drive: DriveDescription | None)
         )
 
 
-def reference_envelope_warning(drive: DriveDescription) -> PlausibilityWarning:
-    """The warning that a described drive's record is checked against MODEL.md's reference plant's envelopes.
-
-    The plausibility checks (:func:`engine.diagnosis.plausibility.check_record`: channel peaks and rise
-    times) compare the record with simulations of the reference plant's plausible box, not of ``drive``'s; a
-    record ``drive`` could not produce may pass them, and one it could may be flagged.
-    """
-    return PlausibilityWarning(
-        "reference_envelope",
-        f"the record's plausibility checks (channel peaks, rise times) are MODEL.md's reference plant's, not the "
-        f"described drive {drive.name!r}'s: a record this drive cannot produce may pass them; check the record's "
-        "units and sample interval against the drive's own simulation (backlash simulate --drive FILE)",
-    )
-
-
 def _drive_label(fingerprint: str, drive: DriveDescription | None = None) -> str:
     """A fingerprint's first 12 digits, with the name of ``drive`` (or of the reference plant's fingerprint)."""
     if drive is None and fingerprint == REFERENCE_DRIVE.fingerprint:
@@ -229,8 +214,10 @@ def _one_channel(record: Record, channel: str) -> Record:
     )
 
 
-def continuous_width_checked(record: Record, channel: str) -> tuple[dict, list[PlausibilityWarning]]:
-    """:func:`continuous_width` and the warnings about the fit behind it.
+def continuous_width_checked(
+    record: Record, channel: str, drive: DriveDescription | None = None
+) -> tuple[dict, list[PlausibilityWarning]]:
+    """:func:`continuous_width` and the warnings about the fit behind it, on ``drive`` (None: MODEL.md's plant).
 
     The warnings are the width estimate's own (e.g. its ``misfit``) and what the calibration
     reveals about the record (:func:`engine.diagnosis.plausibility.check_calibration`: a channel
@@ -238,7 +225,7 @@ def continuous_width_checked(record: Record, channel: str) -> tuple[dict, list[P
     """
     check_record(record, channel)
     single = record.replace(channels={channel: record[channel]}, units={})
-    est = estimate_width(single)
+    est = estimate_width(single, drive=REFERENCE_DRIVE if drive is None else drive)
     cal = est.calibration
     out: dict = {
         "K": est.K,
@@ -284,23 +271,18 @@ def identify_from_store(
 
     ``drive`` is the drive the record is of (MODEL.md's reference plant when None); ``record_drive`` the
     fingerprint the record states of the drive it was made on, if any (a simulated record's), which must be
-    ``drive``'s (:func:`check_record_drive`). The continuous width is calibrated on the reference plant only
-    (its search box and nominal plant are not yet the drive's): it is refused for another drive.
+    ``drive``'s (:func:`check_record_drive`). The continuous width is calibrated on the drive's nominal plant
+    and search box.
 
     With ``continuous``, also the calibrated K as a continuous width (:func:`continuous_width`, a few seconds).
     The answer's ``warnings`` (a list, empty when none) say what makes the record doubtful for the plant:
     the checks of the identified channel that need no fit (:func:`engine.diagnosis.plausibility.check_record`)
     and, with ``continuous``, those of its calibration (:func:`continuous_width_checked`); each is
-    ``{"code", "message", "channel"}``.
+    ``{"code", "message", "channel"}``; they compare the record with the drive's own plausible box.
     """
     check_record(record, channel)
     check_record_drive(record_drive, drive)
     check_units(record.units, drive)
-    if continuous and drive is not None and not drive.is_reference:
-        raise InvalidInputError(
-            "the continuous width is calibrated on MODEL.md's reference plant only, not yet on a described drive: "
-            "leave continuous out (and asset, which asks for it)"
-        )
     sel = select_pattern_set(store, channel, record, set_id=set_id, kind=kind, any_set=any_set, drive=drive)
     res = identify(record, channel, sel.pattern_set)
     analysed, window = record.test_window()
@@ -310,12 +292,10 @@ def identify_from_store(
             f"the identification gave non-finite numbers: channel {channel!r} of the record reaches |x| = {largest:.3g}, "
             "far outside what the pattern set was trained on; check the record's units and values"
         )
-    warnings = plausibility.check_record(_one_channel(record, channel))
-    if drive is not None and not drive.is_reference:
-        warnings.append(reference_envelope_warning(drive))
+    warnings = plausibility.check_record(_one_channel(record, channel), REFERENCE_DRIVE if drive is None else drive)
     width = None
     if continuous:
-        width, fit_warnings = continuous_width_checked(record, channel)
+        width, fit_warnings = continuous_width_checked(record, channel, drive)
         warnings = plausibility.merge_warnings(warnings, fit_warnings)
     return {
         "D": [float(d) for d in res.D],

@@ -7,7 +7,10 @@ single ``backlash diagnose`` gives.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # pragma: no cover
+    from engine.simulation.drive import DriveDescription
 
 __all__ = ["SUMMARY_COLUMNS", "diagnose_one", "summary_row"]
 
@@ -15,14 +18,20 @@ __all__ = ["SUMMARY_COLUMNS", "diagnose_one", "summary_row"]
 SUMMARY_COLUMNS: tuple[str, ...] = ("record", "status", "effect", "value", "locus", "share", "detail")
 
 
-def diagnose_one(plant_name: str, record: Any) -> dict[str, Any]:
-    """The diagnosis of one record of plant ``plant_name`` (the default plant's own diagnosis, or the generic one)."""
+def diagnose_one(plant_name: str, record: Any, drive: DriveDescription | None = None) -> dict[str, Any]:
+    """The diagnosis of one record of plant ``plant_name`` (the default plant's own diagnosis, or the generic one).
+
+    ``drive``: the backlash drive the record was measured on (None: MODEL.md's reference plant); its provenance is
+    kept with the answer.
+    """
     from engine.plants import DEFAULT_PLANT, get_plant
 
     if plant_name == DEFAULT_PLANT:
         from engine.diagnosis.diagnose import diagnose
 
-        return diagnose(record).to_dict(include_records=False)
+        if drive is None:
+            return diagnose(record).to_dict(include_records=False)
+        return diagnose(record, drive=drive).to_dict(include_records=False) | {"drive": drive.provenance()}
     from engine.diagnosis.plant_gap import diagnose_plant
 
     plant = get_plant(plant_name)

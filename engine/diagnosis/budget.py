@@ -79,12 +79,14 @@ def case_with(space: ModelSpace, values: Mapping[str, float], effects: Sequence[
     return case
 
 
-def _chi2_of_cases(record: Record, cases: Sequence[Case], sigma: Mapping[str, float], step: float) -> np.ndarray:
+def _chi2_of_cases(
+    record: Record, cases: Sequence[Case], sigma: Mapping[str, float], solver: SolverSettings
+) -> np.ndarray:
     """chi2 [noise variances] of each case on the record (inf where it cannot be simulated)."""
     rows = [CHANNELS.index(n) for n in record.channels]
     data = np.stack([record.channels[n] for n in record.channels])
     sig = np.array([sigma[n] for n in record.channels])
-    ch, _, status = run_cases(list(cases), SolverSettings(max_step=step), record.grid)
+    ch, _, status = run_cases(list(cases), solver, record.grid)
     r = (ch[:, rows] - data[None]) / sig[None, :, None]
     out = np.sum(r**2, axis=(1, 2))
     out[status != 0] = np.inf
@@ -100,7 +102,7 @@ def member_strengths(
         return {e.name: math.nan for e in effects}
     sigma = strength_noise(record, cal, noise)
     cases = [case_with(space, cal.values, [f for f in effects if f.name != e.name]) for e in effects]
-    ch, _, status = run_cases(cases, SolverSettings(max_step=cal.step), record.grid)
+    ch, _, status = run_cases(cases, cal.solver(), record.grid)
     out = {}
     for i, e in enumerate(effects):
         if status[i] != 0:
@@ -161,7 +163,7 @@ def gap_budget(
         return {effects[0].name: closed / e0}, left
     subsets = [s for r in range(k + 1) for s in itertools.combinations(range(k), r)]
     cases = [case_with(space, cal.values, [effects[i] for i in s]) for s in subsets]
-    chi2 = dict(zip(subsets, _chi2_of_cases(record, cases, cal.sigma, cal.step), strict=True))
+    chi2 = dict(zip(subsets, _chi2_of_cases(record, cases, cal.sigma, cal.solver()), strict=True))
     full = chi2[tuple(range(k))]
     # v(T): how much of the chi2 of "no effect" the effects in T remove (at the fit's operating point)
     v = {s: chi2[()] - chi2[s] for s in subsets}

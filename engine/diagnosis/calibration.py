@@ -58,6 +58,7 @@ from engine.features.wavelet import level_for_interval
 from engine.parallel import single_threaded_blas
 from engine.records import Record, SampleGrid
 from engine.simulation import Case, SolverSettings, run_cases
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 
 logger = logging.getLogger(__name__)
 
@@ -225,6 +226,9 @@ class CalibrationResult:
         Its event time t_e [s].
     step : float
         Integrator step of the reported fit [s].
+    drive : DriveDescription
+        The drive fitted (its model space's): its ``t_event_max`` [s] bounds every later simulation of the fit
+        (:meth:`solver`), and the plausibility checks read its envelopes.
     grid : SampleGrid or None
         The grid calibrated on (the record's test window).
     lowfreq_ratio : dict of str to float
@@ -261,6 +265,12 @@ class CalibrationResult:
     lowfreq_ratio: dict[str, float] = field(default_factory=dict)
     grid: SampleGrid | None = None
     starts: list[dict[str, float]] = field(default_factory=list)
+    drive: DriveDescription = field(default=REFERENCE_DRIVE, repr=False)
+
+    def solver(self, max_step: float | None = None) -> SolverSettings:
+        """Integrator settings for simulations of this fit: steps of at most ``max_step`` [s] (default the fit's
+        own :attr:`step`), the event within the drive's ``t_event_max``."""
+        return self.drive.solver(self.step if max_step is None else max_step)
 
     @property
     def n_params(self) -> int:
@@ -310,7 +320,7 @@ class CalibrationResult:
             raise CalibrationError("this calibration result holds no simulation")
         sim = self.simulation
         if sim.shape[-1] != template.n_samples or self.grid != template.grid:
-            ch, _, st = run_cases([self.case], SolverSettings(max_step=self.step), template.grid)
+            ch, _, st = run_cases([self.case], self.solver(), template.grid)
             if st[0] != 0:
                 raise CalibrationError(
                     f"the calibrated parameters cannot be simulated on the record's grid (status {int(st[0])})"
@@ -429,8 +439,8 @@ def _calibrate(
     sigma = noise_weights(record, noise)
     obj = Objective(record, space, sigma, residual_of)
     horizons = settings.horizons(record)
-    coarse = SolverSettings(max_step=settings.search_step)
-    final = SolverSettings(max_step=settings.final_step) if polish else coarse
+    coarse = space.solver(settings.search_step)
+    final = space.solver(settings.final_step) if polish else coarse
     d = space.dim
     fixed = {k: float(getattr(space.base.plant, k)) for k in CALIBRATED if k not in space.names}
     stages: list[Stage] = []
@@ -545,6 +555,7 @@ def _calibrate(
         lowfreq_ratio=lowfreq,
         grid=record.grid,
         starts=global_starts,
+        drive=space.drive,
     )
     logger.info(
         "calibration%s: %s chi2/n %.3f (%d simulations, %.1f s)",

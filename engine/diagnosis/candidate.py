@@ -281,7 +281,7 @@ def _seeds(
     if space.effect is None:
         raise ValueError("the seeds of a joint fit need a space with an effect")
     obj = Objective(record, space, nominal.sigma)
-    U, c2 = _effect_scan(obj, nominal.values, settings.n_scan, SolverSettings(max_step=search_step))
+    U, c2 = _effect_scan(obj, nominal.values, settings.n_scan, space.solver(search_step))
     seeds = [space.values(U[-1])]
     i = int(np.argmin(c2[:-1]))
     if np.isfinite(c2[i]) and abs(U[i, -1] - U[-1, -1]) > 1e-9:
@@ -332,7 +332,7 @@ def refit_from_starts(
         raise ValueError("the nominal calibration has no global starts to refit from (it had no global search)")
     espace = space.with_effect(effect)
     obj = Objective(record, espace, nominal.sigma)
-    step = SolverSettings(max_step=settings.seeded.search_step)
+    step = espace.solver(settings.seeded.search_step)
     seeds: list[Mapping[str, float]] = []
     for start in nominal.starts:
         U, c2 = _effect_scan(obj, start, settings.n_scan, step)
@@ -467,7 +467,7 @@ def effect_strength(cand: Candidate, space: ModelSpace, record: Record, noise: M
     if cal is None or cal.simulation is None:
         return math.nan
     plain = {k: v for k, v in cal.values.items() if k in space.names}
-    ch, _, status = run_cases([space.case(space.unit(plain))], SolverSettings(max_step=cal.step), record.grid)
+    ch, _, status = run_cases([space.case(space.unit(plain))], cal.solver(), record.grid)
     if status[0] != 0:
         return math.nan
     sigma = strength_noise(record, cal, noise)

@@ -45,7 +45,7 @@ from engine.diagnosis.noise import noise_weights
 from engine.diagnosis.objective import Objective
 from engine.diagnosis.space import ModelSpace
 from engine.records import Record
-from engine.simulation import SolverSettings, run_cases
+from engine.simulation import run_cases
 
 __all__ = ["EDGE_TOLERANCE_SIGMAS", "edge_spread", "tolerant_levels"]
 
@@ -109,7 +109,7 @@ def edge_spread(
     weights = noise_weights(record, {**dict(noise), "omega1": math.hypot(noise["omega1"], q / math.sqrt(12.0))})
     obj = Objective(record, space, weights)
     u = space.unit(values)
-    solver = SolverSettings(max_step=step)
+    solver = space.solver(step)
     n = record.n_samples
     j = obj.names.index("omega1")
     sims, ok = obj.simulate(u[None], solver)
@@ -130,7 +130,7 @@ def edge_spread(
         var += np.einsum("ij,jk,ik->i", G, cov, G)
     var /= q * q
     var += (x * sigma_q / (q * q)) ** 2
-    half, _, status = run_cases([space.case(u)], SolverSettings(max_step=step / 2.0), record.grid)
+    half, _, status = run_cases([space.case(u)], space.solver(step / 2.0), record.grid)
     if status[0] != 0:
         raise CalibrationError(f"the fit cannot be simulated at half its step (kernel status {int(status[0])})")
     var += ((half[0, CHANNELS.index("omega1")] - x) / q) ** 2

@@ -137,6 +137,7 @@ from engine.diagnosis.width import MISSING_PHYSICS, answer_calibration, answer_w
 from engine.parallel import single_threaded_blas
 from engine.records import Record
 from engine.simulation import CATALOGUE, EffectLibrary
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 from engine.simulation.parameters import PART_FIELDS
 
 logger = logging.getLogger(__name__)
@@ -203,6 +204,7 @@ def diagnose(
     noise: Mapping[str, float] | None = None,
     bounds: Bounds | None = None,
     progress: Callable[[float, str], None] | None = None,
+    drive: DriveDescription = REFERENCE_DRIVE,
 ) -> DiagnosisResult:
     """Diagnose the sim-to-real gap of one record.
 
@@ -227,6 +229,10 @@ def diagnose(
     progress : callable, optional
         ``progress(fraction, stage)`` at each stage (calibration, candidates, sets, verdict,
         identification), fraction 0..1 of the stages (not of the time, which the candidates dominate).
+    drive : DriveDescription
+        The drive the record was measured on (default MODEL.md's reference plant, issue 52): its nominal plant is
+        the model calibrated, its box (:func:`~engine.diagnosis.space.drive_bounds`) the default search box, its
+        envelopes the plausibility checks' range, its ``t_event_max`` the simulations' limit.
 
     Returns
     -------
@@ -249,7 +255,7 @@ def diagnose(
     diagnosed (their candidates say so).
     """
     with single_threaded_blas():
-        return _diagnose(record, library, settings, identify, noise, bounds, progress or _no_progress)
+        return _diagnose(record, library, settings, identify, noise, bounds, progress or _no_progress, drive)
 
 
 def _no_progress(fraction: float, stage: str) -> None:
@@ -264,6 +270,7 @@ def _diagnose(
     noise: Mapping[str, float] | None,
     bounds: Bounds | None = None,
     progress: Callable[[float, str], None] = _no_progress,
+    drive: DriveDescription = REFERENCE_DRIVE,
 ) -> DiagnosisResult:
     t0 = time.perf_counter()
     stages: list[dict[str, Any]] = []
@@ -278,7 +285,7 @@ def _diagnose(
 
     whole = record
     record, window = whole.test_window()
-    space = default_space(record, bounds)
+    space = default_space(record, bounds, drive)
     progress(0.0, "calibrating the nominal model")
     nominal = calibrate(record, space, settings.calibration, noise=noise)
     cells = localise(record, nominal.simulated_record(record), nominal.sigma, DEFAULT_WINDOWS_MS)
@@ -330,7 +337,7 @@ def _diagnose(
     stage("decision")
     # what the plant cannot produce, judged on the model the answer ends with (a named effect's misfit is no warning)
     try:
-        warnings = merge_warnings(check_record(record), check_calibration(record, final))
+        warnings = merge_warnings(check_record(record, drive), check_calibration(record, final))
     except (ValueError, RuntimeError) as exc:  # the answer stands without the checks; say they did not run
         logger.warning("plausibility checks failed: %s", exc)
         warnings = [PlausibilityWarning("checks_failed", f"the plausibility checks could not run ({exc})")]

@@ -10,6 +10,10 @@ effect.
 Nominal training grids are cached per c (a few): repeated diagnoses of records
 with the same c simulate each nominal grid once.
 
+On a described drive (issue 52) both sets are trained on the drive's nominal plant, at the
+paper's six widths and its J1 grid scaled to the drive's nominal J1
+(:meth:`~engine.simulation.drive.DriveDescription.j1_grid`), within its ``t_event_max``.
+
 What the service needs at run time only; scoring against a blind run's answer
 key is :mod:`engine.evaluation.identification`.
 """
@@ -23,12 +27,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from engine.constants import C_NOMINAL
 from engine.identification.base import Identifier
 from engine.identification.selection import nearest_c_group
 from engine.identification.training import DEFAULT_KIND, make_identifier, simulate_training_grid
 from engine.records import Record, to_protocol_grid
 from engine.simulation import SimulationResult
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 
 if TYPE_CHECKING:  # pragma: no cover
     from engine.diagnosis.diagnose import DiagnosisResult, IdentificationHook
@@ -45,15 +49,26 @@ def _fit(grid: SimulationResult, channel: str, kind: str) -> Identifier:
     return make_identifier(kind, channel).fit(grid.channel(channel), y, groups=g)
 
 
+def _training_grid(
+    c_group: float, drive: DriveDescription, effects: Mapping[str, float] | None = None
+) -> SimulationResult:
+    """The training grid of ``drive`` at ``c_group`` [pu] (MODEL.md's exactly for the reference)."""
+    if drive.is_reference:
+        return simulate_training_grid(c_group, effects=effects)
+    return simulate_training_grid(c_group, drive.j1_grid(), effects=effects, drive=drive)
+
+
 @lru_cache(maxsize=8)
-def _nominal_grid(c_group: float) -> SimulationResult:
-    return simulate_training_grid(c_group)
+def _nominal_grid(c_group: float, drive: DriveDescription = REFERENCE_DRIVE) -> SimulationResult:
+    return _training_grid(c_group, drive)
 
 
 @lru_cache(maxsize=64)
-def _nominal_identifier(c_group: float, channel: str, kind: str) -> Identifier:
-    """Fitted identifier on the nominal grid: fitted once per (c, channel, kind), reused for every record."""
-    return _fit(_nominal_grid(c_group), channel, kind)
+def _nominal_identifier(
+    c_group: float, channel: str, kind: str, drive: DriveDescription = REFERENCE_DRIVE
+) -> Identifier:
+    """Fitted identifier on the nominal grid: fitted once per (c, channel, kind, drive), reused for every record."""
+    return _fit(_nominal_grid(c_group, drive), channel, kind)
 
 
 def _identify_all(identifier_for: Callable[[str], Identifier], record: Record) -> dict[str, dict[str, Any]]:
@@ -73,6 +88,7 @@ def identify_before_after(
     kind: str = DEFAULT_KIND,
     at_groups: bool = True,
     effects: Mapping[str, float] | None = None,
+    drive: DriveDescription = REFERENCE_DRIVE,
 ) -> dict[str, Any]:
     """Identify ``record``'s width with nominal patterns and with patterns retrained with the named effects.
 
@@ -94,6 +110,8 @@ def identify_before_after(
     effects : mapping of str to float, optional
         Several named effects and their values (a set of the diagnosis), used instead of
         ``effect``/``value``.
+    drive : DriveDescription
+        The drive whose plant the patterns are trained on (default MODEL.md's reference plant).
 
     Returns
     -------
@@ -103,12 +121,12 @@ def identify_before_after(
     """
     record = to_protocol_grid(record)  # pattern sets read MODEL.md's grid only
     group = nearest_c_group(c) if at_groups else float(c)
-    before = _identify_all(lambda ch: _nominal_identifier(group, ch, kind), record)
+    before = _identify_all(lambda ch: _nominal_identifier(group, ch, kind, drive), record)
     after: Mapping[str, dict[str, Any]] = {}
     if effects is None and effect is not None and value is not None:
         effects = {effect: value}
     if effects:
-        grid = simulate_training_grid(group, effects=dict(effects))
+        grid = _training_grid(group, drive, dict(effects))
         after = _identify_all(lambda ch: _fit(grid, ch, kind), record)
     return {
         "kind": kind,
@@ -120,17 +138,17 @@ def identify_before_after(
     }
 
 
-def identification_hook(kind: str = DEFAULT_KIND) -> IdentificationHook:
+def identification_hook(kind: str = DEFAULT_KIND, drive: DriveDescription = REFERENCE_DRIVE) -> IdentificationHook:
     """An identification hook for :func:`engine.diagnosis.diagnose` (see :func:`identify_before_after`).
 
-    The calibrated c (or the record's, or :data:`engine.constants.C_NOMINAL`) chooses the patterns.
+    The calibrated c (or the record's, or the drive's nominal c) chooses the patterns, trained on ``drive``.
     """
 
     def hook(record: Record, result: DiagnosisResult) -> dict[str, Any]:
         v = result.verdict
         final = result.final  # the c group of the model the answer ends with
-        c = final.values.get("c", final.fixed.get("c", C_NOMINAL))
+        c = final.values.get("c", final.fixed.get("c", drive.c))
         named = {row["effect"]: row["value"] for row in v.effects if row.get("value") is not None}
-        return identify_before_after(record, v.effect, v.value, c, kind, effects=named or None)
+        return identify_before_after(record, v.effect, v.value, c, kind, effects=named or None, drive=drive)
 
     return hook

@@ -71,10 +71,11 @@ from scipy.stats import qmc
 
 from engine.constants import CHANNELS, MAX_SAMPLE_INTERVAL, MIN_SAMPLE_INTERVAL, SAMPLE_INTERVAL
 from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings
-from engine.diagnosis.space import DEFAULT_BOUNDS, default_space
-from engine.records import PROTOCOL_GRID, GridError, Record, SampleGrid
+from engine.diagnosis.space import default_space, drive_bounds
+from engine.records import GridError, Record, SampleGrid
 from engine.records.units import UNITS, UnitError, factor
-from engine.simulation import Case, PlantParameters, SolverSettings, run_cases
+from engine.simulation import Case, run_cases
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 
 logger = logging.getLogger(__name__)
 
@@ -200,7 +201,7 @@ class PlausibilityWarning:
     Attributes
     ----------
     code : str
-        Short stable id: ``constant_channel``, ``channel_scale``, ``sample_interval``, ``misfit`` (and the service's ``reference_envelope``).
+        Short stable id: ``constant_channel``, ``channel_scale``, ``sample_interval``, ``misfit``.
     message : str
         One or two sentences: the suspicion, with the numbers behind it, and what to check.
     channel : str or None
@@ -228,43 +229,53 @@ def merge_warnings(*groups: Iterable[PlausibilityWarning]) -> list[PlausibilityW
 
 
 # -- the plant's range ----------------------------------------------------------------------------
-@functools.lru_cache(maxsize=1)
-def _box_records() -> np.ndarray:
-    """The channels of the plausible box's cases on MODEL.md's grid, shape (cases, 5, 2048) (failed cases left out).
+@functools.lru_cache(maxsize=4)
+def _box_records(drive: DriveDescription = REFERENCE_DRIVE) -> np.ndarray:
+    """The channels of the drive's plausible box's cases on its protocol grid, shape (cases, 5, n_samples) (failed
+    cases left out).
 
-    The box is the calibration's (:data:`engine.diagnosis.space.DEFAULT_BOUNDS`: K, J1, c, c1), its 16 corners
-    and :data:`ENVELOPE_POINTS` scrambled Sobol points, simulated once per process with the nominal sensors.
+    The box is the calibration's (:func:`engine.diagnosis.space.drive_bounds`: K, J1, c, c1; for the reference
+    :data:`engine.diagnosis.space.DEFAULT_BOUNDS` on MODEL.md's grid), its 16 corners and :data:`ENVELOPE_POINTS`
+    scrambled Sobol points, simulated once per process and drive with the nominal sensors.
     """
-    names = list(DEFAULT_BOUNDS)
-    lo = np.array([DEFAULT_BOUNDS[n][0] for n in names])
-    hi = np.array([DEFAULT_BOUNDS[n][1] for n in names])
+    box = drive_bounds(drive)
+    names = list(box)
+    lo = np.array([box[n][0] for n in names])
+    hi = np.array([box[n][1] for n in names])
     corners = np.array(list(itertools.product((0.0, 1.0), repeat=len(names))))
     sobol = qmc.Sobol(len(names), scramble=True, seed=0).random(ENVELOPE_POINTS)
     cases = [
-        Case(PlantParameters().replace(**{n: float(v) for n, v in zip(names, lo + u * (hi - lo), strict=True)}))
+        Case(drive.plant(**{n: float(v) for n, v in zip(names, lo + u * (hi - lo), strict=True)}))
         for u in np.vstack([corners, sobol])
     ]
-    channels, _, status = run_cases(cases, SolverSettings(max_step=CalibrationSettings().search_step), PROTOCOL_GRID)
+    solver = drive.solver(CalibrationSettings().search_step)
+    channels, _, status = run_cases(cases, solver, drive.grid())
     logger.debug("plausible box: %d of %d cases simulated", int(np.sum(status == 0)), len(cases))
     out = channels[status == 0]
     out.setflags(write=False)
     return out
 
 
-@functools.lru_cache(maxsize=1)
-def peak_envelope() -> dict[str, tuple[float, float]]:
-    """Smallest and largest peak ``max |x|`` of each channel over the plausible box, in model units.
+@functools.lru_cache(maxsize=4)
+def peak_envelope(drive: DriveDescription = REFERENCE_DRIVE) -> dict[str, tuple[float, float]]:
+    """Smallest and largest peak ``max |x|`` of each channel over the drive's plausible box, in model units.
 
     The box's cases (:func:`_box_records`: its 16 corners and :data:`ENVELOPE_POINTS` scrambled Sobol
-    points of K, J1, c, c1) are simulated once per process on MODEL.md's grid (the test window; the peaks
-    barely depend on the interval: within 2 % from 10 us to 1 ms, measured) with the nominal sensors.
+    points of K, J1, c, c1) are simulated once per process on the drive's protocol grid (MODEL.md's for the
+    reference; the test window; the peaks barely depend on the interval: within 2 % from 10 us to 1 ms,
+    measured) with the nominal sensors.
+
+    Parameters
+    ----------
+    drive : DriveDescription
+        The drive (default MODEL.md's reference plant).
 
     Returns
     -------
     dict of str to (float, float)
         Channel -> (lowest peak, highest peak) [model unit].
     """
-    peaks = np.max(np.abs(_box_records()), axis=2)
+    peaks = np.max(np.abs(_box_records(drive)), axis=2)
     return {c: (float(peaks[:, j].min()), float(peaks[:, j].max())) for j, c in enumerate(CHANNELS)}
 
 
@@ -337,9 +348,9 @@ def rise_time(x: np.ndarray, sample_interval: float) -> float:
     return math.nan
 
 
-@functools.lru_cache(maxsize=1)
-def rise_envelope() -> dict[str, tuple[float, float]]:
-    """Shortest and longest :func:`rise_time` of each of :data:`TIME_CHANNELS` over the plausible box [s].
+@functools.lru_cache(maxsize=4)
+def rise_envelope(drive: DriveDescription = REFERENCE_DRIVE) -> dict[str, tuple[float, float]]:
+    """Shortest and longest :func:`rise_time` of each of :data:`TIME_CHANNELS` over the drive's plausible box [s].
 
     Read over the test window of the box's cases (:func:`_box_records`, the same simulations as
     :func:`peak_envelope`; in seconds, so that a record on any accepted grid compares with them: the box's
@@ -350,11 +361,11 @@ def rise_envelope() -> dict[str, tuple[float, float]]:
     dict of str to (float, float)
         Channel -> (shortest, longest) rise time [s].
     """
-    ts = PROTOCOL_GRID.sample_interval
+    ts = drive.sample_interval
     out = {}
     for c in TIME_CHANNELS:
         j = CHANNELS.index(c)
-        times = np.array([rise_time(_load_motion(c, x[j], ts), ts) for x in _box_records()])
+        times = np.array([rise_time(_load_motion(c, x[j], ts), ts) for x in _box_records(drive)])
         times = times[np.isfinite(times)]
         out[c] = (float(times.min()), float(times.max()))
     return out
@@ -407,9 +418,9 @@ def _as_given(record: Record, channel: str, value: float) -> float:
     return value / factor(channel, record.unit(channel), record.conditions)
 
 
-def _range_message(record: Record, channel: str, peak: float) -> str | None:
-    """The sentence about a peak out of the plant's range (None when it is within the range's margin)."""
-    lo, hi = peak_envelope()[channel]
+def _range_message(record: Record, channel: str, peak: float, drive: DriveDescription) -> str | None:
+    """The sentence about a peak out of the drive's range (None when it is within the range's margin)."""
+    lo, hi = peak_envelope(drive)[channel]
     unit = record.unit(channel)
     if peak > hi * RANGE_MARGIN:
         where = f"while the plant's never exceeds {_as_given(record, channel, hi):.3g} {unit}"
@@ -469,13 +480,15 @@ def _rise_times(record: Record, sample_interval: float, channels: Collection[str
     return {c: rise_time(_load_motion(c, record[c][window], sample_interval), sample_interval) for c in channels}
 
 
-def _outside(channel: str, time: float) -> float:
-    """How many times outside the plant's range of rise times (:func:`rise_envelope`) ``time`` lies (1 within it)."""
-    lo, hi = rise_envelope()[channel]
+def _outside(channel: str, time: float, drive: DriveDescription) -> float:
+    """How many times outside the drive's range of rise times (:func:`rise_envelope`) ``time`` lies (1 within it)."""
+    lo, hi = rise_envelope(drive)[channel]
     return max(lo / time, time / hi, 1.0) if math.isfinite(time) and time > 0 else math.nan
 
 
-def _interval_warning(record: Record, skip: Collection[str] = ()) -> PlausibilityWarning | None:
+def _interval_warning(
+    record: Record, drive: DriveDescription, skip: Collection[str] = ()
+) -> PlausibilityWarning | None:
     """``sample_interval`` when the load's rise times lie far outside the plant's and another reading brings them back.
 
     The record's :data:`TIME_CHANNELS` (v2, a2 integrated: two witnesses of one motion, which must agree) must
@@ -489,22 +502,22 @@ def _interval_warning(record: Record, skip: Collection[str] = ()) -> Plausibilit
     """
     ts = record.sample_interval
     channels = [c for c in TIME_CHANNELS if c in record.channels and c not in skip]
-    declared = {c: t for c, t in _rise_times(record, ts, channels).items() if math.isfinite(_outside(c, t))}
-    if not declared or any(_outside(c, t) <= TIME_MARGIN for c, t in declared.items()):
+    declared = {c: t for c, t in _rise_times(record, ts, channels).items() if math.isfinite(_outside(c, t, drive))}
+    if not declared or any(_outside(c, t, drive) <= TIME_MARGIN for c, t in declared.items()):
         return None
-    if len({t > rise_envelope()[c][1] for c, t in declared.items()}) > 1:
+    if len({t > rise_envelope(drive)[c][1] for c, t in declared.items()}) > 1:
         return None  # one witness too slow, the other too fast: not a sample interval
     readings = {a: _rise_times(record, a * ts, list(declared)) for a in _factors(ts)}
     suspects: dict[str, list[float]] = {}
     for c in declared:
-        outside = {a: _outside(c, times[c]) for a, times in readings.items() if c in times}
+        outside = {a: _outside(c, times[c], drive) for a, times in readings.items() if c in times}
         outside = {a: v for a, v in outside.items() if math.isfinite(v)}
         if not outside or min(outside.values()) > TIME_MARGIN:
             return None
         suspects[c] = [a for a, v in outside.items() if v <= 1.0] or [min(outside, key=outside.__getitem__)]
-    farthest = max(suspects, key=lambda c: _outside(c, declared[c]))
+    farthest = max(suspects, key=lambda c: _outside(c, declared[c], drive))
     factors = [a for a in suspects[farthest] if all(a in fs for fs in suspects.values())] or suspects[farthest]
-    lo, hi = rise_envelope()[farthest]
+    lo, hi = rise_envelope(drive)[farthest]
     longer = "longer than the plant's longest" if declared[farthest] > hi else "shorter than the plant's shortest"
     on = " and ".join(
         f"{declared[c] * 1e3:.3g} ms on {'a2 integrated' if c == 'a2' else c}" for c in TIME_CHANNELS if c in suspects
@@ -514,14 +527,14 @@ def _interval_warning(record: Record, skip: Collection[str] = ()) -> Plausibilit
     return PlausibilityWarning(
         "sample_interval",
         f"the load's motion looks {_pace(*factors)} than the plant's: its rise time (the shortest time to cover "
-        f"{fractions} of its range) is {on}, {_outside(farthest, declared[farthest]):.2g}x {longer} over its "
+        f"{fractions} of its range) is {on}, {_outside(farthest, declared[farthest], drive):.2g}x {longer} over its "
         f"plausible box of K, J1, c, c1 ({lo * 1e3:.2g}-{hi * 1e3:.2g} ms); {_read_at(ts, *factors)}, it is "
         f"{fixed} ms, within that range; {_INTERVAL_QUESTION}",
     )
 
 
 # -- checks without a fit -------------------------------------------------------------------------
-def check_record(record: Record) -> list[PlausibilityWarning]:
+def check_record(record: Record, drive: DriveDescription = REFERENCE_DRIVE) -> list[PlausibilityWarning]:
     """Warnings about a record that need no calibration: constant channels, channels out of the plant's range,
     a sample interval the load's motion contradicts.
 
@@ -529,6 +542,8 @@ def check_record(record: Record) -> list[PlausibilityWarning]:
     ----------
     record : Record
         The drive's record (its test window is read, as every analysis does).
+    drive : DriveDescription
+        The drive it was measured on (default MODEL.md's reference plant): its envelopes are the plant's range.
 
     Returns
     -------
@@ -550,10 +565,12 @@ def check_record(record: Record) -> list[PlausibilityWarning]:
                 )
             )
             continue
-        message = _range_message(record, c, float(np.max(np.abs(x))))
+        message = _range_message(record, c, float(np.max(np.abs(x))), drive)
         if message is not None:
             out.append(PlausibilityWarning("channel_scale", message, c))
-    timing = _interval_warning(record, skip={w.channel for w in out if w.code == "constant_channel" and w.channel})
+    timing = _interval_warning(
+        record, drive, skip={w.channel for w in out if w.code == "constant_channel" and w.channel}
+    )
     if timing is not None:
         out.append(timing)
     for w in out:
@@ -610,12 +627,12 @@ def time_scale_evidence(
     rows = [CHANNELS.index(c) for c in names]
     data = np.array([window[c] for c in names])
     sigma = np.array([float(calibration.sigma[c]) for c in names])[:, None]
-    space = default_space(window)
+    space = default_space(window, drive=calibration.drive)
     cases = [space.base] if calibration.case is None else [calibration.case, space.base]
     if space.dim:
         cases += [space.case(u) for u in qmc.Sobol(space.dim, scramble=True, seed=0).random(TIME_POINTS)]
     settings = CalibrationSettings()
-    solver = SolverSettings(max_step=settings.search_step)
+    solver = space.solver(settings.search_step)
     horizon = settings.horizons_ms[0] * 1e-3
     ts, n, e = window.sample_interval, window.n_samples, window.event_index
     factors = _factors(ts)
@@ -686,7 +703,7 @@ def check_calibration(record: Record, calibration: CalibrationResult) -> list[Pl
     scale: list[PlausibilityWarning] = []
     for c, v in poor.items():
         x = window[c]
-        message = _range_message(record, c, float(np.max(np.abs(x))))
+        message = _range_message(record, c, float(np.max(np.abs(x))), calibration.drive)
         if message is None and calibration.simulation is not None:
             sim = calibration.simulation[CHANNELS.index(c)]
             s = float(np.dot(x, sim) / np.dot(sim, sim)) if np.dot(sim, sim) > 0 else math.nan

@@ -46,7 +46,7 @@ from engine.diagnosis.noise import NoiseModel, noise_weights
 from engine.diagnosis.objective import Objective
 from engine.diagnosis.space import ModelSpace, scan_grid
 from engine.records import Record
-from engine.simulation import Effect, SolverSettings
+from engine.simulation import Effect
 
 logger = logging.getLogger(__name__)
 
@@ -114,7 +114,7 @@ def rank_additions(
     if missing:  # the screen would run at the box centre instead of the fit
         raise ValueError(f"the fit to be extended lacks {', '.join(missing)}")
     weights = noise_weights(record, NoiseModel.of(noise))
-    solver = SolverSettings(max_step=step)
+    solver = space.solver(step)
     n = record.n_samples
     s0 = space.with_effects(members)
     obj0 = Objective(record, s0, weights)

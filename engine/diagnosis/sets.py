@@ -91,7 +91,7 @@ from engine.diagnosis.screening import rank_additions
 from engine.diagnosis.space import TIME_SHIFT_EFFECTS, ModelSpace, scan_grid
 from engine.parallel import Runner, single_threaded_blas
 from engine.records import Record
-from engine.simulation import Effect, EffectLibrary, SolverSettings, serial_kernel
+from engine.simulation import Effect, EffectLibrary, serial_kernel
 
 logger = logging.getLogger(__name__)
 
@@ -326,9 +326,7 @@ def _scan_seed(
     obj = Objective(record, gspace, noise_weights(record, NoiseModel.of(noise)))
     i = gspace.names.index(name)
     u = gspace.unit(base)
-    U, c2 = obj.axis_scan(
-        u, [i], scan_grid(gspace, i, u, record, n_scan), record.n_samples, SolverSettings(max_step=step)
-    )
+    U, c2 = obj.axis_scan(u, [i], scan_grid(gspace, i, u, record, n_scan), record.n_samples, gspace.solver(step))
     j = int(np.argmin(c2[:-1]))  # the scan's own points (the base, last, is a seed already)
     return [gspace.values(U[j])] if np.isfinite(c2[j]) else []
 

@@ -30,14 +30,23 @@ from __future__ import annotations
 
 import math
 from collections.abc import Collection, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from engine.constants import PLAUSIBLE_RANGE
+from engine.constants import C1_NOMINAL, C_NOMINAL, J1_NOMINAL, K_NOMINAL, PLAUSIBLE_RANGE
 from engine.plants.base import FreeParameter
 from engine.records import Record
-from engine.simulation import Case, Effect, EffectLibrary, ParameterError, PlantParameters, SensorParameters
+from engine.simulation import (
+    Case,
+    Effect,
+    EffectLibrary,
+    ParameterError,
+    PlantParameters,
+    SensorParameters,
+    SolverSettings,
+)
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 
 __all__ = [
     "ALIGNMENT",
@@ -52,6 +61,7 @@ __all__ = [
     "across_switch_off",
     "check_bounds",
     "default_space",
+    "drive_bounds",
     "indistinguishable",
     "scan_grid",
 ]
@@ -62,6 +72,9 @@ C1_BOUNDS: tuple[float, float, str] = (0.0, 0.6, "pu")
 #: (K 0.001-0.015 m, J1 0.6-1.2 kg m^2, c 0.5-2.0 pu: :data:`engine.constants.PLAUSIBLE_RANGE`;
 #: c1 0-0.6 pu).
 DEFAULT_BOUNDS: dict[str, tuple[float, float, str]] = {**PLAUSIBLE_RANGE, "c1": C1_BOUNDS}
+#: The nominal value each of :data:`DEFAULT_BOUNDS` is relative to, for a described drive (:func:`drive_bounds`):
+#: parameter -> MODEL.md's nominal value (c1's box follows c when a drive has no absorber discontinuity).
+BOX_NOMINALS: dict[str, float] = {"K": K_NOMINAL, "J1": J1_NOMINAL, "c": C_NOMINAL, "c1": C1_NOMINAL}
 #: Calibrated plant parameters searched on a logarithmic scale.
 LOG_SCALED_PARAMETERS: frozenset[str] = frozenset({"K"})
 #: Plant parameters a record's conditions may fix (MODEL.md; others are nominal).
@@ -236,11 +249,21 @@ class ModelSpace:
     effects : tuple of Effect
         The unmodelled effects whose values are the last free parameters (none for the nominal
         model, one for a candidate effect, up to three for a candidate set).
+    drive : DriveDescription
+        The drive whose plant ``base`` is (default MODEL.md's reference): its ``t_event_max`` [s] bounds every
+        simulation of the space (:meth:`solver`), and the checks that compare a record with what the plant can
+        produce read its envelopes (:mod:`engine.diagnosis.plausibility`).
     """
 
     base: Case
     params: tuple[FreeParameter, ...]
     effects: tuple[Effect, ...] = ()
+    drive: DriveDescription = REFERENCE_DRIVE
+
+    def solver(self, max_step: float) -> SolverSettings:
+        """Integrator settings for the space's simulations: RK4 steps of at most ``max_step`` [s], the event
+        within the drive's ``t_event_max`` [s]."""
+        return self.drive.solver(max_step)
 
     @property
     def effect(self) -> Effect | None:
@@ -294,8 +317,10 @@ class ModelSpace:
             raise ValueError(f"effect {effect.name!r} is already in this space")
         lo, hi = effect.bounds
         log = effect.name in LOG_SCALED_EFFECTS and lo > 0
-        return ModelSpace(
-            self.base, (*self.params, FreeParameter(effect.name, lo, hi, effect.unit, log)), (*self.effects, effect)
+        return replace(
+            self,
+            params=(*self.params, FreeParameter(effect.name, lo, hi, effect.unit, log)),
+            effects=(*self.effects, effect),
         )
 
     def with_effects(self, effects: Sequence[Effect]) -> ModelSpace:
@@ -313,8 +338,35 @@ class BoundsError(ValueError):
 Bounds = Mapping[str, tuple[float, float] | tuple[float, float, str]]
 
 
-def check_bounds(bounds: Bounds | None) -> dict[str, tuple[float, float, str]]:
-    """The complete search box: :data:`DEFAULT_BOUNDS` overridden by ``bounds``, checked.
+def drive_bounds(drive: DriveDescription = REFERENCE_DRIVE) -> dict[str, tuple[float, float, str]]:
+    """The default search box of a drive: :data:`DEFAULT_BOUNDS` scaled to the drive's nominal values.
+
+    Each interval is multiplied by the drive's nominal value over MODEL.md's (:data:`BOX_NOMINALS`): K 0.2-3x
+    the nominal width, J1 0.69-1.38x the nominal inertia, c 0.5-2x the nominal viscosity, c1 0-3x the nominal
+    discontinuity (0-0.6 x c [pu] when the drive has none). The reference drive's ratios are exactly 1, so its
+    box is :data:`DEFAULT_BOUNDS` to the bit.
+
+    Parameters
+    ----------
+    drive : DriveDescription
+        The drive (default MODEL.md's reference plant).
+
+    Returns
+    -------
+    dict of str to (float, float, str)
+        ``name -> (low, high, unit)`` for every parameter of :data:`CALIBRATED`.
+    """
+    nominal = {"K": drive.K, "J1": drive.J1, "c": drive.c, "c1": drive.c1}
+    ratio = {n: nominal[n] / BOX_NOMINALS[n] for n in CALIBRATED}
+    if not drive.c1 > 0:
+        ratio["c1"] = ratio["c"]
+    return {n: (lo * ratio[n], hi * ratio[n], unit) for n, (lo, hi, unit) in DEFAULT_BOUNDS.items()}
+
+
+def check_bounds(
+    bounds: Bounds | None, drive: DriveDescription = REFERENCE_DRIVE
+) -> dict[str, tuple[float, float, str]]:
+    """The complete search box: the drive's default box (:func:`drive_bounds`) overridden by ``bounds``, checked.
 
     Parameters
     ----------
@@ -323,6 +375,9 @@ def check_bounds(bounds: Bounds | None) -> dict[str, tuple[float, float, str]]:
         ``(low, high, unit)`` in the parameter's unit (K [m], J1 [kg m^2], c [pu],
         c1 [pu]); parameters not given keep their default interval. A unit, when
         given, must be the parameter's.
+    drive : DriveDescription
+        The drive searched (default MODEL.md's reference plant): its box and its nominal plant, on which the
+        physical limits are checked.
 
     Returns
     -------
@@ -335,7 +390,7 @@ def check_bounds(bounds: Bounds | None) -> dict[str, tuple[float, float, str]]:
         For an unknown name, a wrong unit, a non-finite bound, ``low >= high``, or a
         bound outside the physical limits of :meth:`engine.simulation.PlantParameters.validate`.
     """
-    out = dict(DEFAULT_BOUNDS)
+    out = drive_bounds(drive)
     for name, interval in (bounds or {}).items():
         if name not in DEFAULT_BOUNDS:
             raise BoundsError(
@@ -356,7 +411,7 @@ def check_bounds(bounds: Bounds | None) -> dict[str, tuple[float, float, str]]:
             raise BoundsError(f"lower bound of {name} must be below its upper bound, got ({lo:g}, {hi:g}) {unit}")
         for v in (lo, hi):
             try:
-                PlantParameters().replace(**{name: v}).validate()
+                drive.plant(**{name: v}).validate()
             except ParameterError as err:
                 raise BoundsError(f"bounds of {name} outside the physical limits: {err}") from None
         if name in LOG_SCALED_PARAMETERS and lo <= 0:
@@ -365,7 +420,9 @@ def check_bounds(bounds: Bounds | None) -> dict[str, tuple[float, float, str]]:
     return out
 
 
-def default_space(record: Record, bounds: Bounds | None = None) -> ModelSpace:
+def default_space(
+    record: Record, bounds: Bounds | None = None, drive: DriveDescription = REFERENCE_DRIVE
+) -> ModelSpace:
     """Parameter space of a record: K, J1, c, c1 are free unless its conditions fix them.
 
     Parameters
@@ -377,9 +434,12 @@ def default_space(record: Record, bounds: Bounds | None = None) -> ModelSpace:
         located interval is free too (:data:`ALIGNMENT`, last).
     bounds : mapping, optional
         Search interval per calibrated parameter, ``name -> (low, high)`` or ``(low, high,
-        unit)``, in the parameter's unit; parameters not given keep :data:`DEFAULT_BOUNDS`
-        (see :func:`check_bounds`). Bounds of a parameter the conditions fix are checked
-        but unused.
+        unit)``, in the parameter's unit; parameters not given keep the drive's box
+        (:func:`drive_bounds`; :data:`DEFAULT_BOUNDS` for the reference, see :func:`check_bounds`). Bounds of a
+        parameter the conditions fix are checked but unused.
+    drive : DriveDescription
+        The drive the record was measured on (default MODEL.md's reference plant): its nominal plant is the
+        space's base.
 
     Returns
     -------
@@ -391,10 +451,10 @@ def default_space(record: Record, bounds: Bounds | None = None) -> ModelSpace:
     BoundsError
         When the bounds are invalid (:func:`check_bounds`).
     """
-    box = check_bounds(bounds)
+    box = check_bounds(bounds, drive)
     plant_fields = set(PlantParameters.__dataclass_fields__)
     known = {k: v for k, v in record.conditions.items() if k in plant_fields}
-    base = Case(PlantParameters().replace(**known))
+    base = Case(drive.plant(**known))
     free = tuple(
         FreeParameter(name, box[name][0], box[name][1], box[name][2], name in LOG_SCALED_PARAMETERS)
         for name in CALIBRATED
@@ -403,7 +463,7 @@ def default_space(record: Record, bounds: Bounds | None = None) -> ModelSpace:
     if record.event_location is not None:
         lo, hi = record.event_location.interval
         free = (*free, FreeParameter(ALIGNMENT, lo, hi, "s"))
-    return ModelSpace(base, free)
+    return ModelSpace(base, free, drive=drive)
 
 
 _SENSOR_FIELDS = frozenset(SensorParameters.__dataclass_fields__)

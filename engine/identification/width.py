@@ -89,6 +89,7 @@ from engine.diagnosis.correlation import residual_correlation_time
 from engine.diagnosis.plausibility import PlausibilityWarning
 from engine.diagnosis.space import default_space
 from engine.records import Record
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 
 __all__ = [
     "CONFIDENCE",
@@ -203,8 +204,15 @@ class WidthEstimate:
 class _Profile:
     """chi2 of a record with K held, every other free parameter refitted (cached per K)."""
 
-    def __init__(self, record: Record, settings: CalibrationSettings, noise: Mapping[str, float]) -> None:
+    def __init__(
+        self,
+        record: Record,
+        settings: CalibrationSettings,
+        noise: Mapping[str, float],
+        drive: DriveDescription = REFERENCE_DRIVE,
+    ) -> None:
         self.record = record
+        self.drive = drive
         self.settings = replace(settings, n_global=0, n_seed_fits=None, max_nfev=PROFILE_NFEV, polish_nfev=PROFILE_NFEV)
         self.noise = noise
         #: K [m] -> (chi2, the other parameters' fitted values)
@@ -222,7 +230,13 @@ class _Profile:
         near = min(self.points, key=lambda k: abs(k - K))
         record = self.record.replace(conditions={**self.record.conditions, "K": K})
         try:
-            cal = calibrate(record, settings=self.settings, noise=self.noise, seeds=[self.points[near][1]])
+            cal = calibrate(
+                record,
+                default_space(record, drive=self.drive),
+                settings=self.settings,
+                noise=self.noise,
+                seeds=[self.points[near][1]],
+            )
         except CalibrationError:
             self.points[K] = (math.inf, self.points[near][1])
             return math.inf
@@ -288,7 +302,9 @@ def _edge(
     return _crossing(inside, outside, threshold), False
 
 
-def estimate_width(record: Record, settings: CalibrationSettings = WIDTH_SETTINGS) -> WidthEstimate:
+def estimate_width(
+    record: Record, settings: CalibrationSettings = WIDTH_SETTINGS, drive: DriveDescription = REFERENCE_DRIVE
+) -> WidthEstimate:
     """Continuous backlash-width estimate: the calibrated K and its 95 % profile-likelihood interval.
 
     The record's other conditions (J1, c, c1) are used as known; a ``K``
@@ -304,6 +320,10 @@ def estimate_width(record: Record, settings: CalibrationSettings = WIDTH_SETTING
     settings : CalibrationSettings
         Search settings of the calibration (default :data:`WIDTH_SETTINGS`); the profile's refits
         use them without the global search.
+    drive : DriveDescription
+        The drive the record was measured on (default MODEL.md's reference plant): its nominal plant and search
+        box (:func:`engine.diagnosis.space.default_space`). The interval's widening rule was set on the reference
+        plant's records.
 
     Returns
     -------
@@ -317,10 +337,10 @@ def estimate_width(record: Record, settings: CalibrationSettings = WIDTH_SETTING
     t0 = time.perf_counter()
     if "K" in record.conditions:
         record = record.replace(conditions={k: v for k, v in record.conditions.items() if k != "K"})
-    cal = calibrate(record, settings=settings)
+    cal = calibrate(record, default_space(record, drive=drive), settings=settings)
     window, _ = record.test_window()
-    k_param = next(p for p in default_space(window).params if p.name == "K")
-    profile = _Profile(record, settings, cal.noise)
+    k_param = next(p for p in default_space(window, drive=drive).params if p.name == "K")
+    profile = _Profile(record, settings, cal.noise, drive)
     q = float(chi2_dist.ppf(CONFIDENCE, 1))
     previous: tuple[float, float] | None = None  # the edges about the previous optimum
     for attempt in range(MAX_RECENTRE + 1):
@@ -349,6 +369,7 @@ def estimate_width(record: Record, settings: CalibrationSettings = WIDTH_SETTING
         logger.debug("profile point K=%.6g m is %.3g below the fit: refitting from it", K_best, cal.chi2 - c_best)
         refit = calibrate(
             record,
+            default_space(record, drive=drive),
             settings=replace(settings, n_global=0, n_seed_fits=None),
             noise=cal.noise,
             seeds=[{**v_best, "K": K_best}, cal.values],

@@ -283,9 +283,12 @@ class DriveDescription:
         """The sample grid of this drive's records (MODEL.md: 2048 samples of 0.1 ms, the event at 48)."""
         return SampleGrid(self.sample_interval, self.n_samples, self.event_index)
 
-    def solver(self) -> SolverSettings:
-        """Integrator settings: the default RK4 step and this drive's ``t_event_max`` [s]."""
-        return SolverSettings(t_event_max=self.t_event_max)
+    def solver(self, max_step: float | None = None) -> SolverSettings:
+        """Integrator settings: RK4 steps of at most ``max_step`` [s] (default the simulator's) and this drive's
+        ``t_event_max`` [s]."""
+        if max_step is None:
+            return SolverSettings(t_event_max=self.t_event_max)
+        return SolverSettings(max_step=max_step, t_event_max=self.t_event_max)
 
     # -- checks ------------------------------------------------------------------------
     def validate(self) -> DriveDescription:

@@ -133,8 +133,14 @@ def test_a_pattern_set_identifies_only_records_of_its_own_drive(
     assert code == 0, err
     answer = json.loads(out)
     assert answer["pattern_set"] == own["id"] and answer["drive"] == drive.fingerprint
-    # its plausibility checks are the reference plant's, and the answer says so
-    assert "reference_envelope" in [w["code"] for w in answer["warnings"]]
+    # its plausibility checks read the drive's own envelopes: its own record is nothing to warn about
+    assert answer["warnings"] == []
+    # the continuous width is calibrated on the drive's plant and box (K sought; J1, c, c1 from the record)
+    code = cli.main(["identify", str(rec), "--channel", "v2", "--drive", str(EXAMPLE), "--any-set", "--continuous"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    width = json.loads(out)["continuous"]
+    assert width["interval_95"][0] <= 0.005 <= width["interval_95"][1] and width["K"] == pytest.approx(0.005, rel=1e-3)
     # named across drives, either way: refused, saying which drives
     code = cli.main(
         ["identify", str(rec), "--channel", "v2", "--drive", str(EXAMPLE), "--pattern-set", reference["id"]]
@@ -154,7 +160,7 @@ def test_a_pattern_set_identifies_only_records_of_its_own_drive(
     out, err = capsys.readouterr()
     assert code == 0, err
     assert json.loads(out)["pattern_set"] == reference["id"]
-    assert "reference_envelope" not in [w["code"] for w in json.loads(out)["warnings"]]
+    assert json.loads(out)["warnings"] == []
     # listing by drive
     assert cli.main(["pattern-sets", "list", "--drive", str(EXAMPLE)]) == 0
     assert [s["id"] for s in json.loads(capsys.readouterr().out)["data"]] == [own["id"]]
@@ -162,16 +168,26 @@ def test_a_pattern_set_identifies_only_records_of_its_own_drive(
     assert len(json.loads(capsys.readouterr().out)["data"]) == 2
 
 
-def test_diagnosis_refuses_another_drive_before_any_work(
+def test_diagnosis_runs_on_the_request_drive_and_keeps_it(
     client: httpx.Client, example: dict[str, Any], sim_record: dict[str, Any]
 ) -> None:
-    record = {k: sim_record[k] for k in ("sample_interval", "event_index", "channels", "conditions")}
-    for route in ("/v1/diagnose", "/v1/diagnoses"):
-        r = client.post(route, json={"record": record, "drive": example})
-        assert r.status_code == 422, (route, r.text)
-        assert "calibrates on MODEL.md's reference plant only" in r.json()["detail"]
+    """A described drive's record is diagnosed on that drive; one that states another drive is refused."""
+    drive = load_drive(EXAMPLE)
+    rec = client.post("/v1/simulate", json={"K": 0.004, "drive": example, "sample_interval": 1e-4}).json()
+    record = {k: rec[k] for k in ("sample_interval", "event_index", "channels")}
+    record["conditions"] = {k: v for k, v in rec["conditions"].items() if k not in ("K", "J1", "c")}  # K is sought
+    r = client.post("/v1/diagnose", json={"record": record, "drive": example, "effects": ["load_inertia"]})
+    assert r.status_code == 200, r.text
+    answer = r.json()
+    assert answer["drive"]["fingerprint"] == drive.fingerprint
+    assert answer["verdict"]["status"] == "no_gap" and answer["warnings"] == []
+    assert answer["width"]["from"] == "nominal" and answer["width"]["K"] == pytest.approx(0.004, rel=1e-3)
+    # bounds are checked against the drive's plant before any work
+    r = client.post("/v1/diagnose", json={"record": record, "drive": example, "bounds": {"J1": [0.5, 30.0]}})
+    assert r.status_code == 422 and "J1" in r.json()["detail"]
     # a record that states another drive is refused for the reference plant
-    stated = {**record, "drive": {"fingerprint": load_drive(EXAMPLE).fingerprint}}
+    reference = {k: sim_record[k] for k in ("sample_interval", "event_index", "channels", "conditions")}
+    stated = {**reference, "drive": {"fingerprint": drive.fingerprint}}
     r = client.post("/v1/diagnose", json={"record": stated})
     assert r.status_code == 422 and "the record was made on drive" in r.json()["detail"]
 
@@ -181,32 +197,40 @@ def test_identify_over_http_compares_the_record_drive(client: httpx.Client, exam
     body = {k: rec[k] for k in ("sample_interval", "event_index", "channels", "conditions", "drive")}
     r = client.post("/v1/identify", json={"record": body, "channel": "v2"})
     assert r.status_code == 422 and "give the record's own drive description (drive)" in r.json()["detail"]
-    r = client.post("/v1/identify", json={"record": body, "channel": "v2", "drive": example, "continuous": True})
-    assert r.status_code == 422 and "not yet on a described drive" in r.json()["detail"]
     # a speed in pu would be read with MODEL.md's base speed, not this drive's
     in_pu = {**body, "channels": {"omega1": body["channels"]["omega1"]}, "units": {"omega1": "pu"}}
     r = client.post("/v1/identify", json={"record": in_pu, "channel": "omega1", "drive": example})
     assert r.status_code == 422 and "give omega1 in rad/s or rpm" in r.json()["detail"]
 
 
-def test_cli_diagnose_refuses_another_drive(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    rec = tmp_path / "conveyor.json"
-    assert cli.main(["simulate", "--drive", str(EXAMPLE), "--out", str(rec)]) == 0
+def test_cli_diagnose_and_batch_on_a_described_drive(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    records = tmp_path / "records"
+    rec = records / "conveyor.json"
+    args = ["simulate", "--drive", str(EXAMPLE), "--K", "0.005", "--sample-interval", "1e-4", "--snr-db", "40"]
+    assert cli.main([*args, "--seed", "5", "--known", "c1", "--out", str(rec)]) == 0
     capsys.readouterr()
-    assert cli.main(["diagnose", str(rec), "--drive", str(EXAMPLE)]) == 2
-    assert "calibrates on MODEL.md's reference plant only" in capsys.readouterr().err
+    answer_path = tmp_path / "answer.json"
+    code = cli.main(
+        ["diagnose", str(rec), "--drive", str(EXAMPLE), "--effects", "load_inertia", "--out", str(answer_path)]
+    )
+    _, err = capsys.readouterr()
+    assert code == 0, err
+    answer = json.loads(answer_path.read_text("utf-8"))
+    assert answer["drive"]["fingerprint"] == load_drive(EXAMPLE).fingerprint
+    assert answer["verdict"]["status"] == "no_gap"
+    assert answer["width"]["interval_95"][0] <= 0.005 <= answer["width"]["interval_95"][1]
     assert cli.main(["diagnose", str(rec)]) == 2  # the record states its drive: not the reference plant's
     assert "give the record's own drive description with --drive" in capsys.readouterr().err
-
-
-def test_diagnose_batch_refuses_another_drive(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    records = tmp_path / "records"
-    records.mkdir()
-    assert cli.main(["simulate", "--drive", str(EXAMPLE), "--out", str(records / "conveyor.json")]) == 0
-    capsys.readouterr()
-    assert cli.main(["diagnose-batch", str(records), "--out", str(tmp_path / "a"), "--drive", str(EXAMPLE)]) == 2
-    assert "calibrates on MODEL.md's reference plant only" in capsys.readouterr().err
-    # without --drive, the record that states its drive is refused in the summary (nothing is diagnosed)
+    # the batch: diagnosed on the drive with --drive; refused in the summary without it
+    assert (
+        cli.main(
+            ["diagnose-batch", str(records), "--out", str(tmp_path / "a"), "--workers", "0", "--drive", str(EXAMPLE)]
+        )
+        == 0
+    )
+    batch = json.loads((tmp_path / "a" / "conveyor.json").read_text("utf-8"))
+    assert batch["drive"]["fingerprint"] == answer["drive"]["fingerprint"]
+    assert batch["verdict"]["status"] == "no_gap"
     assert cli.main(["diagnose-batch", str(records), "--out", str(tmp_path / "b"), "--workers", "0"]) == 0
     summary = (tmp_path / "b" / "summary.csv").read_text("utf-8")
     assert "refused" in summary and "the record was made on drive" in summary

@@ -17,7 +17,7 @@ from engine.diagnosis.locus._cases import with_input, with_moves, with_term
 from engine.diagnosis.locus._linear import Fit, orth, penalised_fit, project
 from engine.diagnosis.locus._report import LocusSettings
 from engine.diagnosis.locus._responses import N_EXTRAS, PROBE, Observed, Responses
-from engine.simulation import Case, SolverSettings, run_cases
+from engine.simulation import Case, run_cases
 
 #: Step lengths tried by every Gauss-Newton iteration of :func:`refine`.
 STEP_LENGTHS: tuple[float, ...] = (1.0, 0.5, 0.25)
@@ -65,7 +65,7 @@ def refine(
     """
     assert cal.case is not None
     names = resp.param_names
-    solver = SolverSettings(max_step=settings.step)
+    solver = cal.solver(settings.step)
     ln_n = math.log(max(obs.data.size, 2))
 
     def case_of(base: Case, x: np.ndarray, e: np.ndarray) -> Case:

@@ -19,7 +19,7 @@ from engine.diagnosis.calibration import CalibrationResult
 from engine.diagnosis.locus._cases import parameter_cases, with_input
 from engine.diagnosis.locus._report import LocusError, LocusSettings
 from engine.records import Record
-from engine.simulation import DISTURBANCE_LOCI, Case, Disturbance, SolverSettings, run_cases
+from engine.simulation import DISTURBANCE_LOCI, Case, Disturbance, run_cases
 
 logger = logging.getLogger(__name__)
 
@@ -129,7 +129,7 @@ def responses(
     fc = settings.lowpass_probe_hz if s.lowpass_hz == 0 else 0.9 * s.lowpass_hz
     cases.append(Case(base_case.plant, s.replace(delay=delay)))
     cases.append(Case(base_case.plant, s.replace(lowpass_hz=fc)))
-    ch, _, status = run_cases(cases, SolverSettings(max_step=settings.step), grid)
+    ch, _, status = run_cases(cases, cal.solver(settings.step), grid)
     if status[0] != 0:
         raise LocusError(f"the calibrated case cannot be simulated (kernel status {int(status[0])})")
     base = ch[0]

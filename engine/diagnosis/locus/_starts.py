@@ -81,7 +81,7 @@ def extras_scan(
     every chi2 the refinement compares), and the simulations used.
     """
     assert cal.case is not None
-    solver = SolverSettings(max_step=settings.step)
+    solver = cal.solver(settings.step)
     names = resp.param_names
     zeros = np.zeros(resp.n_free)
     no_move = np.zeros(len(names))
@@ -269,7 +269,7 @@ def _keep_better(
     if not fitted:
         return best, 0
     ch, _, status = run_cases(
-        [t.case(cal.case, names, resp, t.p) for t in fitted], SolverSettings(max_step=settings.step), obs.record.grid
+        [t.case(cal.case, names, resp, t.p) for t in fitted], cal.solver(settings.step), obs.record.grid
     )
     out = dict(best)
     for t, c, st in zip(fitted, ch, status, strict=True):
@@ -449,7 +449,7 @@ def refinement_start(
     """
     assert cal.case is not None
     names = resp.param_names
-    solver = SolverSettings(max_step=settings.step)
+    solver = cal.solver(settings.step)
     ln_n = math.log(max(obs.data.size, 2))
     extra = len(names) + N_EXTRAS  # the parameters and the extras
     trials = [

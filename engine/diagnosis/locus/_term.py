@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from engine.constants import CHANNELS, OMEGA_B, W_SMOOTH, Z95
+from engine.constants import CHANNELS, W_SMOOTH, Z95
 from engine.diagnosis.calibration import CalibrationResult
 from engine.diagnosis.locus._refine import Estimate
 from engine.diagnosis.locus._report import LocusSettings, Term
@@ -88,13 +88,15 @@ def _shape(
     t: np.ndarray,
     base: np.ndarray,
     radius: float,
+    omega_b: float,
     settings: LocusSettings,
     f_max: float,
 ) -> tuple[str, float, float, dict[str, float], dict[str, Any]]:
     """(follows, amplitude, dominant frequency [Hz], R^2 per shape, details) of a term on the grid.
 
     ``base`` is the calibrated simulation (all five channels) on the grid ``t`` [s from the
-    event], ``radius`` the wheel radius [m] (v2 = r Omega_b w_3), ``weight`` the resolution of
+    event], ``radius`` the wheel radius [m] and ``omega_b`` the base speed Omega_b [rad/s] of the plant (v2 = r
+    Omega_b w_3), ``weight`` the resolution of
     the term at each instant. Every shape is fitted under that weighting and under it times
     :func:`_spike_weights`; each shape keeps its better R^2.
     """
@@ -140,7 +142,7 @@ def _shape(
         )
     r2["angle"] = q_a
     # speed: a + b tanh(w / W_SMOOTH) + c w of the motor or the load speed (pu)
-    speeds = {"w_1": omega1 / OMEGA_B, "w_3": base[CHANNELS.index("v2")] / (OMEGA_B * radius)}
+    speeds = {"w_1": omega1 / omega_b, "w_3": base[CHANNELS.index("v2")] / (omega_b * radius)}
     q_s, speed_s, c_s = _best_of(
         [(name, np.column_stack([np.tanh(sp / W_SMOOTH), sp])) for name, sp in speeds.items()], series, weights
     )
@@ -261,7 +263,9 @@ def locus_term(
     weight = np.interp(t_abs, resp.knots, resolution)
     unit = DISTURBANCE_MEANING[locus][1]
     f_max = min(settings.max_frequency_hz, 0.4 / float(resp.knots[1] - resp.knots[0]))
-    follows, amp, freq, r2, details = _shape(series, weight, t_rel, resp.base, cal.case.plant.r, settings, f_max)
+    follows, amp, freq, r2, details = _shape(
+        series, weight, t_rel, resp.base, cal.case.plant.r, cal.case.plant.omega_b, settings, f_max
+    )
     description = _describe(locus, unit, follows, amp, freq, details)
     if est.field and est.field not in COULOMB_FIELDS.values() and est.f != 0.0:  # a part parameter drifted
         meaning = PART_FIELDS[locus][est.field][0]

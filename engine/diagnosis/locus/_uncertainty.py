@@ -21,7 +21,7 @@ from engine.diagnosis.locus._refine import Estimate
 from engine.diagnosis.locus._report import LocusSettings
 from engine.diagnosis.locus._responses import N_EXTRAS, PROBE, Observed, Responses
 from engine.diagnosis.plant_gap import correlation_time
-from engine.simulation import Case, SolverSettings, run_cases
+from engine.simulation import Case, run_cases
 
 #: Factor on the Gauss-Newton standard deviation, set on the development family (seed 303, the 20
 #: records whose effect is a term of the library: supply frequency, resilient damping, load mass
@@ -98,7 +98,7 @@ def part_term_sigma(
         de[i] = PROBE[locus]
         cases.append(at(est.f, est.e + de))
         steps.append(PROBE[locus])
-    ch, _, status = run_cases(cases, SolverSettings(max_step=settings.step), obs.record.grid)
+    ch, _, status = run_cases(cases, cal.solver(settings.step), obs.record.grid)
     if np.any(status != 0):
         return math.nan, len(cases)
     r0 = obs.residual(ch[0])
