@@ -57,6 +57,9 @@ def test_a_drive_searches_its_own_box_around_its_nominal_plant(drive: DriveDescr
     # without an absorber discontinuity, c1's box follows c's
     no_c1 = dataclasses.replace(drive, c1=0.0)
     assert drive_bounds(no_c1)["c1"][:2] == pytest.approx((0.0, 0.6 * no_c1.c))
+    # and without an absorber at all, MODEL.md's intervals of c and c1 (a box must have a width)
+    no_absorber = dataclasses.replace(drive, c=0.0, c1=0.0)
+    assert {n: drive_bounds(no_absorber)[n] for n in ("c", "c1")} == {n: DEFAULT_BOUNDS[n] for n in ("c", "c1")}
     record = simulate_batch([drive.plant()], solver=drive.solver(), grid=GRID).record(0)
     space = default_space(record.replace(conditions={"c1": drive.c1}), drive=drive)
     assert space.base.plant == drive.plant(c1=drive.c1)

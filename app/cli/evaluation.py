@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from app import output
-from app.cli.common import EXIT_OK, CommandError, add_dask_options, examples
+from app.cli.common import EXIT_OK, CommandError, add_dask_options, add_drive_option, examples, read_drive
 from engine.simulation.families import DEFAULT_FAMILY, FAMILIES
 
 #: The simulator benchmark, relative to the repository root.
@@ -71,10 +71,16 @@ def _validate_v1(args: argparse.Namespace, n_cases: int, seed: int) -> None:
 
 
 def _validate_v2(args: argparse.Namespace, n_cases: int, seed: int) -> None:
-    """Protocol 2: the open world (one library for all; compound, held-back and clean cases); resumable."""
+    """Protocol 2: the open world (one library for all; compound, held-back and clean cases); resumable.
+
+    With ``--drive`` the cases are simulated and diagnosed on the described drive (its plausible box,
+    c1, plant, solver and grid); without it, on MODEL.md's reference plant.
+    """
     from engine.validation import run
     from engine.validation.report import summary_markdown
 
+    drive = read_drive(args)  # ParameterError says what to fix before any case is drawn
+    options: dict[str, Any] = {} if drive is None else {"drive": drive}
     try:
         doc = run.run_validation(
             n_cases=n_cases,
@@ -84,6 +90,7 @@ def _validate_v2(args: argparse.Namespace, n_cases: int, seed: int) -> None:
             mix=_parse_mix(args.mix),
             held_back=FAMILIES[args.held_back],
             scheduler=args.scheduler,
+            **options,
         )
     except (FileExistsError, ValueError) as exc:
         raise CommandError(str(exc)) from None
@@ -100,6 +107,11 @@ def cmd_validate(args: argparse.Namespace) -> int:
     if args.protocol == 1:
         if args.mix or args.held_back != DEFAULT_FAMILY:
             raise CommandError("--mix and --held-back apply to protocol 2 only")
+        if getattr(args, "drive", None) is not None:
+            raise CommandError(
+                "--drive applies to protocol 2 only: protocol 1 draws and diagnoses its cases on MODEL.md's "
+                "reference plant (drop --protocol 1 to validate on the described drive)"
+            )
         _validate_v1(args, n_cases, seed)
     else:
         _validate_v2(args, n_cases, seed)
@@ -166,6 +178,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
             "backlash validate --cases 150 --seed 239 --workers 2 --out out/validation-v2-seed239",
             "backlash validate --held-back held_out --mix held_back=1 --cases 35 --seed 241 --out out/held-out",
             "backlash validate --protocol 1 --out out/validation-v1",
+            "backlash validate --drive docs/examples/drive-60hz-conveyor.toml --cases 30 --out out/validation-conveyor",
         ),
     )
     p.add_argument(
@@ -201,4 +214,5 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "figures are out of sample; sealed: model 1.3's seven, kept for scoring, run only blind on committed code; "
         "development: open to development). E.g. --held-back held_out --mix held_back=1",
     )
+    add_drive_option(p)  # protocol 2 only: the cases are drawn, simulated and diagnosed on the described drive
     p.set_defaults(func=cmd_validate)

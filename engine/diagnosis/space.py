@@ -343,7 +343,8 @@ def drive_bounds(drive: DriveDescription = REFERENCE_DRIVE) -> dict[str, tuple[f
 
     Each interval is multiplied by the drive's nominal value over MODEL.md's (:data:`BOX_NOMINALS`): K 0.2-3x
     the nominal width, J1 0.69-1.38x the nominal inertia, c 0.5-2x the nominal viscosity, c1 0-3x the nominal
-    discontinuity (0-0.6 x c [pu] when the drive has none). The reference drive's ratios are exactly 1, so its
+    discontinuity (0-0.6 x c [pu] when the drive has none; MODEL.md's 0.5-2.0 pu and 0-0.6 pu when it has neither
+    viscosity nor discontinuity, as a box must have a width). The reference drive's ratios are exactly 1, so its
     box is :data:`DEFAULT_BOUNDS` to the bit.
 
     Parameters
@@ -358,6 +359,8 @@ def drive_bounds(drive: DriveDescription = REFERENCE_DRIVE) -> dict[str, tuple[f
     """
     nominal = {"K": drive.K, "J1": drive.J1, "c": drive.c, "c1": drive.c1}
     ratio = {n: nominal[n] / BOX_NOMINALS[n] for n in CALIBRATED}
+    if not drive.c > 0:
+        ratio["c"] = 1.0
     if not drive.c1 > 0:
         ratio["c1"] = ratio["c"]
     return {n: (lo * ratio[n], hi * ratio[n], unit) for n, (lo, hi, unit) in DEFAULT_BOUNDS.items()}

@@ -9,6 +9,12 @@ bounds; log-uniform for the effects fitted on a log scale and for any effect who
 positive bounds span two decades), the recorded channels (all five, or a subset),
 and the noise (white or coloured, a per-channel SNR).
 
+**On a described drive** (``drive``, :class:`~engine.simulation.drive.DriveDescription`) the
+same draws are made on that drive: the operating point from its plausible box
+(:func:`~engine.validation.protocol.operating_box`), c1 its nominal ``drive.c1``, the records
+simulated on its plant with its ``t_event_max`` and on its own grid, the absorption refit on its
+plant and box. The reference drive draws exactly the cases it drew before drives were described.
+
 **Strength rule** (protocol v1's, per effect): an effect counts when it moves some
 recorded channel by more than 3 noise standard deviations (RMS of the noiseless
 difference). In a compound case every effect must pass it both on its own (record
@@ -47,14 +53,14 @@ from engine.constants import CHANNELS
 from engine.diagnosis.calibration import CalibrationError, CalibrationSettings, calibrate
 from engine.diagnosis.space import LOG_SCALED_EFFECTS, default_space
 from engine.diagnosis.validation import same_physics_names
-from engine.records import PROTOCOL_GRID, Record
-from engine.simulation import Case, Effect, EffectLibrary, ParameterError, PlantParameters, SimulationError
+from engine.records import Record
+from engine.simulation import Case, Effect, EffectLibrary, ParameterError, SimulationError
 from engine.simulation import simulate_batch as _simulate_batch
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 from engine.simulation.noise import noise_std
-from engine.validation.key import KeyEntry, TrueEffect
+from engine.validation.key import KeyEntry, TrueEffect, on_operating_range
 from engine.validation.noise import NoiseSpec, render_noise
 from engine.validation.protocol import (
-    C1_CONDITION,
     CASE_KINDS,
     CHANNEL_SUBSETS,
     COLOURED_CUTOFF_FS,
@@ -64,12 +70,13 @@ from engine.validation.protocol import (
     MAX_CHANNEL_SNR_SPREAD_DB,
     MAX_DRAWS_PER_CASE,
     MAX_DRAWS_PER_EFFECT_SET,
-    OPERATING_BOX,
     REFIT_FD_STEP,
     REFIT_NFEV,
     SNR_RANGE_DB,
     STRENGTH_THRESHOLD,
     SUBSET_SHARE,
+    c1_condition,
+    operating_box,
 )
 
 logger = logging.getLogger(__name__)
@@ -189,6 +196,7 @@ class _Draw:
     values: tuple[float, ...]
     channels: tuple[str, ...]
     noise: NoiseSpec
+    drive: DriveDescription = REFERENCE_DRIVE
 
 
 def _variants(n: int) -> list[tuple[int, ...]]:
@@ -201,14 +209,16 @@ def _variants(n: int) -> list[tuple[int, ...]]:
 
 
 def _simulate(draw: _Draw, variants: list[tuple[int, ...]]) -> np.ndarray:
-    base = Case(PlantParameters(K=draw.K, J1=draw.J1, c=draw.c, c1=C1_CONDITION))
+    """The noiseless records of a draw with each subset of its effects, on its drive's plant, solver and grid."""
+    drive = draw.drive
+    base = Case(drive.plant(K=draw.K, J1=draw.J1, c=draw.c, c1=c1_condition(drive)))
     cases = []
     for subset in variants:
         case = base
         for i in subset:
             case = draw.effects[i].apply(case, draw.values[i])
         cases.append(case)
-    return _simulate_batch(cases).channels
+    return _simulate_batch(cases, solver=drive.solver(), grid=drive.grid()).channels
 
 
 def _rms_over(x: np.ndarray, y: np.ndarray, rows: list[int], sd: np.ndarray) -> float:
@@ -244,19 +254,25 @@ def _strong(truths: Sequence[TrueEffect]) -> bool:
     return all(min(t.strength, t.strength_in_set) > STRENGTH_THRESHOLD for t in truths)
 
 
-def _record(channels: Sequence[str], data: np.ndarray) -> Record:
-    """A case's record on the protocol grid: ``data[j]`` is channel ``channels[j]``."""
-    grid = PROTOCOL_GRID
+def _record(channels: Sequence[str], data: np.ndarray, drive: DriveDescription = REFERENCE_DRIVE) -> Record:
+    """A case's record on its drive's grid (MODEL.md's protocol grid for the reference): ``data[j]`` is
+    channel ``channels[j]``; its one condition is the drive's c1 [pu]."""
+    grid = drive.grid()
     return Record(
         {ch: data[j] for j, ch in enumerate(channels)},
         grid.sample_interval,
         grid.event_index,
-        conditions={"c1": C1_CONDITION},
+        conditions={"c1": c1_condition(drive)},
     )
 
 
 def absorbed_strength(
-    record: Record, truth: Mapping[str, float], effects: Sequence[Effect], left_out: int, sd: Mapping[str, float]
+    record: Record,
+    truth: Mapping[str, float],
+    effects: Sequence[Effect],
+    left_out: int,
+    sd: Mapping[str, float],
+    drive: DriveDescription = REFERENCE_DRIVE,
 ) -> float:
     """What of one effect the rest of the model cannot mimic: the absorption rule's statistic.
 
@@ -272,6 +288,9 @@ def absorbed_strength(
         Index in ``effects`` of the effect tested.
     sd : mapping of str to float
         Noise standard deviation of each recorded channel (channel unit).
+    drive : DriveDescription
+        The drive the record was simulated on (default MODEL.md's reference plant): the refit's
+        nominal plant, its box (:func:`~engine.diagnosis.space.drive_bounds`) and ``t_event_max``.
 
     Returns
     -------
@@ -287,7 +306,7 @@ def absorbed_strength(
         When ``truth`` lacks a refitted parameter (K, J1, c or another effect's value).
     """
     others = [e for i, e in enumerate(effects) if i != left_out]
-    space = default_space(record).with_effects(others)
+    space = default_space(record, drive=drive).with_effects(others)
     missing = [k for k in space.names if k not in truth]
     if missing:  # the refit would start at the box centre instead of the truth
         raise ValueError(f"the truth lacks {', '.join(missing)}")
@@ -307,7 +326,7 @@ def absorbed_strength(
 
 def _absorption(draw: _Draw, truths: list[TrueEffect], full: np.ndarray, sd: np.ndarray) -> list[TrueEffect]:
     """The truths with their ``strength_refit`` (:func:`absorbed_strength`) filled in."""
-    record = _record(draw.channels, full[[CHANNELS.index(ch) for ch in draw.channels]])
+    record = _record(draw.channels, full[[CHANNELS.index(ch) for ch in draw.channels]], draw.drive)
     sigma = {ch: float(s) for ch, s in zip(draw.channels, sd, strict=True)}
     truth = {
         "K": draw.K,
@@ -317,7 +336,7 @@ def _absorption(draw: _Draw, truths: list[TrueEffect], full: np.ndarray, sd: np.
     }
     out = []
     for i, t in enumerate(truths):
-        left = absorbed_strength(record, truth, draw.effects, i, sigma)
+        left = absorbed_strength(record, truth, draw.effects, i, sigma, draw.drive)
         out.append(replace(t, strength_refit=left))
         if not left > STRENGTH_THRESHOLD:  # the rest of the draw need not be refitted
             out.extend(truths[i + 1 :])
@@ -336,6 +355,7 @@ def generate_cases(
     held_back: EffectLibrary,
     mix: Mapping[str, float] | None = None,
     absorption: bool = True,
+    drive: DriveDescription | None = None,
 ) -> tuple[list[BlindCase], list[KeyEntry]]:
     """Draw the cases of a protocol-v2 validation and their answer key (see the module notes).
 
@@ -354,6 +374,10 @@ def generate_cases(
     absorption : bool
         Apply the absorption rule (see the module notes; a local refit per effect and draw, about
         a second each). Off only where the cases' other properties are tested.
+    drive : DriveDescription, optional
+        The drive the cases are simulated on (see the module notes); None, the default, is
+        MODEL.md's reference plant (:data:`~engine.simulation.drive.REFERENCE_DRIVE`), which
+        draws the same cases as before drives were described.
 
     Returns
     -------
@@ -387,7 +411,9 @@ def generate_cases(
         if counts[kind] and not sets:
             raise ValueError(f"{counts[kind]} {kind} case(s) asked for, but the libraries give no such set of effects")
     pools = {k: _Pool(sets, rng) for k, (_, sets) in sources.items()}
-    grid = PROTOCOL_GRID
+    drive = REFERENCE_DRIVE if drive is None else drive
+    grid = drive.grid()
+    box = operating_box(drive)
     cases, key = [], []
     for i, kind in enumerate(kinds):
         case_id = f"case{i:04d}"
@@ -398,11 +424,11 @@ def generate_cases(
             if (n_draw - 1) % MAX_DRAWS_PER_EFFECT_SET == 0:
                 names = pools[kind].next()
             effects = tuple(library[n] for n in names)
-            point = {p: float(rng.uniform(lo, hi)) for p, (lo, hi, _) in OPERATING_BOX.items()}
+            point = {p: float(rng.uniform(lo, hi)) for p, (lo, hi, _) in box.items()}
             values = tuple(_draw_value(e, rng) for e in effects)
             channels = _draw_channels(rng)
             noise = _draw_noise(channels, grid.sample_interval, rng)
-            draw = _Draw(point["K"], point["J1"], point["c"], effects, values, channels, noise)
+            draw = _Draw(point["K"], point["J1"], point["c"], effects, values, channels, noise, drive)
             tried = _try(draw)
             if isinstance(tried, str):
                 why = f"last draw not simulable: {tried}"
@@ -419,14 +445,18 @@ def generate_cases(
         truths, full, sd = tried
         rows = [CHANNELS.index(ch) for ch in channels]
         noisy = full[rows] + render_noise((len(rows), full.shape[1]), sd, noise, grid.sample_interval, rng)
-        record = _record(channels, noisy)
+        record = _record(channels, noisy, drive)
         cases.append(BlindCase(case_id, record))
-        key.append(KeyEntry(case_id, kind, tuple(truths), draw.K, draw.J1, draw.c, channels, noise.to_dict(), n_draw))
+        on_range = on_operating_range(draw.K, draw.J1, draw.c, drive)
+        key.append(
+            KeyEntry(case_id, kind, tuple(truths), draw.K, draw.J1, draw.c, channels, noise.to_dict(), n_draw, on_range)
+        )
         logger.debug("%s: %s %s after %d draw(s)", case_id, kind, ", ".join(names) or "-", n_draw)
     logger.info(
-        "generated %d cases (%s); %d redraws for strength or absorption",
+        "generated %d cases (%s) on %s; %d redraws for strength or absorption",
         n_cases,
         ", ".join(f"{counts[k]} {k}" for k in CASE_KINDS),
+        "the reference drive" if drive.is_reference else f"drive {drive.name!r} ({drive.fingerprint[:12]})",
         sum(k.draws - 1 for k in key),
     )
     return cases, key

@@ -6,7 +6,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from engine.constants import OPERATING_RANGE
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
+from engine.validation.protocol import operating_range
 
 __all__ = ["EXPECTED_STATUS", "KeyEntry", "TrueEffect", "on_operating_range"]
 
@@ -20,8 +21,8 @@ EXPECTED_STATUS: dict[str, str] = {
 }
 
 
-def on_operating_range(K: float, J1: float, c: float) -> bool:
-    """Whether an operating point lies in the catalogue's operating range (:data:`OPERATING_RANGE`).
+def on_operating_range(K: float, J1: float, c: float, drive: DriveDescription = REFERENCE_DRIVE) -> bool:
+    """Whether an operating point lies in a drive's operating range.
 
     Parameters
     ----------
@@ -31,9 +32,13 @@ def on_operating_range(K: float, J1: float, c: float) -> bool:
         Motor-side inertia [kg m^2].
     c : float
         Apparent viscosity of the absorber [pu].
+    drive : DriveDescription
+        The drive (default MODEL.md's reference plant, whose range is
+        :data:`engine.constants.OPERATING_RANGE`; :func:`engine.validation.protocol.operating_range`).
     """
+    box = operating_range(drive)
     point = {"K": K, "J1": J1, "c": c}
-    return all(OPERATING_RANGE[k][0] <= v <= OPERATING_RANGE[k][1] for k, v in point.items())
+    return all(box[k][0] <= v <= box[k][1] for k, v in point.items())
 
 
 @dataclass(frozen=True)
@@ -116,6 +121,10 @@ class KeyEntry:
         SNR per channel [dB].
     draws : int
         Draws it took to make every effect strong enough (1: the first draw).
+    on_range : bool or None
+        Whether the operating point lies in the operating range of the drive the case was simulated
+        on (:func:`on_operating_range`, decided when the case is drawn); None: the reference
+        drive's range, decided from K, J1, c.
     """
 
     case_id: str
@@ -127,6 +136,7 @@ class KeyEntry:
     channels: tuple[str, ...]
     noise: dict[str, Any]
     draws: int = 1
+    on_range: bool | None = None
 
     @property
     def expected_status(self) -> str:
@@ -140,8 +150,8 @@ class KeyEntry:
 
     @property
     def on_box(self) -> bool:
-        """Whether the operating point lies in the catalogue's operating range."""
-        return on_operating_range(self.K, self.J1, self.c)
+        """Whether the operating point lies in the operating range of the case's drive (:attr:`on_range`)."""
+        return on_operating_range(self.K, self.J1, self.c) if self.on_range is None else self.on_range
 
     @property
     def colour(self) -> str:
@@ -176,4 +186,5 @@ class KeyEntry:
             channels=tuple(d["channels"]),
             noise=dict(d["noise"]),
             draws=int(d.get("draws", 1)),
+            on_range=bool(d["on_operating_range"]) if d.get("on_operating_range") is not None else None,
         )

@@ -13,8 +13,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Final, Literal
 
-from engine.constants import C1_NOMINAL, PLAUSIBLE_RANGE
+from engine.constants import C1_NOMINAL, OPERATING_RANGE, PLAUSIBLE_RANGE
+from engine.diagnosis.space import BOX_NOMINALS, drive_bounds
 from engine.diagnosis.validation import SAME_PHYSICS, SNR_RANGE_DB, STRENGTH_THRESHOLD
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 from engine.simulation.noise import LOWPASS_ORDERS
 
 __all__ = [
@@ -40,6 +42,9 @@ __all__ = [
     "SUBSET_SHARE",
     "TARGETS",
     "Target",
+    "c1_condition",
+    "operating_box",
+    "operating_range",
 ]
 
 #: Version of the protocol defined here (protocol 1 is :mod:`engine.diagnosis.validation`).
@@ -61,6 +66,60 @@ DEFAULT_MIX: Final[dict[str, float]] = {"single": 0.25, "pair": 0.15, "triple": 
 OPERATING_BOX: Final[dict[str, tuple[float, float, str]]] = PLAUSIBLE_RANGE
 #: The absorber discontinuity c1 [pu], the only condition a record gives (K, J1, c are unknown).
 C1_CONDITION: Final[float] = C1_NOMINAL
+
+
+def operating_box(drive: DriveDescription = REFERENCE_DRIVE) -> dict[str, tuple[float, float, str]]:
+    """The box a drive's cases are drawn from: its plausible box for K, J1 and c.
+
+    Parameters
+    ----------
+    drive : DriveDescription
+        The drive the cases are simulated on (default MODEL.md's reference plant).
+
+    Returns
+    -------
+    dict of str to (float, float, str)
+        ``name -> (low, high, unit)`` for K [m], J1 [kg m^2] and c [pu], in that order:
+        :data:`OPERATING_BOX` itself for the reference drive, else the K, J1 and c intervals of
+        :func:`engine.diagnosis.space.drive_bounds` (MODEL.md's box scaled by the drive's nominal
+        value over MODEL.md's), i.e. the box the diagnosis searches on that drive.
+    """
+    if drive.is_reference:
+        return dict(OPERATING_BOX)
+    box = drive_bounds(drive)
+    return {name: box[name] for name in OPERATING_BOX}
+
+
+def operating_range(drive: DriveDescription = REFERENCE_DRIVE) -> dict[str, tuple[float, float, str]]:
+    """A drive's operating range: :data:`engine.constants.OPERATING_RANGE` scaled as its box is.
+
+    A case is "on" this range or "off" it (the scorer breaks false alarms down by it).
+
+    Parameters
+    ----------
+    drive : DriveDescription
+        The drive (default MODEL.md's reference plant).
+
+    Returns
+    -------
+    dict of str to (float, float, str)
+        ``name -> (low, high, unit)`` for K [m], J1 [kg m^2] and c [pu]: each interval of
+        :data:`~engine.constants.OPERATING_RANGE` multiplied by the drive's nominal value over
+        MODEL.md's (:data:`engine.diagnosis.space.BOX_NOMINALS`, as
+        :func:`~engine.diagnosis.space.drive_bounds` scales the plausible box); the range itself
+        for the reference drive.
+    """
+    if drive.is_reference:
+        return dict(OPERATING_RANGE)
+    ratio = {name: getattr(drive, name) / BOX_NOMINALS[name] for name in OPERATING_RANGE}
+    return {name: (lo * ratio[name], hi * ratio[name], unit) for name, (lo, hi, unit) in OPERATING_RANGE.items()}
+
+
+def c1_condition(drive: DriveDescription = REFERENCE_DRIVE) -> float:
+    """The c1 [pu] a drive's records give as their only condition: :data:`C1_CONDITION` for the
+    reference drive, else the drive's nominal absorber discontinuity ``drive.c1``."""
+    return C1_CONDITION if drive.is_reference else float(drive.c1)
+
 
 #: Largest difference between the SNRs of two channels of one record [dB] (each channel's SNR is
 #: drawn within ``SNR_RANGE_DB``).

@@ -1,7 +1,8 @@
 """The report of a protocol-v2 validation: ``report.json`` and ``report.md``, small enough to commit.
 
 The JSON holds the run's provenance (protocol, seed, mix, libraries, the code
-version it was scored on and those the diagnoses ran on), every metric with
+version it was scored on and those the diagnoses ran on; ``drive``, the drive the
+cases were simulated and diagnosed on, when it is not MODEL.md's reference plant), every metric with
 its counts, rate, Wilson 95 % interval, target and whether it is met, the
 breakdowns, the reliability of the stated confidence (``reliability``,
 :func:`engine.validation.reliability.reliability_section`) and one compact row per case (a table: ``cases.columns``, ``cases.rows``). The Markdown says the same for a
@@ -32,7 +33,8 @@ def build_report(scores: Scores, header: dict[str, Any]) -> dict[str, Any]:
         The run's scores.
     header : dict
         Provenance: ``protocol``, ``seed``, ``n_cases``, ``counts``, ``library``, ``held_back``,
-        ``code_version``, ``result_code_versions`` and anything else worth keeping.
+        ``code_version``, ``result_code_versions``, ``drive`` on a described drive (``name``,
+        ``fingerprint``, ``operating_box`` and ``description``) and anything else worth keeping.
 
     Returns
     -------
@@ -107,6 +109,22 @@ def _ran_with(ran_with: list[dict[str, Any]] | None) -> str:
     return "; ".join(one(w) for w in ran_with)
 
 
+def _drive_line(drive: dict[str, Any] | None) -> list[str]:
+    """The provenance line naming a described drive (none for MODEL.md's reference plant)."""
+    if not drive:
+        return []
+    box = drive.get("operating_box") or {}
+    where = ""
+    if {"K", "J1", "c"} <= set(box):
+        k, j1, c = box["K"], box["J1"], box["c"]
+        where = (
+            f"; operating points drawn from its plausible box K {1e3 * k[0]:.3g}-{1e3 * k[1]:.3g} mm, "
+            f"J1 {j1[0]:.3g}-{j1[1]:.3g} kg m^2, c {c[0]:.3g}-{c[1]:.3g} pu"
+        )
+    fingerprint = str(drive.get("fingerprint"))[:12]
+    return [f"- drive: {drive.get('name')}, fingerprint `{fingerprint}` (not MODEL.md's reference plant){where}"]
+
+
 def summary_markdown(doc: dict[str, Any]) -> str:
     """The title, provenance and the targets table (what the CLI prints)."""
     cv = doc.get("code_version") or {}
@@ -115,6 +133,7 @@ def summary_markdown(doc: dict[str, Any]) -> str:
     lines = [
         f"# Blind validation, protocol {doc.get('protocol')}: {doc.get('n_cases')} cases, seed {doc.get('seed')}",
         "",
+        *_drive_line(doc.get("drive")),
         f"- code scored: `{cv.get('describe') or 'unknown'}` (commit `{cv.get('commit') or 'unknown'}`); "
         f"diagnoses ran on: {ran}",
         "- cases: " + ", ".join(f"{counts.get(k, 0)} {k}" for k in CASE_KINDS),
