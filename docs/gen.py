@@ -162,6 +162,8 @@ P2_RUNS = (191, 223, 229, 239)
 HELD_OUT_RUN = "v2-heldout-seed241"
 #: The blind run on the sealed family (model 1.3), defined after the locus work that HELD_OUT's run led to.
 SEALED_RUN = "v2-sealed-seed257"
+#: The protocol-2 blind run on the described drive of docs/examples/drive-60hz-conveyor.toml (issue 52).
+DRIVE_RUN = "v2-conveyor-seed311"
 #: The time budgets of issue 10 (90th percentile of one diagnosis at a time on 2 cores).
 BUDGET_S = {"single": 10.0, "compound": 60.0}
 
@@ -309,6 +311,35 @@ def render_p2_families(page: Page) -> str:
         "width of `unexplained` answers: truth inside the 95 % interval",
     ]
     return table(head, rows) + sources(page, paths)
+
+
+def render_drive_p2(page: Page) -> str:
+    """Protocol 2 on the described drive of docs/examples (issue 52): every target, and the width's coverage."""
+    path, cov_path = f"{VALIDATION}/{DRIVE_RUN}/report.json", f"{VALIDATION}/{DRIVE_RUN}/width-coverage.json"
+    report = read_json(path)
+    drive = report["drive"]
+    rows = [
+        [f"{m['description']} ({m['target'].replace(' (report only)', '; throughput, report only')})", p2_cell(m), met(m)]
+        for m in report["metrics"]
+    ]
+    for group in ("all", "status explained", "status no_gap", "status unexplained"):
+        r = coverage_row(cov_path, "answer", group)
+        missing = f", {r['not_identifiable']} not identifiable" if r["not_identifiable"] else ""
+        label = "every verdict" if group == "all" else f"`{group.removeprefix('status ')}`"
+        rows.append(
+            [
+                f"the answer's width: truth inside the stated 95 % interval, {label}{missing} (>= 90 %)",
+                f"{r['covered']}/{r['n']} = {coverage_cell(r)}",
+                "yes (point)" if r["n"] and r["covered"] / r["n"] >= 0.9 else "**no**",
+            ]
+        )
+    head = [
+        f"metric (target); drive {drive['name']!r} ({str(drive['fingerprint'])[:12]}), seed {report['seed']}, "
+        f"code {p2_code(report)}, {report['n_cases']} cases",
+        "result",
+        "met",
+    ]
+    return table(head, rows) + sources(page, [path, cov_path])
 
 
 # --- the width after a diagnosis ------------------------------------------------------------------
@@ -1021,6 +1052,7 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "p2-time-idle": render_p2_time_idle,
     "p2-families": render_p2_families,
     "width-coverage": render_width_coverage,
+    "drive-p2": render_drive_p2,
     "confidence": render_confidence,
     "identification-accuracy": render_identification_accuracy,
     "kernel-speed": render_kernel_speed,

@@ -63,6 +63,7 @@ __all__ = [
     "default_space",
     "drive_bounds",
     "indistinguishable",
+    "nominal_ratios",
     "scan_grid",
 ]
 
@@ -338,10 +339,25 @@ class BoundsError(ValueError):
 Bounds = Mapping[str, tuple[float, float] | tuple[float, float, str]]
 
 
+def nominal_ratios(drive: DriveDescription = REFERENCE_DRIVE) -> dict[str, float]:
+    """How each calibrated parameter's intervals scale on a drive: its nominal value over MODEL.md's [-].
+
+    ``name -> drive nominal / BOX_NOMINALS[name]`` for K, J1, c and c1, exactly 1 for the reference; c1 follows c
+    when the drive has no absorber discontinuity, and c and c1 keep MODEL.md's intervals (ratio 1) when it has
+    no absorber viscosity either (an interval must have a width).
+    """
+    ratio = {n: float(getattr(drive, n)) / BOX_NOMINALS[n] for n in CALIBRATED}
+    if not drive.c > 0:
+        ratio["c"] = 1.0
+    if not drive.c1 > 0:
+        ratio["c1"] = ratio["c"]
+    return ratio
+
+
 def drive_bounds(drive: DriveDescription = REFERENCE_DRIVE) -> dict[str, tuple[float, float, str]]:
     """The default search box of a drive: :data:`DEFAULT_BOUNDS` scaled to the drive's nominal values.
 
-    Each interval is multiplied by the drive's nominal value over MODEL.md's (:data:`BOX_NOMINALS`): K 0.2-3x
+    Each interval is multiplied by the drive's nominal value over MODEL.md's (:func:`nominal_ratios`): K 0.2-3x
     the nominal width, J1 0.69-1.38x the nominal inertia, c 0.5-2x the nominal viscosity, c1 0-3x the nominal
     discontinuity (0-0.6 x c [pu] when the drive has none; MODEL.md's 0.5-2.0 pu and 0-0.6 pu when it has neither
     viscosity nor discontinuity, as a box must have a width). The reference drive's ratios are exactly 1, so its
@@ -357,12 +373,7 @@ def drive_bounds(drive: DriveDescription = REFERENCE_DRIVE) -> dict[str, tuple[f
     dict of str to (float, float, str)
         ``name -> (low, high, unit)`` for every parameter of :data:`CALIBRATED`.
     """
-    nominal = {"K": drive.K, "J1": drive.J1, "c": drive.c, "c1": drive.c1}
-    ratio = {n: nominal[n] / BOX_NOMINALS[n] for n in CALIBRATED}
-    if not drive.c > 0:
-        ratio["c"] = 1.0
-    if not drive.c1 > 0:
-        ratio["c1"] = ratio["c"]
+    ratio = nominal_ratios(drive)
     return {n: (lo * ratio[n], hi * ratio[n], unit) for n, (lo, hi, unit) in DEFAULT_BOUNDS.items()}
 
 

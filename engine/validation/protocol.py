@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Final, Literal
 
 from engine.constants import C1_NOMINAL, OPERATING_RANGE, PLAUSIBLE_RANGE
-from engine.diagnosis.space import BOX_NOMINALS, drive_bounds
+from engine.diagnosis.space import drive_bounds, nominal_ratios
 from engine.diagnosis.validation import SAME_PHYSICS, SNR_RANGE_DB, STRENGTH_THRESHOLD
 from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 from engine.simulation.noise import LOWPASS_ORDERS
@@ -105,13 +105,13 @@ def operating_range(drive: DriveDescription = REFERENCE_DRIVE) -> dict[str, tupl
     dict of str to (float, float, str)
         ``name -> (low, high, unit)`` for K [m], J1 [kg m^2] and c [pu]: each interval of
         :data:`~engine.constants.OPERATING_RANGE` multiplied by the drive's nominal value over
-        MODEL.md's (:data:`engine.diagnosis.space.BOX_NOMINALS`, as
+        MODEL.md's (:func:`engine.diagnosis.space.nominal_ratios`, as
         :func:`~engine.diagnosis.space.drive_bounds` scales the plausible box); the range itself
         for the reference drive.
     """
     if drive.is_reference:
         return dict(OPERATING_RANGE)
-    ratio = {name: getattr(drive, name) / BOX_NOMINALS[name] for name in OPERATING_RANGE}
+    ratio = nominal_ratios(drive)
     return {name: (lo * ratio[name], hi * ratio[name], unit) for name, (lo, hi, unit) in OPERATING_RANGE.items()}
 
 

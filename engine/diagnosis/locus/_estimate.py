@@ -101,7 +101,7 @@ def _estimate(
     chi2 = float(r @ r)
     ln_n = math.log(max(n, 2))
     obs = Observed(record, rows, data, sigma)
-    space = space or default_space(record)  # the joint fits' space (friction, drifts)
+    space = space or default_space(record, drive=cal.drive)  # the joint fits' space (friction, drifts)
 
     # 1. linearised around the calibrated trajectory, every locus at once
     resp = responses(record, cal, sigma, rows, settings)
