@@ -319,7 +319,11 @@ def render_drive_p2(page: Page) -> str:
     report = read_json(path)
     drive = report["drive"]
     rows = [
-        [f"{m['description']} ({m['target'].replace(' (report only)', '; throughput, report only')})", p2_cell(m), met(m)]
+        [
+            f"{m['description']} ({m['target'].replace(' (report only)', '; throughput, report only')})",
+            p2_cell(m),
+            met(m),
+        ]
         for m in report["metrics"]
     ]
     for group in ("all", "status explained", "status no_gap", "status unexplained"):
