@@ -3,7 +3,8 @@
 :func:`add_run_arguments` gives a script the run directory, the case ids and ``--seed``/``--cases``
 (to draw the cases again when the directory holds none); :func:`chosen_entries` opens the run and
 returns the answer-key entries of the chosen cases (the given ids, else every case of one kind);
-:func:`run_library` the effect library the run gave every case, which a re-run must diagnose with.
+:func:`run_library` the effect library the run gave every case, which a re-run must diagnose with, and
+:func:`run_drive` the drive its cases were simulated on (a run of ``validate --drive``), which it must diagnose on.
 """
 
 from __future__ import annotations
@@ -13,7 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from engine.simulation import CATALOGUE, EffectLibrary
-from engine.validation.blind import library_of_run
+from engine.simulation.drive import DriveDescription
+from engine.validation.blind import drive_of_run, library_of_run
 from engine.validation.key import KeyEntry
 from engine.validation.layout import RunLayout
 from engine.validation.run import prepare_cases
@@ -63,6 +65,17 @@ def run_library(ap: argparse.ArgumentParser, layout: RunLayout) -> EffectLibrary
         return library_of_run(layout, CATALOGUE)
     except FileNotFoundError as e:
         ap.error(str(e.args[0]))
+
+
+def run_drive(ap: argparse.ArgumentParser, layout: RunLayout) -> DriveDescription:
+    """The drive the run's cases were simulated on (:func:`engine.validation.blind.drive_of_run`; the reference
+    plant for a run without one). Exits through ``ap.error`` when the run's manifest is incomplete or edited."""
+    try:
+        return drive_of_run(layout)
+    except FileNotFoundError as e:
+        ap.error(str(e.args[0]))
+    except ValueError as e:
+        ap.error(str(e))
 
 
 def updated(settings: Any, changes: dict[str, Any]) -> Any:

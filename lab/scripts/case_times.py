@@ -39,14 +39,16 @@ import sys
 import time
 from typing import Any
 
-from _runs import BUDGET_P90_S, GROUPS, add_run_arguments, chosen_entries, run_library, updated
+from _runs import BUDGET_P90_S, GROUPS, add_run_arguments, chosen_entries, run_drive, run_library, updated
 
 logger = logging.getLogger("lab.case_times")
 
 
-def _time_cases(layout: Any, library: Any, ids: list[str], threads: int, settings: Any = None) -> dict[str, float]:
+def _time_cases(
+    layout: Any, library: Any, ids: list[str], threads: int, settings: Any = None, drive: Any = None
+) -> dict[str, float]:
     """Wall seconds of the diagnosis of each case with ``threads`` numba threads, the run's library
-    and ``settings`` (a ``DiagnosisSettings``; None: the default)."""
+    and ``settings`` (a ``DiagnosisSettings``; None: the default), on the run's ``drive`` (None: the reference)."""
     import numba
 
     from engine.diagnosis import diagnose
@@ -56,7 +58,10 @@ def _time_cases(layout: Any, library: Any, ids: list[str], threads: int, setting
     for i, cid in enumerate(ids):
         rec = layout.read_case(cid)
         t0 = time.perf_counter()
-        diagnose(rec, library, settings=settings)
+        if drive is None:
+            diagnose(rec, library, settings=settings)
+        else:
+            diagnose(rec, library, settings=settings, drive=drive)
         out[cid] = time.perf_counter() - t0
         logger.info(
             "%d/%d %s, %d threads: %.1f s (load %.2f)", i + 1, len(ids), cid, threads, out[cid], os.getloadavg()[0]
@@ -118,12 +123,14 @@ def main(argv: list[str] | None = None) -> int:
 
     simulate_batch([Case(PlantParameters())] * 2)  # JIT (cached) before the first timing
     library = run_library(ap, layout)
-    times = _time_cases(layout, library, ids, threads)
+    run_on = run_drive(ap, layout)
+    drive = None if run_on.is_reference else run_on
+    times = _time_cases(layout, library, ids, threads, drive=drive)
     base: dict[str, float] = {}
     if args.baseline_threads:
-        base = _time_cases(layout, library, ids, args.baseline_threads)
+        base = _time_cases(layout, library, ids, args.baseline_threads, drive=drive)
     elif baseline_settings is not None:
-        base = _time_cases(layout, library, ids, threads, baseline_settings)
+        base = _time_cases(layout, library, ids, threads, baseline_settings, drive)
     baseline_name = f"{args.baseline_threads}_threads" if args.baseline_threads else "sets"
     recorded = {c: float(layout.read_result(c)["seconds"]) for c in ids if c in layout.done()}
     for c in ids:

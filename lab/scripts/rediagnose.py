@@ -37,7 +37,7 @@ import logging
 import sys
 import time
 
-from _runs import add_run_arguments, chosen_entries, run_library, updated
+from _runs import add_run_arguments, chosen_entries, run_drive, run_library, updated
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -71,10 +71,11 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("give case ids or --kind, not both and not neither")
     layout, entries = chosen_entries(ap, args, args.kind)
     library = run_library(ap, layout)  # the library the run gave every case
+    drive = run_drive(ap, layout)  # and the drive its cases were simulated on
     for k in entries:
         cid = k.case_id
         t0 = time.perf_counter()
-        result = diagnose(layout.read_case(cid), library, settings=settings).to_dict(include_records=False)
+        result = diagnose(layout.read_case(cid), library, settings=settings, drive=drive).to_dict(include_records=False)
         seconds = time.perf_counter() - t0
         a = answer_of(result)
         row = {
