@@ -165,3 +165,27 @@ def test_training_inertias_scale_to_the_drive() -> None:
     assert REFERENCE_DRIVE.j1_grid() == const.J1_GRID  # bit for bit: MODEL.md's grid
     grid = DriveDescription(J1=1.74).j1_grid()
     assert grid[0] == 1.74 and grid == pytest.approx([2 * v for v in const.J1_GRID])
+
+
+def test_training_widths_and_c_groups_scale_to_the_drive() -> None:
+    assert REFERENCE_DRIVE.k_grid() == const.K_GRID and REFERENCE_DRIVE.c_groups() == const.C_GROUPS  # bit for bit
+    drive = DriveDescription(K=0.004, c=1.05)
+    assert drive.k_grid() == pytest.approx([0.8 * v for v in const.K_GRID])
+    assert drive.c_groups() == pytest.approx([1.05 * v for v in const.C_GROUPS])
+    assert DriveDescription(c=0.0, c1=0.0).c_groups() == const.C_GROUPS  # no absorber: the paper's groups
+
+
+def test_a_drive_pattern_set_identifies_on_the_drive_widths() -> None:
+    """Both identifier kinds train on the drive's scaled widths and answer one of them."""
+    from engine.identification.training import identifier_from_pattern_set, simulate_training_grid, train_pattern_set
+
+    drive = DriveDescription(K=0.004, c=1.05)
+    grid = simulate_training_grid(1.05, drive.j1_grid()[:2], drive=drive)
+    assert sorted({case.plant.K for case in grid.cases}) == pytest.approx(sorted(drive.k_grid()))
+    for kind in ("template", "paper"):
+        params = {"max_epochs": 200} if kind == "paper" else None
+        pattern_set = train_pattern_set("v2", 1.05, kind, drive.j1_grid()[:2], params=params, grid=grid, drive=drive)
+        identifier = identifier_from_pattern_set(pattern_set)
+        assert list(identifier.widths_) == pytest.approx(list(drive.k_grid())), kind
+        x = grid.channel("v2")[3 * 2]  # the fourth width, the nominal J1
+        assert identifier.identify(x).width in identifier.widths_

@@ -225,12 +225,13 @@ def continuous_width_checked(
     """
     check_record(record, channel)
     single = record.replace(channels={channel: record[channel]}, units={})
-    est = estimate_width(single, drive=REFERENCE_DRIVE if drive is None else drive)
+    plant = REFERENCE_DRIVE if drive is None else drive
+    est = estimate_width(single, drive=plant)
     cal = est.calibration
     out: dict = {
         "K": est.K,
         "sigma_K": est.sigma_K,
-        "nearest_width": nearest_grid_width(est.K),
+        "nearest_width": nearest_grid_width(est.K, plant.k_grid()),
         "fitted": dict(cal.values),
         "fixed": dict(cal.fixed),
         "reduced_chi2": cal.reduced_chi2,
@@ -301,7 +302,7 @@ def identify_from_store(
         "D": [float(d) for d in res.D],
         "index": int(res.index),
         "width": float(res.width),
-        "widths": [float(k) for k in K_GRID],
+        "widths": [float(k) for k in getattr(identifier_from_pattern_set(sel.pattern_set), "widths_", K_GRID)],
         "epochs": int(res.epochs),
         "rms": float(res.rms),
         "converged": bool(res.converged),

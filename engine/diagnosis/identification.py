@@ -29,7 +29,7 @@ import numpy as np
 
 from engine.identification.base import Identifier
 from engine.identification.selection import nearest_c_group
-from engine.identification.training import DEFAULT_KIND, make_identifier, simulate_training_grid
+from engine.identification.training import DEFAULT_KIND, identifier_params, make_identifier, simulate_training_grid
 from engine.records import Record, to_protocol_grid
 from engine.simulation import SimulationResult
 from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
@@ -42,11 +42,11 @@ logger = logging.getLogger(__name__)
 __all__ = ["identification_hook", "identify_before_after"]
 
 
-def _fit(grid: SimulationResult, channel: str, kind: str) -> Identifier:
-    """An identifier of ``kind`` for ``channel`` fitted on a training grid (groups: its J1 values)."""
+def _fit(grid: SimulationResult, channel: str, kind: str, drive: DriveDescription = REFERENCE_DRIVE) -> Identifier:
+    """An identifier of ``kind`` for ``channel`` fitted on a training grid of ``drive`` (groups: its J1 values)."""
     y = np.array([case.plant.K for case in grid.cases])
     g = np.array([case.plant.J1 for case in grid.cases])
-    return make_identifier(kind, channel).fit(grid.channel(channel), y, groups=g)
+    return make_identifier(kind, channel, **identifier_params(kind, drive)).fit(grid.channel(channel), y, groups=g)
 
 
 def _training_grid(
@@ -68,7 +68,7 @@ def _nominal_identifier(
     c_group: float, channel: str, kind: str, drive: DriveDescription = REFERENCE_DRIVE
 ) -> Identifier:
     """Fitted identifier on the nominal grid: fitted once per (c, channel, kind, drive), reused for every record."""
-    return _fit(_nominal_grid(c_group, drive), channel, kind)
+    return _fit(_nominal_grid(c_group, drive), channel, kind, drive)
 
 
 def _identify_all(identifier_for: Callable[[str], Identifier], record: Record) -> dict[str, dict[str, Any]]:
@@ -120,14 +120,14 @@ def identify_before_after(
         where each entry has the 1-based ``index``, the ``width`` [m] and the ``D`` vector.
     """
     record = to_protocol_grid(record)  # pattern sets read MODEL.md's grid only
-    group = nearest_c_group(c) if at_groups else float(c)
+    group = nearest_c_group(c, drive.c_groups()) if at_groups else float(c)
     before = _identify_all(lambda ch: _nominal_identifier(group, ch, kind, drive), record)
     after: Mapping[str, dict[str, Any]] = {}
     if effects is None and effect is not None and value is not None:
         effects = {effect: value}
     if effects:
         grid = _training_grid(group, drive, dict(effects))
-        after = _identify_all(lambda ch: _fit(grid, ch, kind), record)
+        after = _identify_all(lambda ch: _fit(grid, ch, kind, drive), record)
     return {
         "kind": kind,
         "c_group": group,

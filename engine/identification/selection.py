@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Sequence
 
 from engine.constants import C_GROUPS, MODEL_VERSION
 from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
@@ -68,20 +69,23 @@ def is_plain(summary: PatternSetSummary | PatternSet) -> bool:
     return not effects and same_grid
 
 
-def nearest_c_group(c: float) -> float:
-    """The paper's apparent-viscosity group nearest to ``c`` (ties to the smaller group).
+def nearest_c_group(c: float, groups: Sequence[float] = C_GROUPS) -> float:
+    """The apparent-viscosity group nearest to ``c`` (ties to the smaller group).
 
     Parameters
     ----------
     c : float
         Apparent viscosity of a record [pu].
+    groups : sequence of float
+        The groups, ascending [pu]: the paper's ``engine.constants.C_GROUPS`` (default), or a described
+        drive's (:meth:`engine.simulation.drive.DriveDescription.c_groups`).
 
     Returns
     -------
     float
-        An element of ``engine.constants.C_GROUPS`` [pu]: the group whose patterns identify the record.
+        An element of ``groups`` [pu]: the group whose patterns identify the record.
     """
-    return float(min(C_GROUPS, key=lambda g: abs(g - c)))
+    return float(min(groups, key=lambda g: abs(g - c)))
 
 
 def _nearest(candidates: list[PatternSetSummary], c: float, prefer_kind: str | None) -> PatternSetSummary:

@@ -177,9 +177,14 @@ class TemplateIdentifier:
         if y.shape[0] != C.shape[0]:
             raise ValueError(f"X has {C.shape[0]} records but y has {y.shape[0]} widths")
         widths = np.asarray(K_GRID)
-        missing = [K for K in widths if not np.isclose(y, K).any()]
-        if missing:
-            raise ValueError(f"training widths must cover K_GRID; missing {missing}")
+        missing = [float(K) for K in widths if not np.isclose(y, K).any()]
+        if missing:  # another grid (a described drive's, scaled), or a grid short of widths
+            widths = np.unique(y)
+            if widths.size != len(K_GRID):
+                raise ValueError(
+                    f"training widths must be the {len(K_GRID)} of K_GRID (missing {missing}) or {len(K_GRID)} other "
+                    f"distinct widths (a drive's scaled grid), got {widths.size}: {widths.tolist()}"
+                )
         candidates = [int(w) for w in ([self.window] if self.window is not None else self.windows)]
         if not candidates or any(not (1 <= w <= N_SAMPLES) for w in candidates):
             raise ValueError(f"windows must lie in [1, {N_SAMPLES}] samples, got {candidates}")

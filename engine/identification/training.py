@@ -66,6 +66,15 @@ def make_identifier(kind: str, channel: str, **params: Any) -> Identifier:
     return cls(channel=channel, **params)
 
 
+def identifier_params(kind: str, drive: DriveDescription | None = None) -> dict[str, Any]:
+    """Constructor parameters an identifier of ``kind`` needs to be trained for ``drive``: the paper's method is
+    given the drive's width grid (:meth:`DriveDescription.k_grid`) when it is not K_GRID; the template method reads
+    its widths from the training records. Empty for the reference plant."""
+    if kind == "paper" and drive is not None and drive.k_grid() != K_GRID:
+        return {"widths": list(drive.k_grid())}
+    return {}
+
+
 def training_cases(c: float, J1_values: Sequence[float], drive: DriveDescription | None = None) -> list[Case]:
     """The six widths x ``J1_values`` [kg m^2] at apparent viscosity ``c`` [pu], width-major.
 
@@ -74,7 +83,7 @@ def training_cases(c: float, J1_values: Sequence[float], drive: DriveDescription
     """
     if drive is None:
         return paper_grid(c, tuple(J1_values))
-    return [Case(drive.plant(K=K, J1=float(J1), c=float(c))) for K in K_GRID for J1 in J1_values]
+    return [Case(drive.plant(K=K, J1=float(J1), c=float(c))) for K in drive.k_grid() for J1 in J1_values]
 
 
 def simulate_training_grid(
@@ -130,7 +139,7 @@ def train_pattern_set(
         another drive (:func:`engine.identification.selection.drive_fingerprint`). ``grid``, when given,
         must have been simulated on it.
     """
-    params = dict(params or {})
+    params = {**identifier_params(kind, drive), **dict(params or {})}
     est = make_identifier(kind, channel, **params)
     if len(J1_values) < 1:
         raise ValueError("J1_values needs at least one inertia")

@@ -77,7 +77,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -429,6 +429,8 @@ def estimate_width(
     )
 
 
-def nearest_grid_width(K: float) -> float:
-    """The paper's width nearest to ``K`` [m] (the class a continuous width belongs to), in m."""
-    return float(min(K_GRID, key=lambda w: abs(w - K)))
+def nearest_grid_width(K: float, grid: Sequence[float] = K_GRID) -> float:
+    """The width of ``grid`` (default the paper's K_GRID; a described drive's
+    :meth:`~engine.simulation.drive.DriveDescription.k_grid`) nearest to ``K`` [m]: the class a continuous width
+    belongs to, in m."""
+    return float(min(grid, key=lambda w: abs(w - K)))

@@ -275,6 +275,24 @@ class DriveDescription:
             return const.J1_GRID
         return tuple(v / const.J1_NOMINAL * self.J1 for v in const.J1_GRID)  # the nominal first, exactly J1
 
+    def k_grid(self) -> tuple[float, ...]:
+        """The paper's six training widths K_GRID scaled to this drive's nominal K [m] (MODEL.md's grid, exactly, for
+        a drive whose nominal K is MODEL.md's 5 mm).
+
+        The widths a pattern set of this drive is trained on and identifies: K_GRID * K / 0.005 (2.5-10 mm about a
+        nominal 5 mm become 2-8 mm about a nominal 4 mm).
+        """
+        if self.K == const.K_NOMINAL:
+            return const.K_GRID
+        return tuple(v / const.K_NOMINAL * self.K for v in const.K_GRID)
+
+    def c_groups(self) -> tuple[float, ...]:
+        """The paper's c groups C_GROUPS scaled to this drive's nominal c [pu] (MODEL.md's, exactly, for c = 1 pu or
+        a drive without absorber viscosity): the groups a record's c is matched to when patterns are chosen."""
+        if self.c == const.C_NOMINAL or not self.c > 0:
+            return const.C_GROUPS
+        return tuple(v / const.C_NOMINAL * self.c for v in const.C_GROUPS)
+
     def nominal_case(self) -> Case:
         """The nominal plant with a neutral measurement chain."""
         return Case(self.plant())
