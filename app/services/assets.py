@@ -6,6 +6,10 @@ the history with the width their calibration found and their verdict, but are no
 diagnosis of the same record as an identification would count that record twice, and a
 record with an unexplained gap biases its calibrated width. The method itself is
 :func:`engine.history.trend.fit_trend` (docs/trend.md).
+
+An asset is one drive: its measurements are of one drive description (issue 52). A measurement of another
+drive than the asset's newest one is refused before it is stored (:func:`check_asset_drive`), so that a
+history and its trend never mix the widths of two drives.
 """
 
 from __future__ import annotations
@@ -19,17 +23,80 @@ from app.core.config import MAX_HISTORY_POINTS
 from app.db.codec import now
 from app.db.diagnoses import DiagnosisRepository
 from app.db.identifications import IdentificationRepository
-from app.services.errors import InvalidInputError, NotFoundError
+from app.services.errors import IncompatibleError, InvalidInputError, NotFoundError
 from engine.history.trend import Trend, TrendError, WidthPoint, fit_trend
+from engine.simulation.drive import REFERENCE_DRIVE
 from engine.storage import PatternStore
 
-__all__ = ["HistoryPage", "assets", "history", "store_identification", "trend", "trend_figure"]
+#: Newest diagnoses of an asset looked through for one with an answer (the newest may still be queued or running).
+MAX_PENDING_LOOKUP = 20
+
+__all__ = [
+    "HistoryPage",
+    "asset_drive",
+    "assets",
+    "check_asset_drive",
+    "history",
+    "store_identification",
+    "trend",
+    "trend_figure",
+]
+
+
+def measurement_drive(answer: dict[str, Any] | None) -> str:
+    """The fingerprint of the drive a stored answer was made on: an identification's ``drive`` (a fingerprint), a
+    diagnosis's ``drive`` (its provenance); MODEL.md's reference plant when the answer names none."""
+    stated = (answer or {}).get("drive")
+    if isinstance(stated, str):
+        return stated
+    if isinstance(stated, dict) and isinstance(stated.get("fingerprint"), str):
+        return str(stated["fingerprint"])
+    return REFERENCE_DRIVE.fingerprint
+
+
+def asset_drive(store: PatternStore, asset: str) -> str | None:
+    """The fingerprint of the drive of ``asset``'s newest measurement with an answer (None: it has none yet)."""
+    newest: list[tuple[datetime, dict[str, Any] | None]] = []
+    for i in IdentificationRepository(store).newest(asset, limit=1):
+        found = IdentificationRepository(store).get(i.id)
+        newest.append((i.measured_at, found.result if found else None))
+    for d in DiagnosisRepository(store).newest(asset, limit=MAX_PENDING_LOOKUP):
+        stored = DiagnosisRepository(store).get(d.id)
+        if stored is not None and stored.result is not None:
+            newest.append((d.measured_at or d.created_at, stored.result))
+            break
+    answered = [(when, result) for when, result in newest if result is not None]
+    if not answered:
+        return None
+    return measurement_drive(max(answered, key=lambda p: p[0])[1])
+
+
+def check_asset_drive(store: PatternStore, asset: str | None, fingerprint: str) -> None:
+    """Refuse a measurement of ``asset`` made on another drive than the asset's newest one.
+
+    Raises
+    ------
+    IncompatibleError
+        The asset's newest measurement is of another drive (422): the message names both and what to do.
+    """
+    if asset is None:
+        return
+    known = asset_drive(store, asset)
+    if known is not None and known != fingerprint:
+        raise IncompatibleError(
+            f"asset {asset!r} holds measurements of drive {known[:12]}, and this one is of drive {fingerprint[:12]}: "
+            "an asset's history is one drive's; give the asset's own drive description, or another asset name"
+        )
 
 
 def store_identification(
     store: PatternStore, asset: str, measured_at: datetime | None, channel: str | None, answer: dict[str, Any]
 ) -> tuple[str, datetime]:
-    """Store an identification of ``asset`` (its continuous width, if the answer has one); return (id, measured_at)."""
+    """Store an identification of ``asset`` (its continuous width, if the answer has one); return (id, measured_at).
+
+    Raises ``IncompatibleError`` when the asset's measurements are of another drive (:func:`check_asset_drive`).
+    """
+    check_asset_drive(store, asset, measurement_drive(answer))
     continuous = answer.get("continuous") or {}
     when = measured_at or now()
     identification_id = IdentificationRepository(store).add(

@@ -22,8 +22,10 @@ from app.db.jobs import JobState
 from app.db.records import NewRecord, RecordRepository, StoredRecord
 from app.jobs import Job, JobKind, JobManager, JobResult, ProgressFn
 from app.jobs.manager import RowsFn
+from app.services.assets import check_asset_drive
 from app.services.diagnosis_requests import DiagnosisRequest, compute, n_samples, parse
 from app.services.errors import NotFoundError
+from engine.simulation.drive import REFERENCE_DRIVE
 from engine.storage import PatternStore
 
 logger = logging.getLogger(__name__)
@@ -82,9 +84,11 @@ POOL = "diagnosis"
 JOB_KIND = JobKind(DIAGNOSE_JOB, "process", run_job, pool=POOL, stored=stored_result)
 
 
-def new_record(request: DiagnosisRequest) -> NewRecord:
+def new_record(store: PatternStore, request: DiagnosisRequest) -> NewRecord:
     """Read and check the request (raises with what to fix); its record as it will be stored, not stored yet."""
     parsed = parse(request)
+    drive = REFERENCE_DRIVE if parsed.drive is None else parsed.drive
+    check_asset_drive(store, parsed.asset, drive.fingerprint)  # an asset's history is one drive's
     return RecordRepository.new(
         request.body,
         media=request.media,
@@ -103,7 +107,7 @@ def submit(store: PatternStore, jobs: JobManager, request: DiagnosisRequest) -> 
     The record, the diagnosis and the job are stored in one transaction, once the queue has room: nothing is
     left behind when the queue is full (``QueueFullError``) or the request is invalid.
     """
-    new = new_record(request)
+    new = new_record(store, request)
 
     def store_record(conn: sqlite3.Connection, job: Job) -> None:
         RecordRepository.insert(conn, new)

@@ -239,3 +239,36 @@ def test_cli_diagnose_and_batch_on_a_described_drive(tmp_path: Path, capsys: pyt
 def test_training_over_http_refuses_a_bad_description_before_queueing(client: httpx.Client) -> None:
     r = client.post("/v1/pattern-sets", json={"channel": "v2", "c": 1.0, "drive": {"motor": {"pole_pairs": 0.5}}})
     assert r.status_code == 422 and "motor.pole_pairs must be a whole number" in r.json()["detail"]
+
+
+def test_an_asset_history_holds_one_drive(tmp_path: Path) -> None:
+    """A measurement of another drive than the asset's newest one is refused before it is stored."""
+    from datetime import UTC, datetime, timedelta
+
+    from app.db.diagnoses import DiagnosisRepository
+    from app.db.identifications import IdentificationRepository
+    from app.services.assets import asset_drive, check_asset_drive, store_identification
+    from app.services.diagnoses import new_record
+    from app.services.diagnosis_requests import DiagnosisRequest
+    from app.services.errors import IncompatibleError
+    from engine.storage import PatternStore
+
+    store = PatternStore(tmp_path / "assets.sqlite3")
+    conveyor = load_drive(EXAMPLE).fingerprint
+    day = datetime(2026, 11, 1, tzinfo=UTC)
+    assert asset_drive(store, "line-1") is None
+    check_asset_drive(store, "line-1", conveyor)  # nothing stored: any drive
+    store_identification(store, "line-1", day, "v2", {"drive": conveyor, "width": 0.004})
+    assert asset_drive(store, "line-1") == conveyor
+    store_identification(store, "line-1", day + timedelta(days=1), "v2", {"drive": conveyor, "width": 0.0041})
+    with pytest.raises(IncompatibleError, match="an asset's history is one drive's"):  # a reference identification
+        store_identification(store, "line-1", day + timedelta(days=2), "v2", {"drive": REFERENCE_DRIVE.fingerprint})
+    assert len(IdentificationRepository(store).newest("line-1", limit=10)) == 2  # nothing stored
+    # a diagnosis request of the reference plant for that asset: refused before its record is stored
+    v2 = np.sin(np.arange(2048) / 100.0).tolist()
+    body = {"record": {"sample_interval": 1e-4, "event_index": 48, "channels": {"v2": v2}, "asset": "line-1"}}
+    with pytest.raises(IncompatibleError, match="holds measurements of drive"):
+        new_record(store, DiagnosisRequest("json", json.dumps(body).encode()))
+    assert DiagnosisRepository(store).newest("line-1", limit=5) == []
+    # another asset is free
+    check_asset_drive(store, "line-2", REFERENCE_DRIVE.fingerprint)
