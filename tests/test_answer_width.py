@@ -154,9 +154,12 @@ def test_the_identification_takes_its_c_group_from_the_answers_model(inertia_cas
     rec, res = inertia_case
     seen = {}
     monkeypatch.setattr(
-        ident, "identify_before_after", lambda record, effect, value, c, kind, effects: seen.setdefault("c", c)
+        ident,
+        "identify_before_after",
+        lambda record, effect, value, c, kind, effects, drive: seen.update(c=c, drive=drive),
     )
     ident.identification_hook()(rec, res)
+    assert seen["drive"].is_reference  # the hook's default: MODEL.md's reference plant
     assert seen["c"] == res.final.values["c"]
     assert seen["c"] != res.calibration.values["c"]
 
