@@ -26,6 +26,7 @@ from engine.plants import DEFAULT_PLANT, PLANTS
 def cmd_diagnose(args: argparse.Namespace) -> int:
     """Diagnose the record, write the result as JSON and, with ``--plots``, its figures."""
     from app.services import diagnosis
+    from app.services.simulation import check_units
     from engine.diagnosis.space import check_bounds
     from engine.simulation import CATALOGUE
     from engine.simulation.drive import REFERENCE_DRIVE
@@ -37,6 +38,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     drive = read_drive(args)
     diagnosis.check_drive(drive, stated_drive(args.record))  # before the record is read: refused at once
     record = read_record(args)
+    check_units(record.units, drive)  # omega1 in pu would be read with MODEL.md's base speed: refused
     for name in args.effects or ():
         CATALOGUE[name]  # UnknownEffectError names the known effects before any work is done
     bounds = dict(args.bound or ())

@@ -61,9 +61,12 @@ def _read(plant_name: str, path: Path, drive: DriveDescription | None = None) ->
     if plant_name == DEFAULT_PLANT:
         from app.records_io import read_record, stated_drive
         from app.services.identification import check_record_drive
+        from app.services.simulation import check_units
 
         check_record_drive(stated_drive(path), drive)  # a record of another drive: refused (IncompatibleError)
-        return read_record(path)
+        record = read_record(path)
+        check_units(record.units, drive)  # omega1 in pu would be read with MODEL.md's base speed: refused
+        return record
     from app.services.plant_diagnosis import read_file
 
     return read_file(get_plant(plant_name), path)

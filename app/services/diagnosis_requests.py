@@ -144,9 +144,11 @@ def parse(request: DiagnosisRequest) -> ParsedDiagnosis:
     drive = simulation.drive_of(body.drive)  # ParameterError (422) says what to fix
     check_bounds(body.bounds, drive or REFERENCE_DRIVE)  # BoundsError (422) says what to fix before any work
     diagnosis.check_drive(drive, None if body.record.drive is None else body.record.drive.fingerprint)
+    record = body.record.to_record()
+    simulation.check_units(record.units, drive)  # omega1 in pu would be read with MODEL.md's base speed
     return ParsedDiagnosis(
         plant=DEFAULT_PLANT,
-        record=body.record.to_record(),
+        record=record,
         effects=body.effects,
         bounds=body.bounds,
         asset=body.record.asset,

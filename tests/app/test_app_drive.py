@@ -272,3 +272,12 @@ def test_an_asset_history_holds_one_drive(tmp_path: Path) -> None:
     assert DiagnosisRepository(store).newest("line-1", limit=5) == []
     # another asset is free
     check_asset_drive(store, "line-2", REFERENCE_DRIVE.fingerprint)
+
+
+def test_a_diagnosis_on_a_drive_refuses_omega1_in_pu(client: httpx.Client, example: dict[str, Any]) -> None:
+    """omega1 in pu would be read with MODEL.md's base speed, not the drive's: refused before any work."""
+    rec = client.post("/v1/simulate", json={"K": 0.004, "drive": example, "sample_interval": 1e-4}).json()
+    record = {"sample_interval": 1e-4, "event_index": rec["event_index"], "units": {"omega1": "pu"}}
+    record["channels"] = {"omega1": rec["channels"]["omega1"]}
+    r = client.post("/v1/diagnose", json={"record": record, "drive": example})
+    assert r.status_code == 422 and "give omega1 in rad/s or rpm" in r.json()["detail"]
