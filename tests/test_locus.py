@@ -111,7 +111,15 @@ def _expected_locus(effect: str) -> str:
 
 
 # -- default suite: the operating point known --------------------------------------------------
-@pytest.mark.parametrize("effect", ["load_torque_ripple", "clutch_offset", "motor_cogging"])
+@pytest.mark.parametrize(
+    "effect",
+    [
+        "load_torque_ripple",
+        # about 12 s each: in make test-slow (the default run keeps one held-back effect at each end of the clutch)
+        pytest.param("clutch_offset", marks=pytest.mark.slow),
+        pytest.param("motor_cogging", marks=pytest.mark.slow),
+    ],
+)
 def test_held_back_effect_is_located_where_it_acts(effect: str) -> None:
     rep = known_point(effect).report
     assert rep.locus == _expected_locus(effect), rep.description
@@ -155,6 +163,7 @@ def test_report_is_json_ready_and_series_lie_on_the_record_grid() -> None:
     np.testing.assert_allclose(out["term"]["t"], d.record.time)
 
 
+@pytest.mark.slow  # 22-28 s
 def test_a_zone_offset_the_calibration_took_up_in_the_width_is_found_in_the_clutch() -> None:
     """The operating point unknown: the nominal calibration takes an offset of -3.8 mrad up in the
     width (K 7.26 mm for 7.62) and in c (1.65 for 1.22), and the clutch's constant input scanned
@@ -171,6 +180,7 @@ def test_a_zone_offset_the_calibration_took_up_in_the_width_is_found_in_the_clut
     assert abs(rep.term.amplitude) == pytest.approx(0.0038, rel=0.1)
 
 
+@pytest.mark.slow  # 22-28 s
 def test_a_wheel_friction_that_stops_the_wheel_is_a_coulomb_friction_on_the_drive_wheel() -> None:
     """The operating point unknown, a wheel friction of 0.09 pu at the nominal plant (40 dB): the
     nominal calibration leaves chi2/n above 1000 with c at its box edge, and no schedule d(t)
@@ -200,6 +210,7 @@ def test_a_wheel_friction_that_stops_the_wheel_is_a_coulomb_friction_on_the_driv
     assert "against the motion of the drive wheel" in term.description
 
 
+@pytest.mark.slow  # 22-28 s
 def test_a_supply_frequency_off_its_nominal_value_is_a_drift_at_the_supply() -> None:
     """The operating point unknown, the supply frequency 2 % high (a development-family effect,
     nominal plant, 40 dB). It acts from the switch-on, so the calibration meets it with K, J1 and c

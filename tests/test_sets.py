@@ -625,6 +625,7 @@ def test_the_exchange_fits_no_two_twins_in_place_of_one_member(monkeypatch: pyte
     assert not beside["trigger_offset"] & beside["measurement_delay"]  # never both beside the same pair
 
 
+@pytest.mark.slow  # 40 s
 def test_the_second_best_single_is_extended_too_when_the_best_is_a_stand_in() -> None:
     """Seed-117 case0038 (supply voltage 0.886 and a trigger offset of -0.725 ms): the best single fit
     is a stator resistance drift standing in for the supply change, and the trigger offset, which
@@ -727,6 +728,7 @@ def _fine_scan_best_pair() -> CandidateSet:
     return search_sets(rec, nominal, space, CATALOGUE, singles, cs, SetSettings(max_size=2, escalate=False))[0]
 
 
+@pytest.mark.slow  # 26 s
 def test_a_large_trigger_offset_beside_a_weak_effect_is_found_by_the_fine_scan() -> None:
     """Seed-107 case0086: with the scans of 9 values over +-2 ms the trigger offset's single fit
     stopped at the scan value -1.0 ms (chi2/n 5400) and no pair reached the noise (the slow
@@ -771,7 +773,12 @@ def test_a_shift_fitted_at_the_edge_of_the_switch_off_jump_is_refitted_from_the_
 
 
 @pytest.mark.parametrize(
-    ("reseed", "escalate_first"), [(True, False), (False, True), (True, True)], ids=["1b", "escalation", "both"]
+    ("reseed", "escalate_first"),
+    [  # 11-17 s each: the default run keeps the escalation; make test-slow adds the others
+        pytest.param(True, False, id="1b", marks=pytest.mark.slow),
+        pytest.param(False, True, id="escalation"),
+        pytest.param(True, True, id="both", marks=pytest.mark.slow),
+    ],
 )
 def test_a_single_effect_out_of_the_seeded_basin_is_found_before_any_pair(reseed: bool, escalate_first: bool) -> None:
     """The operating point of development case s105/case0007 (stator resistance drift 0.798 at

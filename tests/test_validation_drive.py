@@ -209,6 +209,7 @@ def test_cli_validate_refuses_drive_with_protocol_1(tmp_path: Path, capsys: pyte
     assert "J1" in capsys.readouterr().err and not (tmp_path / "bad").exists()
 
 
+@pytest.mark.slow  # 37 s: three cases through the real diagnosis
 def test_cli_validate_on_a_described_drive_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Two cases (one single effect, one clean) of the conveyor through the real diagnosis on a Dask worker.
 

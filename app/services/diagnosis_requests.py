@@ -104,6 +104,8 @@ def named_plant(raw: bytes) -> str | None:
     ``ValueError``, left to the validation's 400 like any malformed body) where ``json.loads`` would raise
     ``RecursionError``.
     """
+    if b'"plant"' not in raw and b"\\u" not in raw:  # a body without the key (escaped or not) names none: no parse
+        return None  # (parsing a 20 MB body twice would hold the GIL, and the event loop, for twice as long)
     try:
         body = from_json(raw)
     except ValueError:

@@ -49,7 +49,6 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.signal import butter, correlate, sosfiltfilt
 
 from engine.constants import Z95
 from engine.plants.base import CalibratedParameter, Plant, free_parameters
@@ -493,6 +492,8 @@ def integrated_time(x: np.ndarray, c: float = SOKAL_WINDOW) -> float:
     n = x.size
     if n < 4 or not np.any(x):
         return 1.0
+    from scipy.signal import correlate  # here, not at the top: scipy.signal adds 1-2 s to every process start
+
     acf = correlate(x, x, mode="full", method="fft")[n - 1 :]
     rho = acf / acf[0]
     taus = 1.0 + 2.0 * np.cumsum(rho[1:])
@@ -685,6 +686,8 @@ def localise(
     res = obj.residuals(values)
     t = np.asarray(plant.time(record), dtype=float)[obj.window]
     nyq = 0.5 / float(t[1] - t[0])
+    from scipy.signal import butter, sosfiltfilt  # here, not at the top: see integrated_time
+
     cells: list[tuple[str, tuple[float, float], tuple[float, float], float]] = []
     edges = np.arange(t[0], t[-1] + WINDOW, WINDOW)
     which = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, edges.size - 2)

@@ -24,7 +24,6 @@ import math
 from fractions import Fraction
 
 import numpy as np
-from scipy.signal import resample_poly
 
 from engine.constants import POST_EVENT_TIME, PRE_EVENT_TIME
 from engine.records.errors import ProtocolError
@@ -91,6 +90,8 @@ def resample_to_grid(x: np.ndarray, source: SampleGrid, target: SampleGrid) -> n
     pad_right = tail - (source.n_samples - source.event_index)
     # odd reflection about the end samples continues the record's slope where the target reaches past it
     xp = np.pad(x, (pad_left, pad_right), mode="reflect", reflect_type="odd")
+    from scipy.signal import resample_poly  # here, not at the top: scipy.signal adds 1-2 s to every process start
+
     y = resample_poly(xp, up, down, padtype="line")
     at_event = lead * up // down
     first = at_event - target.event_index

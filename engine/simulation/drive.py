@@ -34,6 +34,7 @@ one from a motor's nameplate and datasheet and a drive train's drawing.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import logging
@@ -353,7 +354,7 @@ class DriveDescription:
             out[section] = {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
         return out
 
-    @property
+    @functools.cached_property  # computed once per description: it is frozen
     def fingerprint(self) -> str:
         """SHA-256 (hex) of the physical content: every value but ``name``, in a canonical JSON form.
 
@@ -364,7 +365,7 @@ class DriveDescription:
         text = json.dumps(content, sort_keys=True, separators=(",", ":"), allow_nan=False)
         return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
-    @property
+    @functools.cached_property
     def is_reference(self) -> bool:
         """Whether this is MODEL.md's reference plant (the same fingerprint)."""
         return self.fingerprint == REFERENCE_DRIVE.fingerprint

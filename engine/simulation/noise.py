@@ -16,7 +16,6 @@ import functools
 import math
 
 import numpy as np
-from scipy import signal
 
 from engine.constants import SAMPLE_INTERVAL
 
@@ -55,6 +54,8 @@ def _lowpass(order: int, lowpass_hz: float, sample_interval: float) -> tuple[np.
         raise ValueError(f"order of the noise low-pass must be one of {LOWPASS_ORDERS}, got {order}")
     if not (math.isfinite(lowpass_hz) and 0.0 < lowpass_hz < fs / 2.0):
         raise ValueError(f"lowpass_hz must lie between 0 and the Nyquist frequency {fs / 2:g} Hz, got {lowpass_hz}")
+    from scipy import signal  # here, not at the top: scipy.signal adds 1-2 s to every process start
+
     sos = signal.butter(order, lowpass_hz, btype="low", fs=fs, output="sos")
     warm_up = math.ceil(WARM_UP_TIME_CONSTANTS * fs / (2.0 * math.pi * lowpass_hz)) + 16
     impulse = np.zeros(4 * warm_up)
@@ -99,7 +100,9 @@ def coloured_noise(
         return rng.standard_normal(shape)
     sos, gain, warm_up = _lowpass(int(order), float(lowpass_hz), float(sample_interval))
     w = rng.standard_normal((*shape[:-1], shape[-1] + warm_up))
-    return signal.sosfilt(sos, w, axis=-1)[..., warm_up:] / math.sqrt(gain)
+    from scipy.signal import sosfilt
+
+    return sosfilt(sos, w, axis=-1)[..., warm_up:] / math.sqrt(gain)
 
 
 def add_noise(

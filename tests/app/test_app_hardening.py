@@ -355,6 +355,7 @@ def start_on(db: Path, cwd: Path) -> subprocess.CompletedProcess[str]:
     )
 
 
+@pytest.mark.slow  # 24 s: three service starts and a training
 def test_a_second_service_on_a_hard_link_of_the_database_is_refused(
     start_server: ServerFactory, tmp_path: Path
 ) -> None:

@@ -87,6 +87,7 @@ def retry_at_once(client: httpx.Client, job_id: str, n: int) -> list[httpx.Respo
 # -- 5. the result and the job's state in one transaction -------------------------------------------------
 
 
+@pytest.mark.slow  # 47 s: three services, a training and a diagnosis
 def test_a_kill_between_storing_the_result_and_finishing_the_job_stores_neither(
     start_server: ServerFactory, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

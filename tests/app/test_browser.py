@@ -331,6 +331,7 @@ def test_report_page_diagnoses_uploaded_records(start_server: ServerFactory, bro
         assert shot.stat().st_size > 10_000
 
 
+@pytest.mark.slow  # 33 s
 @needs_browser
 def test_report_page_shows_errors_and_warnings_at_the_top(
     start_server: ServerFactory, browser: Any, tmp_path: Path
