@@ -492,12 +492,12 @@ def read_record(
     return record_from_json(text, sample_interval, event_index, conditions, units)
 
 
-def stated_drive(path: str | Path) -> str | None:
-    """The fingerprint of the drive a JSON record file states it was made on, or None.
+def stated_provenance(path: str | Path) -> dict[str, Any] | None:
+    """The drive a JSON record file states it was made on (``{"fingerprint": ..., "description": ...}``), or None.
 
-    A simulated record carries ``drive`` (``{"fingerprint": ..., "description": ...}``, as ``backlash simulate
-    --drive`` and ``POST /v1/simulate`` write it); a CSV file, a record without it, or a file that does not parse
-    (the record reader says what is wrong with it) states none.
+    A simulated record carries ``drive`` as ``backlash simulate --drive`` and ``POST /v1/simulate`` write it; a CSV
+    file, a record without it, or a file that does not parse (the record reader says what is wrong with it) states
+    none.
     """
     path = Path(path)
     if path.suffix.lower() != ".json":
@@ -508,8 +508,14 @@ def stated_drive(path: str | Path) -> str | None:
         return None
     drive = data.get("drive") if isinstance(data, dict) else None
     if isinstance(drive, dict) and isinstance(drive.get("fingerprint"), str):
-        return str(drive["fingerprint"])
+        return drive
     return None
+
+
+def stated_drive(path: str | Path) -> str | None:
+    """The fingerprint of the drive a JSON record file states it was made on, or None (:func:`stated_provenance`)."""
+    stated = stated_provenance(path)
+    return None if stated is None else str(stated["fingerprint"])
 
 
 def write_record(record: Record, path: str | Path, with_time: bool = False) -> None:

@@ -66,3 +66,55 @@ def test_main_job_pattern_sets_load_back_for_every_kind(tmp_path):
         ps = nearest_pattern_set(store, "v2", 1.0, kind=kind)
         assert ps.params["source"] == "main-job"
         assert identifier_from_pattern_set(ps).identify(rec).D.shape == (6,)
+
+
+def test_random_cases_of_the_reference_drive_are_the_reference_draws():
+    from engine.simulation.drive import REFERENCE_DRIVE
+
+    plain, described = random_cases(5, seed=3), random_cases(5, seed=3, drive=REFERENCE_DRIVE)
+    assert [c.plant for c in plain.cases] == [c.plant for c in described.cases]
+    assert np.array_equal(plain.channel("v2"), described.channel("v2"))
+
+
+def test_main_job_on_a_described_drive(tmp_path):
+    """``backlash run --drive``: the main job on the conveyor drive's grid, c groups and operating range; its sets
+    carry the drive and identify the drive's records; a main-job set of the reference plant is kept."""
+    from pathlib import Path
+
+    from app import cli
+    from engine.identification.selection import drive_fingerprint
+    from engine.identification.training import identifier_from_pattern_set, train_pattern_set
+    from engine.simulation import Case
+    from engine.simulation.drive import load_drive
+
+    example = Path(__file__).resolve().parents[1] / "docs" / "examples" / "drive-60hz-conveyor.toml"
+    drive = load_drive(example)
+    db = tmp_path / "p.sqlite3"
+    store = PatternStore(db)
+    reference = train_pattern_set("v2", 1.0, kind="template")
+    reference.params["source"] = "main-job"
+    kept = store.save(reference).id
+
+    result = run(tmp_path / "out", db_path=db, n_random=8, kinds={"template": {}}, n_jobs=0, drive=drive)
+    assert result.tables == [] and f"Drive {drive.name}" in result.report()
+    sets = [s for s in store.list() if s.id != kept]
+    assert len(sets) == len(drive.c_groups()) * 5 and kept in {s.id for s in store.list()}
+    assert {drive_fingerprint(s) for s in sets} == {drive.fingerprint}
+    assert sorted({s.c for s in sets}) == sorted(drive.c_groups())
+    rows = {(r.channel, r.split): r for r in result.accuracy}
+    assert rows["v2", "random"].n == 8 and rows["v2", "leave-one-J1-out"].n == len(drive.c_groups()) * 6 * len(
+        drive.j1_grid()
+    )
+    # a clean record of the drive at one of its widths, its nominal J1 and the c of a group: identified exactly
+    c = drive.c_groups()[1]
+    ps = next(s for s in sets if s.channel == "v2" and s.c == c)
+    width = drive.k_grid()[3]
+    rec = simulate_batch([Case(drive.plant(K=width, c=c))], solver=drive.solver()).channel("v2")[0]
+    assert identifier_from_pattern_set(store.get(ps.id)).identify(rec).width == width
+    for name in ("accuracy.md", "accuracy.csv", "channels_by_width.png", "accuracy_vs_noise.png", "report.md"):
+        assert (tmp_path / "out" / name).stat().st_size > 0
+    # the CLI refuses an impossible description before any work
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[motor]\npole_pairs = 0.5\n")
+    assert cli.main(["run", "--drive", str(bad), "--out", str(tmp_path / "never")]) == 2
+    assert not (tmp_path / "never").exists()

@@ -18,7 +18,7 @@ from app.cli.common import (
     read_drive,
     read_record,
 )
-from app.records_io import stated_drive
+from app.records_io import stated_provenance
 from engine.atomic import write_json_atomic
 from engine.plants import DEFAULT_PLANT, PLANTS
 
@@ -26,6 +26,7 @@ from engine.plants import DEFAULT_PLANT, PLANTS
 def cmd_diagnose(args: argparse.Namespace) -> int:
     """Diagnose the record, write the result as JSON and, with ``--plots``, its figures."""
     from app.services import diagnosis
+    from app.services.identification import drive_for_record
     from app.services.simulation import check_units
     from engine.diagnosis.space import check_bounds
     from engine.simulation import CATALOGUE
@@ -35,8 +36,11 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         if args.drive is not None:
             raise CommandError(f"--drive describes a backlash drive; it does not apply with --plant {args.plant}")
         return _diagnose_plant(args)
-    drive = read_drive(args)
-    diagnosis.check_drive(drive, stated_drive(args.record))  # before the record is read: refused at once
+    # --drive, else the drive the record states in full (a simulated record); a record of another drive is refused
+    # before it is read
+    drive = drive_for_record(read_drive(args), stated_provenance(args.record))
+    if args.drive is None and drive is not None:
+        output.info(f"diagnosing on the drive the record states: {drive.name} ({drive.fingerprint[:12]})")
     record = read_record(args)
     check_units(record.units, drive)  # omega1 in pu would be read with MODEL.md's base speed: refused
     for name in args.effects or ():

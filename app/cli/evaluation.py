@@ -23,7 +23,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     """The main job: train, evaluate, write tables and figures to ``--out``; print its summary."""
     from engine.evaluation import main_job
 
-    result = main_job.run(Path(args.out), n_jobs=args.workers, scheduler=args.scheduler)
+    drive = read_drive(args)  # ParameterError (exit 2) says what to fix before any work
+    result = main_job.run(Path(args.out), n_jobs=args.workers, scheduler=args.scheduler, drive=drive)
     output.write(result.report())
     return EXIT_OK
 
@@ -156,9 +157,14 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "run",
         help="the main job: train, evaluate, write tables and figures",
-        **examples("backlash run --out out", "backlash run --out out --workers 2"),
+        **examples(
+            "backlash run --out out",
+            "backlash run --out out --workers 2",
+            "backlash run --drive docs/examples/drive-60hz-conveyor.toml --out out/conveyor",
+        ),
     )
     p.add_argument("--out", default="out", help="output directory (default out)")
+    add_drive_option(p)
     add_dask_options(p)
     p.set_defaults(func=cmd_run)
 

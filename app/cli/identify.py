@@ -18,7 +18,7 @@ from app.cli.common import (
     read_record,
     settings,
 )
-from app.records_io import stated_drive
+from app.records_io import stated_provenance
 from engine.constants import CHANNELS
 from engine.identification.training import IDENTIFIERS
 from engine.plants import DEFAULT_PLANT, PLANTS
@@ -28,7 +28,7 @@ logger = logging.getLogger(__name__)
 
 def cmd_identify(args: argparse.Namespace) -> int:
     """Identify the record's backlash width and write the outcome as JSON."""
-    from app.services.identification import identify_from_store
+    from app.services.identification import drive_for_record, identify_from_store
     from engine.storage import PatternStore
 
     if args.plant != DEFAULT_PLANT:
@@ -39,7 +39,10 @@ def cmd_identify(args: argparse.Namespace) -> int:
         raise CommandError("--joint applies with --plant (a plant whose records share one width), not to the drive")
     if args.channel is None:
         raise CommandError("give --channel (one of " + ", ".join(CHANNELS) + ")")
-    drive = read_drive(args)
+    stated = stated_provenance(args.record)
+    drive = drive_for_record(read_drive(args), stated)  # --drive, else the drive the record states in full
+    if args.drive is None and drive is not None:
+        output.info(f"identifying on the drive the record states: {drive.name} ({drive.fingerprint[:12]})")
     record = read_record(args)
     path = settings(args).db_path
     if not path.exists():  # no empty store left behind, and the CLI's way to fill one
@@ -56,7 +59,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         continuous=args.continuous,
         any_set=args.any_set,
         drive=drive,
-        record_drive=stated_drive(args.record),
+        record_drive=None if stated is None else str(stated["fingerprint"]),
     )
     output.write_json(answer)
     for w in answer.get("warnings") or ():  # on stderr, where a person sees them beside the JSON

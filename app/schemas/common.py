@@ -108,7 +108,10 @@ class DriveProvenanceIn(BaseModel):
     """The drive a record was simulated on, as the simulation writes it (``drive`` of its answer)."""
 
     fingerprint: str = Field(max_length=64, description="SHA-256 of the drive description's values.")
-    description: dict[str, Any] | None = Field(default=None, description="The description (not read).")
+    description: dict[str, Any] | None = Field(
+        default=None,
+        description="The description: a diagnosis without a drive of its own runs on it (its fingerprint checked).",
+    )
 
 
 class RecordIn(BaseModel):
@@ -150,7 +153,7 @@ class RecordIn(BaseModel):
     drive: DriveProvenanceIn | None = Field(
         default=None,
         description="The drive a simulated record was made on, as POST /v1/simulate writes it (its fingerprint and "
-        "description): it must be the request's drive.",
+        "description): it must be the request's drive; a diagnosis request without a drive runs on this one.",
     )
 
     def to_record(self) -> Record:

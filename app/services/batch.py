@@ -57,19 +57,20 @@ def find_records(source: str) -> list[Path]:
     return sorted(files)
 
 
-def _read(plant_name: str, path: Path, drive: DriveDescription | None = None) -> Any:
+def _read(plant_name: str, path: Path, drive: DriveDescription | None = None) -> tuple[Any, DriveDescription | None]:
+    """The record of ``path`` and the drive it is diagnosed on (``drive``, else the one the record states in full)."""
     if plant_name == DEFAULT_PLANT:
-        from app.records_io import read_record, stated_drive
-        from app.services.identification import check_record_drive
+        from app.records_io import read_record, stated_provenance
+        from app.services.identification import drive_for_record
         from app.services.simulation import check_units
 
-        check_record_drive(stated_drive(path), drive)  # a record of another drive: refused (IncompatibleError)
+        drive = drive_for_record(drive, stated_provenance(path))  # a record of another drive: refused
         record = read_record(path)
         check_units(record.units, drive)  # omega1 in pu would be read with MODEL.md's base speed: refused
-        return record
+        return record, drive
     from app.services.plant_diagnosis import read_file
 
-    return read_file(get_plant(plant_name), path)
+    return read_file(get_plant(plant_name), path), None
 
 
 def run_batch(
@@ -82,8 +83,9 @@ def run_batch(
 ) -> list[dict[str, Any]]:
     """Diagnose every file without an answer in ``out_dir`` yet; write the answers and the summary; return its rows.
 
-    ``drive``: the backlash drive every record was measured on (None: MODEL.md's reference plant); a record that
-    states another drive is refused.
+    ``drive``: the backlash drive every record was measured on (None: each record's own drive when it states it in
+    full, as a simulated record does, else MODEL.md's reference plant); a record that states another drive is
+    refused.
     """
     from engine.distributed import dask_client, map_cases
 
@@ -99,7 +101,7 @@ def run_batch(
             rows[name] = summary_row(name, json.loads(answer_path.read_text()))
             continue
         try:
-            inputs[name] = (plant_name, _read(plant_name, f, drive), drive)
+            inputs[name] = (plant_name, *_read(plant_name, f, drive))
         except (ValueError, OSError) as exc:  # RecordError, RecordFormatError, a unit error, an unreadable file
             logger.warning("%s refused: %s", f, exc)
             rows[name] = {c: None for c in SUMMARY_COLUMNS} | {"record": name, "status": "refused", "detail": str(exc)}

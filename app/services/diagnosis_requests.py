@@ -24,6 +24,7 @@ from app.schemas.assets import AssetName, MeasuredAt
 from app.schemas.diagnose import BrfdDiagnoseCreate, DiagnoseCreate, PlantDiagnoseCreate
 from app.services import diagnosis, plant_diagnosis, simulation
 from app.services.errors import InvalidInputError
+from app.services.identification import drive_for_record
 from app.services.plant_diagnosis import PlantRecords
 from engine.diagnosis.space import check_bounds
 from engine.plants import DEFAULT_PLANT, get_plant
@@ -143,9 +144,11 @@ def parse(request: DiagnosisRequest) -> ParsedDiagnosis:
     body = DiagnoseCreate.model_validate_json(request.body)
     for name in body.effects or ():
         CATALOGUE[name]  # UnknownEffectError (422) names the known effects
-    drive = simulation.drive_of(body.drive)  # ParameterError (422) says what to fix
+    stated = None if body.record.drive is None else body.record.drive.model_dump()
+    # the request's drive, else the one the record states in full; ParameterError / IncompatibleError (422) say
+    # what to fix
+    drive = drive_for_record(simulation.drive_of(body.drive), stated)
     check_bounds(body.bounds, drive or REFERENCE_DRIVE)  # BoundsError (422) says what to fix before any work
-    diagnosis.check_drive(drive, None if body.record.drive is None else body.record.drive.fingerprint)
     record = body.record.to_record()
     simulation.check_units(record.units, drive)  # omega1 in pu would be read with MODEL.md's base speed
     return ParsedDiagnosis(

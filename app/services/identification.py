@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import logging
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -21,6 +23,8 @@ from engine.identification.width import estimate_width, nearest_grid_width
 from engine.records import Record, to_protocol_grid
 from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 from engine.storage import PatternSet, PatternSetNotFound, PatternStore
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -78,6 +82,45 @@ def check_record_drive(record_drive: str | None, drive: DriveDescription | None)
             cli=f"the record was made on drive {record_drive[:12]}, the command is for drive {label}; give the "
             "record's own drive description with --drive FILE",
         )
+
+
+def drive_for_record(requested: DriveDescription | None, stated: Mapping[str, Any] | None) -> DriveDescription | None:
+    """The drive a record is identified or diagnosed on: the request's, else the one the record states in full, else
+    the reference.
+
+    A simulated record carries the drive it was made on (``backlash simulate --drive``, ``POST /v1/simulate``): its
+    fingerprint and its whole description. Without a drive in the request, such a record is read on its own
+    drive; with one, the record must be of it (:func:`check_record_drive`). A record that states only a fingerprint (not
+    the description) of another drive than the reference is refused, as before.
+
+    Parameters
+    ----------
+    requested : DriveDescription or None
+        The request's drive (``--drive``, ``"drive"``); None when it gives none.
+    stated : mapping or None
+        The record's ``drive`` (``{"fingerprint": ..., "description": ...}``), if any.
+
+    Returns
+    -------
+    DriveDescription or None
+        None for MODEL.md's reference plant.
+
+    Raises
+    ------
+    IncompatibleError
+        The record states another drive than the request's, or only the fingerprint of a drive other than the
+        reference.
+    engine.simulation.ParameterError
+        The record's description does not give its stated fingerprint (an edited record), or is refused.
+    """
+    if requested is not None or stated is None or stated.get("description") is None:
+        check_record_drive(None if stated is None else str(stated["fingerprint"]), requested)
+        return requested
+    drive = DriveDescription.from_provenance(stated)
+    if drive.is_reference:
+        return None
+    logger.info("on the drive the record states: %s (%s)", drive.name, drive.fingerprint[:12])
+    return drive
 
 
 def _drive_label(fingerprint: str, drive: DriveDescription | None = None) -> str:

@@ -25,7 +25,8 @@ import numpy as np
 from engine.constants import C_GROUPS, CHANNELS, K_GRID, OPERATING_RANGE
 from engine.distributed import dask_client, map_cases
 from engine.identification.training import make_identifier
-from engine.simulation import PlantParameters, SimulationResult, add_white_noise, simulate_batch
+from engine.simulation import Case, PlantParameters, SimulationResult, add_white_noise, simulate_batch
+from engine.simulation.drive import DriveDescription
 
 logger = logging.getLogger(__name__)
 
@@ -84,14 +85,29 @@ def noisy_versions(
     }
 
 
-def random_cases(n: int = 240, seed: int = 20261121) -> SimulationResult:
-    """Held-out cases (b): J1 and c uniform over ``OPERATING_RANGE``, width uniform over the six of ``K_GRID``."""
+def random_cases(n: int = 240, seed: int = 20261121, drive: DriveDescription | None = None) -> SimulationResult:
+    """Held-out cases (b): J1 and c uniform over ``OPERATING_RANGE``, width uniform over the six of ``K_GRID``.
+
+    With ``drive``: on its nominal plant, J1 and c uniform over its operating range
+    (:func:`engine.validation.protocol.operating_range`, MODEL.md's scaled by the drive's nominal values) and the
+    width among its six (:meth:`DriveDescription.k_grid`), within its ``t_event_max``. The same draws as without it
+    for the reference drive.
+    """
     rng = np.random.default_rng(seed)
-    K = rng.choice(np.asarray(K_GRID), n)
-    J1 = rng.uniform(*OPERATING_RANGE["J1"][:2], n)
-    c = rng.uniform(*OPERATING_RANGE["c"][:2], n)
-    cases = [PlantParameters(K=float(k), J1=float(j), c=float(cc)) for k, j, cc in zip(K, J1, c, strict=True)]
-    return simulate_batch(cases)
+    if drive is None or drive.is_reference:
+        K = rng.choice(np.asarray(K_GRID), n)
+        J1 = rng.uniform(*OPERATING_RANGE["J1"][:2], n)
+        c = rng.uniform(*OPERATING_RANGE["c"][:2], n)
+        cases = [PlantParameters(K=float(k), J1=float(j), c=float(cc)) for k, j, cc in zip(K, J1, c, strict=True)]
+        return simulate_batch(cases)
+    from engine.validation.protocol import operating_range
+
+    box = operating_range(drive)
+    K = rng.choice(np.asarray(drive.k_grid()), n)
+    J1 = rng.uniform(*box["J1"][:2], n)
+    c = rng.uniform(*box["c"][:2], n)
+    plants = [drive.plant(K=float(k), J1=float(j), c=float(cc)) for k, j, cc in zip(K, J1, c, strict=True)]
+    return simulate_batch([Case(p) for p in plants], solver=drive.solver())
 
 
 def nearest_group_index(c: np.ndarray, groups: Sequence[float] = C_GROUPS) -> np.ndarray:

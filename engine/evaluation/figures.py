@@ -20,13 +20,16 @@ _T_MS = (np.arange(N_SAMPLES) - EVENT_INDEX) * SAMPLE_INTERVAL * 1e3
 
 
 def plot_channels_by_width(grid: SimulationResult, J1: float, path: Path) -> Path:
-    """The five channels for the six widths at one J1 (time relative to the event)."""
+    """The five channels for the grid's widths (the six of K_GRID, or a drive's) at the grid's J1 nearest ``J1``
+    [kg m^2] (time relative to the event)."""
     fig, axes = plt.subplots(len(CHANNELS), 1, figsize=(10, 12), sharex=True)
-    colors = plt.cm.viridis(np.linspace(0, 0.9, len(K_GRID)))
+    widths = sorted({case.plant.K for case in grid.cases})
+    J1 = min({case.plant.J1 for case in grid.cases}, key=lambda j: abs(j - J1))
+    colors = plt.cm.viridis(np.linspace(0, 0.9, len(widths)))
     for i, case in enumerate(grid.cases):
-        if not np.isclose(case.plant.J1, J1):
+        if case.plant.J1 != J1:
             continue
-        k = K_GRID.index(case.plant.K)
+        k = widths.index(case.plant.K)
         for ax, ch in zip(axes, CHANNELS, strict=True):
             ax.plot(_T_MS, grid.channel(ch)[i], color=colors[k], lw=0.8, label=f"K = {case.plant.K * 1e3:g} mm")
     for ax, ch in zip(axes, CHANNELS, strict=True):
@@ -34,7 +37,7 @@ def plot_channels_by_width(grid: SimulationResult, J1: float, path: Path) -> Pat
         ax.axvline(0.0, color="k", lw=0.5, ls=":")
         ax.grid(alpha=0.3)
     axes[0].legend(ncol=3, fontsize=8)
-    axes[0].set_title(f"Backlash test records, J1 = {J1} kg m^2, c = {grid.cases[0].plant.c} (event at t = 0)")
+    axes[0].set_title(f"Backlash test records, J1 = {J1:.4g} kg m^2, c = {grid.cases[0].plant.c:.4g} (event at t = 0)")
     axes[-1].set_xlabel("time from the event [ms]")
     fig.tight_layout()
     fig.savefig(path, dpi=110)

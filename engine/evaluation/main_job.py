@@ -6,6 +6,11 @@
 3. Scores every identifier per channel on held-out data (see
    :mod:`engine.evaluation.accuracy`).
 4. Writes ``out/``: Markdown and CSV tables and PNG figures.
+
+On a described drive (``drive``, ``backlash run --drive FILE``) the same job runs on the drive's nominal
+plant: its c groups, J1 grid and six widths (:meth:`DriveDescription.c_groups`, ``j1_grid``, ``k_grid``), its
+operating range for the held-out cases; the sets it stores carry the drive and replace only the main job's
+earlier sets of the same drive. The paper's Tables 1-4 are the paper's plant's and are not re-run there.
 """
 
 from __future__ import annotations
@@ -22,8 +27,10 @@ from engine.constants import C_GROUPS, CHANNELS, J1_NOMINAL
 from engine.evaluation import figures
 from engine.evaluation.accuracy import AccuracyRow, accuracy_markdown, evaluate, random_cases
 from engine.evaluation.paper_tables import TableRow, rerun_tables, table_csv_rows, table_markdown
-from engine.identification.training import IDENTIFIERS, train_pattern_set
+from engine.identification.selection import drive_fingerprint
+from engine.identification.training import IDENTIFIERS, simulate_training_grid, train_pattern_set
 from engine.simulation import paper_grid, simulate_batch
+from engine.simulation.drive import DriveDescription
 from engine.storage import PatternStore, default_store_path
 
 logger = logging.getLogger(__name__)
@@ -44,12 +51,22 @@ class MainJobResult:
     pattern_set_ids: list[str]
     out_dir: Path
     seconds: float
+    drive: DriveDescription | None = None
 
     def report(self) -> str:
         """Human-readable summary (what ``backlash run`` prints)."""
+        if self.drive is None:
+            head = "## Paper's Tables 1-4, re-run with the paper's identifier\n\n" + table_markdown(self.tables)
+        else:
+            d = self.drive
+            head = (
+                f"## Drive {d.name} (fingerprint {d.fingerprint[:12]})\n\n"
+                f"c groups {', '.join(f'{c:g}' for c in d.c_groups())} pu; widths "
+                f"{', '.join(f'{k * 1e3:g}' for k in d.k_grid())} mm; J1 {', '.join(f'{j:g}' for j in d.j1_grid())} "
+                "kg m^2. The paper's Tables 1-4 are the paper's plant's: not re-run on this drive.\n"
+            )
         return (
-            "## Paper's Tables 1-4, re-run with the paper's identifier\n\n"
-            + table_markdown(self.tables)
+            head
             + "\n## Accuracy on held-out data (per identifier and channel)\n\n"
             + accuracy_markdown(self.accuracy)
             + f"\n{len(self.pattern_set_ids)} pattern sets stored; outputs in {self.out_dir}/ ; {self.seconds:.0f} s\n"
@@ -67,17 +84,31 @@ def _step(i: int, n: int, text: str) -> None:
     logger.info("[%d/%d] %s", i, n, text)
 
 
-def train_and_store(store: PatternStore, grids: Mapping, kinds: Mapping[str, Mapping[str, Any]]) -> list[str]:
-    """Train and save one pattern set per kind x c group x channel, replacing older main-job sets."""
+def train_and_store(
+    store: PatternStore,
+    grids: Mapping,
+    kinds: Mapping[str, Mapping[str, Any]],
+    drive: DriveDescription | None = None,
+) -> list[str]:
+    """Train and save one pattern set per kind x c group x channel, replacing older main-job sets of the drive.
+
+    ``drive``: the drive the grids were simulated on (None: MODEL.md's reference plant); a set of another drive is
+    never replaced.
+    """
     ids = []
     total = len(kinds) * len(grids) * len(CHANNELS)
+    fingerprint = DriveDescription.fingerprint_of(None if drive is None else drive.provenance())
+    J1_values = None if drive is None else drive.j1_grid()
     for kind, params in kinds.items():
         for c, grid in grids.items():
             for ch in CHANNELS:
-                ps = train_pattern_set(ch, c, kind=kind, params=params, grid=grid)
+                if J1_values is None:
+                    ps = train_pattern_set(ch, c, kind=kind, params=params, grid=grid)
+                else:
+                    ps = train_pattern_set(ch, c, kind=kind, J1_values=J1_values, params=params, grid=grid, drive=drive)
                 ps.params["source"] = MAIN_JOB_SOURCE
                 for old in store.list(channel=ch, c=c, kind=kind):
-                    if old.params.get("source") == MAIN_JOB_SOURCE:
+                    if old.params.get("source") == MAIN_JOB_SOURCE and drive_fingerprint(old) == fingerprint:
                         store.delete(old.id)
                 saved = store.save(ps)
                 assert saved.id is not None  # the store assigns one on save
@@ -93,13 +124,17 @@ def run(
     kinds: Mapping[str, Mapping[str, Any]] | None = None,
     n_jobs: int | None = None,
     scheduler: str | None = None,
+    drive: DriveDescription | None = None,
 ) -> MainJobResult:
     """Run the main job; see the module docstring.
 
     The held-out evaluations run on Dask (:mod:`engine.distributed`): ``n_jobs`` local single-threaded
     workers (default one per core; 0 in this process), or the cluster of ``scheduler`` /
-    ``$BACKLASH_DASK_SCHEDULER``.
+    ``$BACKLASH_DASK_SCHEDULER``. ``drive``: a described drive (None, or the reference's description: MODEL.md's
+    reference plant, the paper's experiment).
     """
+    if drive is not None and drive.is_reference:
+        drive = None
     t0 = time.perf_counter()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -108,9 +143,21 @@ def run(
         if k not in IDENTIFIERS:
             raise ValueError(f"unknown identifier kind {k!r}; known: {', '.join(IDENTIFIERS)}")
     n_steps = 5
-    _step(1, n_steps, f"simulating the paper grid (4 c groups x 6 widths x 7 J1) and {n_random} held-out random cases")
-    grids = {c: simulate_batch(paper_grid(c)) for c in C_GROUPS}
-    random = random_cases(n_random)
+    if drive is None:
+        _step(
+            1, n_steps, f"simulating the paper grid (4 c groups x 6 widths x 7 J1) and {n_random} held-out random cases"
+        )
+        grids = {c: simulate_batch(paper_grid(c)) for c in C_GROUPS}
+    else:
+        groups, j1 = drive.c_groups(), drive.j1_grid()
+        _step(
+            1,
+            n_steps,
+            f"simulating drive {drive.name}'s grid ({len(groups)} c groups x 6 widths x {len(j1)} J1) and {n_random} "
+            "held-out random cases",
+        )
+        grids = {c: simulate_training_grid(c, j1, drive=drive) for c in groups}
+    random = random_cases(n_random, drive=drive)
 
     _step(
         2,
@@ -118,12 +165,14 @@ def run(
         f"training {len(kinds) * len(C_GROUPS) * len(CHANNELS)} pattern sets into {db_path or default_store_path()}",
     )
     store = PatternStore(db_path)
-    ids = train_and_store(store, grids, kinds)
+    ids = train_and_store(store, grids, kinds, drive)
 
-    _step(3, n_steps, "re-running the paper's Tables 1-4")
+    _step(
+        3, n_steps, "re-running the paper's Tables 1-4" + ("" if drive is None else ": the paper's plant only, skipped")
+    )
     tables = (
         rerun_tables(progress=lambda i, n: logger.info("  table case %d/%d", i, n), grids=grids)
-        if "paper" in kinds
+        if "paper" in kinds and drive is None
         else []
     )
 
@@ -144,8 +193,12 @@ def run(
         figures.plot_table_d_vectors(tables, out / "table_d_vectors.png")
     (out / "accuracy.md").write_text(accuracy_markdown(acc))
     _write_csv(out / "accuracy.csv", [{**asdict(r), "accuracy": r.accuracy} for r in acc])
-    figures.plot_channels_by_width(grids[1.0], J1_NOMINAL, out / "channels_by_width.png")
+    if drive is None:
+        figures.plot_channels_by_width(grids[1.0], J1_NOMINAL, out / "channels_by_width.png")
+    else:  # the c group nearest the drive's nominal c, at its nominal J1
+        nominal_c = min(grids, key=lambda c: abs(c - drive.c))
+        figures.plot_channels_by_width(grids[nominal_c], drive.J1, out / "channels_by_width.png")
     figures.plot_accuracy_vs_noise(acc, out / "accuracy_vs_noise.png")
-    result = MainJobResult(tables, acc, ids, out, time.perf_counter() - t0)
+    result = MainJobResult(tables, acc, ids, out, time.perf_counter() - t0, drive)
     (out / "report.md").write_text(result.report())
     return result

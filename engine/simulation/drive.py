@@ -385,6 +385,27 @@ class DriveDescription:
         return {"fingerprint": self.fingerprint, "description": self.to_dict()}
 
     @classmethod
+    def from_provenance(cls, provenance: Mapping[str, Any]) -> DriveDescription:
+        """The description a stored :meth:`provenance` holds (a record's, a run's), checked against its fingerprint.
+
+        Raises
+        ------
+        ParameterError
+            No description, one the engine refuses, or one that does not give the stated fingerprint (an
+            edited file); the message says which.
+        """
+        description = provenance.get("description") if isinstance(provenance, Mapping) else None
+        if not isinstance(description, Mapping):
+            raise ParameterError("the drive provenance holds no description (only its fingerprint)")
+        drive = cls.from_mapping(description)
+        if drive.fingerprint != cls.fingerprint_of(provenance):
+            raise ParameterError(
+                f"the drive description gives fingerprint {drive.fingerprint[:12]}, not the stated "
+                f"{str(provenance.get('fingerprint'))[:12]}: was it edited? Give the drive's own description"
+            )
+        return drive
+
+    @classmethod
     def from_mapping(cls, data: Mapping[str, Any]) -> DriveDescription:
         """A description from its sections (a parsed TOML or JSON document).
 

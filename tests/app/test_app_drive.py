@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 from pathlib import Path
@@ -152,8 +153,15 @@ def test_a_pattern_set_identifies_only_records_of_its_own_drive(
     capsys.readouterr()
     code = cli.main(["identify", str(ref_rec), "--channel", "v2", "--pattern-set", own["id"]])
     assert code == 2 and "trained for drive " + drive.fingerprint[:12] in capsys.readouterr().err
-    # the record states its drive: identifying it as the reference drive's is refused
+    # the record states its drive in full: without --drive it is identified on that drive, with its set
     code = cli.main(["identify", str(rec), "--channel", "v2", "--any-set"])
+    out, err = capsys.readouterr()
+    assert code == 0 and "identifying on the drive the record states" in err, err
+    assert json.loads(out)["pattern_set"] == own["id"] and json.loads(out)["drive"] == drive.fingerprint
+    # ... but a record that states only the fingerprint of another drive is refused for the reference drive
+    only = tmp_path / "fingerprint-only.json"
+    only.write_text(json.dumps({**json.loads(rec.read_text("utf-8")), "drive": {"fingerprint": drive.fingerprint}}))
+    code = cli.main(["identify", str(only), "--channel", "v2", "--any-set"])
     assert code == 2 and "give the record's own drive description with --drive" in capsys.readouterr().err
     # the automatic choice for the reference drive never picks the drive's set
     code = cli.main(["identify", str(ref_rec), "--channel", "v2", "--any-set"])
@@ -171,7 +179,8 @@ def test_a_pattern_set_identifies_only_records_of_its_own_drive(
 def test_diagnosis_runs_on_the_request_drive_and_keeps_it(
     client: httpx.Client, example: dict[str, Any], sim_record: dict[str, Any]
 ) -> None:
-    """A described drive's record is diagnosed on that drive; one that states another drive is refused."""
+    """A described drive's record is diagnosed on that drive, given in the request or, in full, by the record; one
+    that states another drive, only its fingerprint, or an edited description is refused."""
     drive = load_drive(EXAMPLE)
     rec = client.post("/v1/simulate", json={"K": 0.004, "drive": example, "sample_interval": 1e-4}).json()
     record = {k: rec[k] for k in ("sample_interval", "event_index", "channels")}
@@ -190,13 +199,26 @@ def test_diagnosis_runs_on_the_request_drive_and_keeps_it(
     stated = {**reference, "drive": {"fingerprint": drive.fingerprint}}
     r = client.post("/v1/diagnose", json={"record": stated})
     assert r.status_code == 422 and "the record was made on drive" in r.json()["detail"]
+    # a record that states its drive in full is diagnosed on it without a drive in the request
+    r = client.post("/v1/diagnose", json={"record": {**record, "drive": rec["drive"]}, "effects": ["load_inertia"]})
+    assert r.status_code == 200, r.text
+    assert r.json()["drive"]["fingerprint"] == drive.fingerprint
+    assert r.json()["width"]["K"] == pytest.approx(answer["width"]["K"], rel=1e-9)
+    # ... but not when its description no longer gives its fingerprint
+    edited = {**rec["drive"], "description": {**rec["drive"]["description"], "name": "x", "mechanics": {"J2": 9.0}}}
+    r = client.post("/v1/diagnose", json={"record": {**record, "drive": edited}, "effects": ["load_inertia"]})
+    assert r.status_code == 422 and "was it edited?" in r.json()["detail"], r.text
 
 
 def test_identify_over_http_compares_the_record_drive(client: httpx.Client, example: dict[str, Any]) -> None:
     rec = client.post("/v1/simulate", json={"K": 0.004, "drive": example}).json()
     body = {k: rec[k] for k in ("sample_interval", "event_index", "channels", "conditions", "drive")}
-    r = client.post("/v1/identify", json={"record": body, "channel": "v2"})
+    only = {**body, "drive": {"fingerprint": rec["drive"]["fingerprint"]}}  # a fingerprint, not the description
+    r = client.post("/v1/identify", json={"record": only, "channel": "v2"})
     assert r.status_code == 422 and "give the record's own drive description (drive)" in r.json()["detail"]
+    # the description in full: read on its own drive (whose pattern sets this service may not hold)
+    r = client.post("/v1/identify", json={"record": body, "channel": "v2"})
+    assert r.status_code == 404 and f"drive {rec['drive']['fingerprint'][:12]}" in r.json()["detail"], r.text
     # a speed in pu would be read with MODEL.md's base speed, not this drive's
     in_pu = {**body, "channels": {"omega1": body["channels"]["omega1"]}, "units": {"omega1": "pu"}}
     r = client.post("/v1/identify", json={"record": in_pu, "channel": "omega1", "drive": example})
@@ -219,8 +241,11 @@ def test_cli_diagnose_and_batch_on_a_described_drive(tmp_path: Path, capsys: pyt
     assert answer["drive"]["fingerprint"] == load_drive(EXAMPLE).fingerprint
     assert answer["verdict"]["status"] == "no_gap"
     assert answer["width"]["interval_95"][0] <= 0.005 <= answer["width"]["interval_95"][1]
-    assert cli.main(["diagnose", str(rec)]) == 2  # the record states its drive: not the reference plant's
-    assert "give the record's own drive description with --drive" in capsys.readouterr().err
+    # without --drive, the record's own description (a simulated record states it in full)
+    assert cli.main(["diagnose", str(rec), "--effects", "load_inertia", "--out", str(tmp_path / "own.json")]) == 0
+    assert "diagnosing on the drive the record states" in capsys.readouterr().err
+    own = json.loads((tmp_path / "own.json").read_text("utf-8"))
+    assert own["drive"] == answer["drive"] and own["width"]["K"] == pytest.approx(answer["width"]["K"], rel=1e-9)
     # the batch: diagnosed on the drive with --drive; refused in the summary without it
     assert (
         cli.main(
@@ -231,9 +256,25 @@ def test_cli_diagnose_and_batch_on_a_described_drive(tmp_path: Path, capsys: pyt
     batch = json.loads((tmp_path / "a" / "conveyor.json").read_text("utf-8"))
     assert batch["drive"]["fingerprint"] == answer["drive"]["fingerprint"]
     assert batch["verdict"]["status"] == "no_gap"
-    assert cli.main(["diagnose-batch", str(records), "--out", str(tmp_path / "b"), "--workers", "0"]) == 0
-    summary = (tmp_path / "b" / "summary.csv").read_text("utf-8")
-    assert "refused" in summary and "the record was made on drive" in summary
+    # without --drive: each record on the drive it states in full; one stating only the fingerprint of a drive,
+    # or a description that does not give its fingerprint, is refused in the summary
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    data = json.loads(rec.read_text("utf-8"))
+    (mixed / "conveyor.json").write_text(json.dumps(data))
+    (mixed / "fingerprint-only.json").write_text(
+        json.dumps({**data, "drive": {"fingerprint": data["drive"]["fingerprint"]}})
+    )
+    description = {**data["drive"]["description"], "mechanics": {"J2": 9.0}}
+    (mixed / "edited.json").write_text(json.dumps({**data, "drive": {**data["drive"], "description": description}}))
+    assert cli.main(["diagnose-batch", str(mixed), "--out", str(tmp_path / "b"), "--workers", "0"]) == 0
+    rows = {r["record"]: r for r in csv.DictReader((tmp_path / "b" / "summary.csv").open(encoding="utf-8"))}
+    assert rows["conveyor"]["status"] == batch["verdict"]["status"]
+    own_batch = json.loads((tmp_path / "b" / "conveyor.json").read_text("utf-8"))
+    assert own_batch["drive"] == batch["drive"] and own_batch["width"] == batch["width"]
+    assert rows["fingerprint-only"]["status"] == "refused"
+    assert "the record was made on drive" in rows["fingerprint-only"]["detail"]
+    assert rows["edited"]["status"] == "refused" and "was it edited?" in rows["edited"]["detail"]
 
 
 def test_training_over_http_refuses_a_bad_description_before_queueing(client: httpx.Client) -> None:

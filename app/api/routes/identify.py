@@ -108,7 +108,9 @@ async def identify(
             return await _keep(store, answer, other.record.asset, other.record.measured_at, None)
         body = await json_body(request, IdentifyCreate)
         asset, measured_at = body.record.asset, body.record.measured_at
-        drive = await run_in_threadpool(simulation.drive_of, body.drive)
+        stated = None if body.record.drive is None else body.record.drive.model_dump()
+        # the request's drive, else the one the record states in full (ParameterError / IncompatibleError: 422)
+        drive = await run_in_threadpool(identification.drive_for_record, simulation.drive_of(body.drive), stated)
         args = (
             await run_in_threadpool(body.record.to_record),
             body.channel,
