@@ -39,7 +39,17 @@ system-deps:
 # latency or a timing (marked serial), which the other worker's load would make flaky
 TEST_WORKERS ?= 2
 
-test: lint docs system-deps
+# numba compiles the simulation kernels once (python -m engine.warm_up: about 3 min of one core from a fresh
+# clone), beside the linters, the docs build and the system set-up, which leave the other core idle; the test
+# workers then load them from the cache instead of each compiling them (docs/development.md)
+WARM_LOG := out/warm-up.log
+
+test: $(STAMP)
+	@mkdir -p out
+	@$(BIN)/python -m engine.warm_up > $(WARM_LOG) 2>&1 & warm=$$!; \
+	$(MAKE) --no-print-directory lint docs system-deps; status=$$?; \
+	if wait $$warm; then cat $(WARM_LOG); else echo "compiling the kernels failed:" >&2; cat $(WARM_LOG) >&2; status=1; fi; \
+	exit $$status
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "not slow and not serial"
 	$(BIN)/python -m pytest -q -m "serial and not slow"
 

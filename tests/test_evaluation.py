@@ -44,28 +44,26 @@ def test_evaluate_scores_held_out_records_only():
         assert by_split[split].correct >= 23, split
 
 
-def test_main_job_writes_tables_and_figures(tmp_path):
-    result = run(tmp_path / "out", db_path=tmp_path / "p.sqlite3", n_random=12, kinds={"template": {}}, n_jobs=0)
-    for name in ("accuracy.md", "accuracy.csv", "channels_by_width.png", "accuracy_vs_noise.png", "report.md"):
-        assert (tmp_path / "out" / name).stat().st_size > 0
-    store = PatternStore(tmp_path / "p.sqlite3")
-    assert len(store) == 4 * 5
-    # a second run replaces the main job's sets instead of piling them up
-    run(tmp_path / "out", db_path=tmp_path / "p.sqlite3", n_random=12, kinds={"template": {}}, n_jobs=0)
-    assert len(store) == 4 * 5
-    assert "leave-one-J1-out" in result.report()
-
-
-def test_main_job_pattern_sets_load_back_for_every_kind(tmp_path):
+def test_main_job_writes_tables_and_figures_and_its_sets_load_back(tmp_path):
+    """One main job of both kinds (its outputs, its sets for every kind loaded back), then a second of one kind,
+    which replaces that kind's main-job sets instead of piling them up and keeps the other's."""
     from engine.identification.training import identifier_from_pattern_set
 
-    run(tmp_path / "out", db_path=tmp_path / "p.sqlite3", n_random=6, kinds={"template": {}, "paper": {}}, n_jobs=0)
+    kinds = {"template": {}, "paper": {}}
+    result = run(tmp_path / "out", db_path=tmp_path / "p.sqlite3", n_random=6, kinds=kinds, n_jobs=0)
+    for name in ("accuracy.md", "accuracy.csv", "channels_by_width.png", "accuracy_vs_noise.png", "report.md"):
+        assert (tmp_path / "out" / name).stat().st_size > 0
+    assert "leave-one-J1-out" in result.report() and result.tables
     store = PatternStore(tmp_path / "p.sqlite3")
+    assert len(store) == 2 * 4 * 5
     rec = simulate_batch(paper_grid(1.0, (0.85,), (0.005,))).channel("v2")[0]
-    for kind in ("template", "paper"):
+    for kind in kinds:
         ps = nearest_pattern_set(store, "v2", 1.0, kind=kind)
         assert ps.params["source"] == "main-job"
         assert identifier_from_pattern_set(ps).identify(rec).D.shape == (6,)
+    before = {s.id for s in store.list(kind="paper")}
+    run(tmp_path / "out", db_path=tmp_path / "p.sqlite3", n_random=6, kinds={"template": {}}, n_jobs=0)
+    assert len(store) == 2 * 4 * 5 and {s.id for s in store.list(kind="paper")} == before
 
 
 def test_random_cases_of_the_reference_drive_are_the_reference_draws():
