@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -73,17 +74,36 @@ def inprocess(tmp_path: Path, gated: GatedTraining) -> Iterator[InProcessServer]
         yield server
 
 
+#: Set by ``make test`` (test_container.PREBUILD_ENV): the file through which the parallel session hands the image
+#: it built to the serial session.
+PREBUILD_ENV = "BACKLASH_IMAGE_PREBUILD"
+#: Whether this process builds the image for the next session (see :func:`pytest_collection_modifyitems`).
+_PREBUILDING: list[Any] = []
+
+
 @pytest.hookimpl(trylast=True)  # after -m/-k have deselected: no build when the container's tests will not run
 def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Run the container's tests last and start building its image now, in the background, so that the build
-    (downloads, installs) overlaps the rest of the session instead of adding to it."""
-    boxed = [item for item in items if item.path.name == "test_container.py"]
-    if not boxed or config.option.collectonly:
+    """Run the container's tests last. Under ``make test`` ($BACKLASH_IMAGE_PREBUILD set), the session that does not
+    run them (the parallel one: no latency is measured there) builds their image meanwhile, in one worker, and the
+    serial session takes it; otherwise the image is built when the container's tests start, after the latency
+    tests, which a build beside them (both cores) would make fail."""
+    if config.option.collectonly:
         return
-    items[:] = [item for item in items if item.path.name != "test_container.py"] + boxed
-    module = getattr(boxed[0], "module", None)
-    if module is not None and hasattr(module, "start_build"):
+    boxed = [item for item in items if item.path.name == "test_container.py"]
+    if boxed:
+        items[:] = [item for item in items if item.path.name != "test_container.py"] + boxed
+        return
+    module = sys.modules.get("test_container")
+    first_worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0") == "gw0"
+    if os.environ.get(PREBUILD_ENV) and first_worker and module is not None and hasattr(module, "start_build"):
         module.start_build()
+        _PREBUILDING.append(module)
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """The worker that builds the image waits for the build and says how it went (for the serial session)."""
+    for module in _PREBUILDING:
+        module.finish_prebuild(Path(os.environ[PREBUILD_ENV]))
 
 
 @pytest.fixture

@@ -251,8 +251,12 @@ class ImageBuild:
         return self
 
 
-#: The build started while the other tests run (:func:`start_build`), if any.
+#: The build started while other tests run (:func:`start_build`), if any.
 EARLY_BUILD: ImageBuild | None = None
+#: The file through which a build made by an earlier session reaches this one (``make test`` sets it: the parallel
+#: session builds the image while its tests run, the serial session, whose tests measure latencies and must not
+#: share the machine with a build, runs it).
+PREBUILD_ENV = "BACKLASH_IMAGE_PREBUILD"
 
 
 def _new_build() -> ImageBuild:
@@ -262,8 +266,8 @@ def _new_build() -> ImageBuild:
 
 
 def start_build() -> None:
-    """Start building the image in a background thread (the conftest does so when the session will run this
-    module, and runs the module last): the build's downloads and installs overlap the other tests."""
+    """Start building the image in a background thread: its downloads, installs and kernel compilation overlap
+    the tests that run meanwhile (the conftest does so in the session before the one that runs this module)."""
     global EARLY_BUILD
     if EARLY_BUILD is None:
         EARLY_BUILD = _new_build()
@@ -271,11 +275,33 @@ def start_build() -> None:
         EARLY_BUILD.thread.start()
 
 
+def finish_prebuild(status: Path) -> None:
+    """Wait for the build :func:`start_build` began and write how it went to ``status`` (JSON), for the next session."""
+    if EARLY_BUILD is None:
+        return
+    if EARLY_BUILD.thread is not None:
+        EARLY_BUILD.thread.join()
+    fields = ("image", "base", "seconds", "returncode", "skip")
+    status.write_text(json.dumps({"log": str(EARLY_BUILD.log), **{k: getattr(EARLY_BUILD, k) for k in fields}}))
+
+
+def prebuilt() -> ImageBuild | None:
+    """The build an earlier session made (``$BACKLASH_IMAGE_PREBUILD``), if it ran and its image is still there."""
+    path = os.environ.get(PREBUILD_ENV)
+    if not path or not Path(path).is_file():
+        return None
+    done = json.loads(Path(path).read_text())
+    build = ImageBuild(**{**done, "log": Path(done["log"])})
+    if build.returncode == 0 and docker("image", "inspect", build.image, check=False).returncode != 0:
+        return None  # removed since: build anew
+    return build
+
+
 @pytest.fixture(scope="module")
 def container() -> Iterator[Container]:
     """The image built from this tree and run with a fresh volume, healthy; everything but the base removed after."""
-    build = EARLY_BUILD
-    if build is None:
+    build = EARLY_BUILD or prebuilt()
+    if build is None:  # built now, after the latency tests of the session (see the conftest)
         build = _new_build()
         build.run()
     build.result()
