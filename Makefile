@@ -43,9 +43,6 @@ TEST_WORKERS ?= 2
 # clone), beside the linters, the docs build and the system set-up, which leave the other core idle; the test
 # workers then load them from the cache instead of each compiling them (docs/development.md)
 WARM_LOG := out/warm-up.log
-# the container's image is built during the parallel run (one worker starts it; tests/app/conftest.py) and
-# handed to the serial run through this file: a build beside the serial run's latency tests would fail them
-IMAGE_PREBUILD := $(CURDIR)/out/image-build.json
 
 test: $(STAMP)
 	@mkdir -p out
@@ -53,9 +50,8 @@ test: $(STAMP)
 	$(MAKE) --no-print-directory lint docs system-deps; status=$$?; \
 	if wait $$warm; then cat $(WARM_LOG); else echo "compiling the kernels failed:" >&2; cat $(WARM_LOG) >&2; status=1; fi; \
 	exit $$status
-	@rm -f $(IMAGE_PREBUILD)
-	BACKLASH_IMAGE_PREBUILD=$(IMAGE_PREBUILD) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "not slow and not serial"
-	BACKLASH_IMAGE_PREBUILD=$(IMAGE_PREBUILD) $(BIN)/python -m pytest -q -m "serial and not slow"
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "not slow and not serial"
+	$(BIN)/python -m pytest -q -m "serial and not slow"
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m slow

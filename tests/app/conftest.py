@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -74,36 +73,13 @@ def inprocess(tmp_path: Path, gated: GatedTraining) -> Iterator[InProcessServer]
         yield server
 
 
-#: Set by ``make test`` (test_container.PREBUILD_ENV): the file through which the parallel session hands the image
-#: it built to the serial session.
-PREBUILD_ENV = "BACKLASH_IMAGE_PREBUILD"
-#: Whether this process builds the image for the next session (see :func:`pytest_collection_modifyitems`).
-_PREBUILDING: list[Any] = []
-
-
-@pytest.hookimpl(trylast=True)  # after -m/-k have deselected: no build when the container's tests will not run
+@pytest.hookimpl(trylast=True)  # after -m/-k have deselected
 def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Run the container's tests last. Under ``make test`` ($BACKLASH_IMAGE_PREBUILD set), the session that does not
-    run them (the parallel one: no latency is measured there) builds their image meanwhile, in one worker, and the
-    serial session takes it; otherwise the image is built when the container's tests start, after the latency
-    tests, which a build beside them (both cores) would make fail."""
-    if config.option.collectonly:
-        return
+    """Run the container's tests last: their image is built when they start, after the session's latency tests,
+    which a build beside them (both cores, about 3 min of numba compilation inside the image) made fail."""
     boxed = [item for item in items if item.path.name == "test_container.py"]
-    if boxed:
+    if boxed and not config.option.collectonly:
         items[:] = [item for item in items if item.path.name != "test_container.py"] + boxed
-        return
-    module = sys.modules.get("test_container")
-    first_worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0") == "gw0"
-    if os.environ.get(PREBUILD_ENV) and first_worker and module is not None and hasattr(module, "start_build"):
-        module.start_build()
-        _PREBUILDING.append(module)
-
-
-def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
-    """The worker that builds the image waits for the build and says how it went (for the serial session)."""
-    for module in _PREBUILDING:
-        module.finish_prebuild(Path(os.environ[PREBUILD_ENV]))
 
 
 @pytest.fixture

@@ -25,7 +25,6 @@ import re
 import shutil
 import subprocess
 import tempfile
-import threading
 import time
 import uuid
 from collections.abc import Iterator
@@ -210,7 +209,7 @@ class Container:
 
 @dataclass
 class ImageBuild:
-    """One ``docker build`` of this tree, run in a background thread (:func:`start_build`) or in place."""
+    """One ``docker build`` of this tree."""
 
     image: str
     log: Path
@@ -218,7 +217,6 @@ class ImageBuild:
     seconds: float = 0.0
     returncode: int | None = None
     skip: str | None = None
-    thread: threading.Thread | None = None
 
     def run(self) -> None:
         if problem := engine_problem():
@@ -241,22 +239,12 @@ class ImageBuild:
         self.returncode, self.seconds = built.returncode, time.monotonic() - started
 
     def result(self) -> ImageBuild:
-        """Wait for a background build; skip or fail the module as it went."""
-        if self.thread is not None:
-            self.thread.join()
+        """Skip or fail the module as the build went."""
         if self.skip is not None:
             pytest.skip(self.skip)
         if self.returncode != 0:
             pytest.fail(f"docker build on {self.base} failed:\n{self.log.read_text(errors='replace')[-5000:]}")
         return self
-
-
-#: The build started while other tests run (:func:`start_build`), if any.
-EARLY_BUILD: ImageBuild | None = None
-#: The file through which a build made by an earlier session reaches this one (``make test`` sets it: the parallel
-#: session builds the image while its tests run, the serial session, whose tests measure latencies and must not
-#: share the machine with a build, runs it).
-PREBUILD_ENV = "BACKLASH_IMAGE_PREBUILD"
 
 
 def _new_build() -> ImageBuild:
@@ -265,45 +253,11 @@ def _new_build() -> ImageBuild:
     )
 
 
-def start_build() -> None:
-    """Start building the image in a background thread: its downloads, installs and kernel compilation overlap
-    the tests that run meanwhile (the conftest does so in the session before the one that runs this module)."""
-    global EARLY_BUILD
-    if EARLY_BUILD is None:
-        EARLY_BUILD = _new_build()
-        EARLY_BUILD.thread = threading.Thread(target=EARLY_BUILD.run, name="docker-build", daemon=True)
-        EARLY_BUILD.thread.start()
-
-
-def finish_prebuild(status: Path) -> None:
-    """Wait for the build :func:`start_build` began and write how it went to ``status`` (JSON), for the next session."""
-    if EARLY_BUILD is None:
-        return
-    if EARLY_BUILD.thread is not None:
-        EARLY_BUILD.thread.join()
-    fields = ("image", "base", "seconds", "returncode", "skip")
-    status.write_text(json.dumps({"log": str(EARLY_BUILD.log), **{k: getattr(EARLY_BUILD, k) for k in fields}}))
-
-
-def prebuilt() -> ImageBuild | None:
-    """The build an earlier session made (``$BACKLASH_IMAGE_PREBUILD``), if it ran and its image is still there."""
-    path = os.environ.get(PREBUILD_ENV)
-    if not path or not Path(path).is_file():
-        return None
-    done = json.loads(Path(path).read_text())
-    build = ImageBuild(**{**done, "log": Path(done["log"])})
-    if build.returncode == 0 and docker("image", "inspect", build.image, check=False).returncode != 0:
-        return None  # removed since: build anew
-    return build
-
-
 @pytest.fixture(scope="module")
 def container() -> Iterator[Container]:
     """The image built from this tree and run with a fresh volume, healthy; everything but the base removed after."""
-    build = EARLY_BUILD or prebuilt()
-    if build is None:  # built now, after the latency tests of the session (see the conftest)
-        build = _new_build()
-        build.run()
+    build = _new_build()  # built now, after the session's latency tests (see the conftest)
+    build.run()
     build.result()
     assert build.base is not None
     image = build.image
