@@ -240,7 +240,7 @@ def clutch_deflection(t, y, P, motor_on):
     return d
 
 
-@njit(cache=True, fastmath=False, **_NO_NRT, inline="always")
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def contact_push(d, dw, P, ext):
     """The clutch's contact torque before its clip, k12 x + d12 dw [pu], at a deflection d outside the zone.
 
@@ -441,13 +441,14 @@ def rhs(t, y, P, motor_on):
     return dy, (ch0, m_el, ch2, ch3, ch4)
 
 
-#: :func:`rhs` compiled to be inlined (numba IR) into :func:`rk4_step`, its one hot caller: the
-#: four evaluations of a step then optimise as one body (the same floating-point operations).
-#: Other callers use :func:`rhs`, so the kernel compiles in seconds, not minutes.
-_rhs_inlined = njit(cache=True, fastmath=False, **_NO_NRT, inline="always")(rhs.py_func)
+#: :func:`rhs` on a second dispatcher, called by :func:`rk4_step`, its one hot caller. It was inlined
+#: (numba IR, ``inline="always"``) with five more helpers; since model 1.3 that made the serial kernel
+#: compile for 180 s from a cold cache, against 15 s as plain calls, which LLVM optimises as fast
+#: (bench/bench_kernel_revision.py against 084a806: every record bit for bit; docs/diagnosis.md).
+_rhs_rk4 = njit(cache=True, fastmath=False, **_NO_NRT)(rhs.py_func)
 
 
-@njit(cache=True, fastmath=False, **_NO_NRT, inline="always")
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def _axpy(y, a, k):
     """The state y + a k, element by element (tuples of N_STATES floats)."""
     return (
@@ -469,7 +470,7 @@ def _axpy(y, a, k):
     )
 
 
-@njit(cache=True, fastmath=False, **_NO_NRT, inline="always")
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def _rk4_sum(y, h6, k1, k2, k3, k4):
     """RK4's new state y + h/6 (k1 + 2 k2 + 2 k3 + k4), element by element, evaluated left to right."""
     return (
@@ -491,7 +492,7 @@ def _rk4_sum(y, h6, k1, k2, k3, k4):
     )
 
 
-@njit(cache=True, fastmath=False, **_NO_NRT, inline="always")
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def rk4_step(t, y, h, P, motor_on):
     """One classical Runge-Kutta step of size h [s] from (t, y); returns the new state (a tuple).
 
@@ -499,10 +500,10 @@ def rk4_step(t, y, h, P, motor_on):
     """
     hh = 0.5 * h  # the operations of y + 0.5 * h * k, evaluated left to right
     t_half = t + hh
-    k1 = _rhs_inlined(t, y, P, motor_on)[0]
-    k2 = _rhs_inlined(t_half, _axpy(y, hh, k1), P, motor_on)[0]
-    k3 = _rhs_inlined(t_half, _axpy(y, hh, k2), P, motor_on)[0]
-    k4 = _rhs_inlined(t + h, _axpy(y, h, k3), P, motor_on)[0]
+    k1 = _rhs_rk4(t, y, P, motor_on)[0]
+    k2 = _rhs_rk4(t_half, _axpy(y, hh, k1), P, motor_on)[0]
+    k3 = _rhs_rk4(t_half, _axpy(y, hh, k2), P, motor_on)[0]
+    k4 = _rhs_rk4(t + h, _axpy(y, h, k3), P, motor_on)[0]
     return _rk4_sum(y, h / 6.0, k1, k2, k3, k4)
 
 
@@ -526,7 +527,7 @@ def zone(t, y, P, motor_on):
     return -1 if contact_push(d, dw, P, ext) < 0.0 else -2
 
 
-_zone_inlined = njit(cache=True, fastmath=False, **_NO_NRT, inline="always")(zone.py_func)
+_zone_step = njit(cache=True, fastmath=False, **_NO_NRT)(zone.py_func)
 
 
 @njit(cache=True, fastmath=False, **_NO_NRT)
@@ -539,7 +540,7 @@ def hybrid_step(t, y, h, P, motor_on, z0):
     smooth right-hand side and keeps its order.
 
     The whole step, the bisection's trial steps and the step to the crossing are one loop with
-    one RK4 call, so that :func:`rk4_step` is inlined once.
+    one RK4 call.
 
     Parameters
     ----------
@@ -564,7 +565,7 @@ def hybrid_step(t, y, h, P, motor_on, z0):
     stage = 0  # 0: the whole step; 1: bisecting the zone change; 2: the step to it
     while True:
         out = rk4_step(t, y, h_try, P, motor_on)
-        z1 = _zone_inlined(t + h_try, out, P, motor_on)
+        z1 = _zone_step(t + h_try, out, P, motor_on)
         if stage == 0:
             if z1 == z0:
                 return out, h, False, z1
