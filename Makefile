@@ -39,8 +39,8 @@ system-deps:
 # latency or a timing (marked serial), which the other worker's load would make flaky
 TEST_WORKERS ?= 2
 
-# numba compiles the simulation kernels once (python -m engine.warm_up: about 3 min of one core from a fresh
-# clone), beside the linters, the docs build and the system set-up, which leave the other core idle; the test
+# numba compiles the simulation kernels once (python -m engine.warm_up: about 20 s of one core from a fresh
+# clone, 3 min before 2c80424), beside the linters, the docs build and the system set-up, which leave the other core idle; the test
 # workers then load them from the cache instead of each compiling them (docs/development.md)
 WARM_LOG := out/warm-up.log
 

@@ -2,8 +2,8 @@
 
 numba compiles a kernel the first time a process calls it and keeps the machine code beside its source
 (``cache=True``), where every later process loads it in well under a second. From a fresh checkout the
-backlash drive's serial kernel takes about three minutes of one core to compile (2 cores, 2026-11-29); two
-processes that start cold both compile it. ``make test`` therefore runs this module once, beside the linters
+backlash drive's serial kernel takes about 15 s of one core to compile (three minutes until its helpers stopped
+being inlined, 2026-11-29); two processes that start cold both compile it. ``make test`` therefore runs this module once, beside the linters
 and the documentation build, before the test workers start. The container image runs the same steps in its
 build (``Dockerfile``), so that its first request is fast.
 

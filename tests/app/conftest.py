@@ -76,7 +76,7 @@ def inprocess(tmp_path: Path, gated: GatedTraining) -> Iterator[InProcessServer]
 @pytest.hookimpl(trylast=True)  # after -m/-k have deselected
 def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config, items: list[pytest.Item]) -> None:
     """Run the container's tests last: their image is built when they start, after the session's latency tests,
-    which a build beside them (both cores, about 3 min of numba compilation inside the image) made fail."""
+    which a build beside them (both cores) made fail."""
     boxed = [item for item in items if item.path.name == "test_container.py"]
     if boxed and not config.option.collectonly:
         items[:] = [item for item in items if item.path.name != "test_container.py"] + boxed
