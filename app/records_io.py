@@ -512,12 +512,6 @@ def stated_provenance(path: str | Path) -> dict[str, Any] | None:
     return None
 
 
-def stated_drive(path: str | Path) -> str | None:
-    """The fingerprint of the drive a JSON record file states it was made on, or None (:func:`stated_provenance`)."""
-    stated = stated_provenance(path)
-    return None if stated is None else str(stated["fingerprint"])
-
-
 def write_record(record: Record, path: str | Path, with_time: bool = False) -> None:
     """Write a record file, JSON or CSV by the extension.
 

@@ -16,29 +16,6 @@ from engine.simulation import CATALOGUE, EffectLibrary
 from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 
 
-def check_drive(drive: DriveDescription | None, record_drive: str | None = None) -> None:
-    """Whether the diagnosis can run for ``drive``: the record must state no drive, or this one.
-
-    The diagnosis calibrates on the drive's own nominal plant, search box and envelopes (issue 52); a record
-    made on another drive is refused rather than diagnosed on the wrong plant.
-
-    Parameters
-    ----------
-    drive : DriveDescription or None
-        The request's drive (None: the reference plant).
-    record_drive : str or None
-        The fingerprint of the drive the record states it was made on, if any.
-
-    Raises
-    ------
-    IncompatibleError
-        The record states another drive (:func:`app.services.identification.check_record_drive`).
-    """
-    from app.services.identification import check_record_drive
-
-    check_record_drive(record_drive, drive)
-
-
 def run(
     record: Record,
     effects: Sequence[str] | None = None,

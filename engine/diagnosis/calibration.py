@@ -451,7 +451,7 @@ def _calibrate(
         starts: list[tuple[np.ndarray, str]] = []
         if settings.n_global > 0:
             m = 1 << max(3, math.ceil(math.log2(settings.n_global)))
-            U = _sobol(d, scramble=True, seed=settings.seed).random(m)
+            U = sobol(d, scramble=True, seed=settings.seed).random(m)
             C = obj.chi2(U, horizons[:1], coarse)[:, 0]
             picked = _pick_starts(U, C, max(settings.n_starts, settings.n_screen), settings.min_separation)
             if len(picked) > settings.n_starts:  # screen: a short refinement on the first horizon each
@@ -606,8 +606,10 @@ def _uncertainties(space: ModelSpace, u: np.ndarray, J: np.ndarray, chi2: float,
     return out
 
 
-def _sobol(d: int, *, scramble: bool, seed: int | None) -> Any:
-    """scipy's scrambled Sobol sequence (scipy.stats, imported here: it adds about 1.5 s to a process start)."""
+def sobol(d: int, *, scramble: bool, seed: int | None) -> Any:
+    """scipy's Sobol sequence in ``d`` dimensions (``scipy.stats.qmc.Sobol``), for the calibration's global starts and
+    the plausibility envelopes (scipy.stats is imported here, not at the top: it adds about 1.5 s to a process
+    start)."""
     from scipy.stats import qmc
 
     return qmc.Sobol(d, scramble=scramble, seed=seed)

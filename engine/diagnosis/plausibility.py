@@ -69,7 +69,7 @@ from typing import Any, Final
 import numpy as np
 
 from engine.constants import CHANNELS, MAX_SAMPLE_INTERVAL, MIN_SAMPLE_INTERVAL, SAMPLE_INTERVAL
-from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings
+from engine.diagnosis.calibration import CalibrationResult, CalibrationSettings, sobol
 from engine.diagnosis.space import default_space, drive_bounds
 from engine.records import GridError, Record, SampleGrid
 from engine.records.units import UNITS, UnitError, factor
@@ -242,10 +242,10 @@ def _box_records(drive: DriveDescription = REFERENCE_DRIVE) -> np.ndarray:
     lo = np.array([box[n][0] for n in names])
     hi = np.array([box[n][1] for n in names])
     corners = np.array(list(itertools.product((0.0, 1.0), repeat=len(names))))
-    sobol = _sobol(len(names), scramble=True, seed=0).random(ENVELOPE_POINTS)
+    inside = sobol(len(names), scramble=True, seed=0).random(ENVELOPE_POINTS)
     cases = [
         Case(drive.plant(**{n: float(v) for n, v in zip(names, lo + u * (hi - lo), strict=True)}))
-        for u in np.vstack([corners, sobol])
+        for u in np.vstack([corners, inside])
     ]
     solver = drive.solver(CalibrationSettings().search_step)
     channels, _, status = run_cases(cases, solver, drive.grid())
@@ -629,7 +629,7 @@ def time_scale_evidence(
     space = default_space(window, drive=calibration.drive)
     cases = [space.base] if calibration.case is None else [calibration.case, space.base]
     if space.dim:
-        cases += [space.case(u) for u in _sobol(space.dim, scramble=True, seed=0).random(TIME_POINTS)]
+        cases += [space.case(u) for u in sobol(space.dim, scramble=True, seed=0).random(TIME_POINTS)]
     settings = CalibrationSettings()
     solver = space.solver(settings.search_step)
     horizon = settings.horizons_ms[0] * 1e-3
@@ -747,10 +747,3 @@ def check_calibration(record: Record, calibration: CalibrationResult) -> list[Pl
     for w in out:
         logger.info("plausibility: %s", w.message)
     return out
-
-
-def _sobol(d: int, *, scramble: bool, seed: int | None) -> Any:
-    """scipy's scrambled Sobol sequence (scipy.stats, imported here: it adds about 1.5 s to a process start)."""
-    from scipy.stats import qmc
-
-    return qmc.Sobol(d, scramble=scramble, seed=seed)

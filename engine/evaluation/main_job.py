@@ -23,14 +23,14 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from engine.constants import C_GROUPS, CHANNELS, J1_NOMINAL
+from engine.constants import C_GROUPS, CHANNELS, J1_GRID, J1_NOMINAL
 from engine.evaluation import figures
 from engine.evaluation.accuracy import AccuracyRow, accuracy_markdown, evaluate, random_cases
 from engine.evaluation.paper_tables import TableRow, rerun_tables, table_csv_rows, table_markdown
 from engine.identification.selection import drive_fingerprint
 from engine.identification.training import IDENTIFIERS, simulate_training_grid, train_pattern_set
 from engine.simulation import paper_grid, simulate_batch
-from engine.simulation.drive import DriveDescription
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 from engine.storage import PatternStore, default_store_path
 
 logger = logging.getLogger(__name__)
@@ -97,15 +97,12 @@ def train_and_store(
     """
     ids = []
     total = len(kinds) * len(grids) * len(CHANNELS)
-    fingerprint = DriveDescription.fingerprint_of(None if drive is None else drive.provenance())
-    J1_values = None if drive is None else drive.j1_grid()
+    fingerprint = (drive or REFERENCE_DRIVE).fingerprint
+    J1_values = J1_GRID if drive is None else drive.j1_grid()
     for kind, params in kinds.items():
         for c, grid in grids.items():
             for ch in CHANNELS:
-                if J1_values is None:
-                    ps = train_pattern_set(ch, c, kind=kind, params=params, grid=grid)
-                else:
-                    ps = train_pattern_set(ch, c, kind=kind, J1_values=J1_values, params=params, grid=grid, drive=drive)
+                ps = train_pattern_set(ch, c, kind=kind, J1_values=J1_values, params=params, grid=grid, drive=drive)
                 ps.params["source"] = MAIN_JOB_SOURCE
                 for old in store.list(channel=ch, c=c, kind=kind):
                     if old.params.get("source") == MAIN_JOB_SOURCE and drive_fingerprint(old) == fingerprint:
@@ -162,7 +159,7 @@ def run(
     _step(
         2,
         n_steps,
-        f"training {len(kinds) * len(C_GROUPS) * len(CHANNELS)} pattern sets into {db_path or default_store_path()}",
+        f"training {len(kinds) * len(grids) * len(CHANNELS)} pattern sets into {db_path or default_store_path()}",
     )
     store = PatternStore(db_path)
     ids = train_and_store(store, grids, kinds, drive)

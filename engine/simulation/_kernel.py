@@ -441,13 +441,6 @@ def rhs(t, y, P, motor_on):
     return dy, (ch0, m_el, ch2, ch3, ch4)
 
 
-#: :func:`rhs` on a second dispatcher, called by :func:`rk4_step`, its one hot caller. It was inlined
-#: (numba IR, ``inline="always"``) with five more helpers; since model 1.3 that made the serial kernel
-#: compile for 180 s from a cold cache, against 15 s as plain calls, which LLVM optimises as fast
-#: (bench/bench_kernel_revision.py against 084a806: every record bit for bit; docs/diagnosis.md).
-_rhs_rk4 = njit(cache=True, fastmath=False, **_NO_NRT)(rhs.py_func)
-
-
 @njit(cache=True, fastmath=False, **_NO_NRT)
 def _axpy(y, a, k):
     """The state y + a k, element by element (tuples of N_STATES floats)."""
@@ -496,14 +489,16 @@ def _rk4_sum(y, h6, k1, k2, k3, k4):
 def rk4_step(t, y, h, P, motor_on):
     """One classical Runge-Kutta step of size h [s] from (t, y); returns the new state (a tuple).
 
-    Inlined into :func:`hybrid_step`, its only caller, which calls it from one place.
+    Called by :func:`hybrid_step` only. It and its helpers are plain calls: inlined in numba IR
+    (``inline="always"``) they made the kernel compile for 180 s, as calls 15 s, with every record bit for bit
+    and the kernel 1.12x faster (docs/diagnosis.md, "The inlining undone").
     """
     hh = 0.5 * h  # the operations of y + 0.5 * h * k, evaluated left to right
     t_half = t + hh
-    k1 = _rhs_rk4(t, y, P, motor_on)[0]
-    k2 = _rhs_rk4(t_half, _axpy(y, hh, k1), P, motor_on)[0]
-    k3 = _rhs_rk4(t_half, _axpy(y, hh, k2), P, motor_on)[0]
-    k4 = _rhs_rk4(t + h, _axpy(y, h, k3), P, motor_on)[0]
+    k1 = rhs(t, y, P, motor_on)[0]
+    k2 = rhs(t_half, _axpy(y, hh, k1), P, motor_on)[0]
+    k3 = rhs(t_half, _axpy(y, hh, k2), P, motor_on)[0]
+    k4 = rhs(t + h, _axpy(y, h, k3), P, motor_on)[0]
     return _rk4_sum(y, h / 6.0, k1, k2, k3, k4)
 
 
@@ -525,9 +520,6 @@ def zone(t, y, P, motor_on):
     if d > b:
         return 1 if contact_push(d, dw, P, ext) > 0.0 else 2
     return -1 if contact_push(d, dw, P, ext) < 0.0 else -2
-
-
-_zone_step = njit(cache=True, fastmath=False, **_NO_NRT)(zone.py_func)
 
 
 @njit(cache=True, fastmath=False, **_NO_NRT)
@@ -565,7 +557,7 @@ def hybrid_step(t, y, h, P, motor_on, z0):
     stage = 0  # 0: the whole step; 1: bisecting the zone change; 2: the step to it
     while True:
         out = rk4_step(t, y, h_try, P, motor_on)
-        z1 = _zone_step(t + h_try, out, P, motor_on)
+        z1 = zone(t + h_try, out, P, motor_on)
         if stage == 0:
             if z1 == z0:
                 return out, h, False, z1
