@@ -50,16 +50,10 @@ USER app
 
 # build matplotlib's font cache (in /home/app/.cache) now, not in every new container and worker process
 RUN python -c "import matplotlib.pyplot"
-# compile the numba kernels into NUMBA_CACHE_DIR now, so the first request is fast
-# (one case runs the serial kernel, a batch the parallel one)
-RUN python -c "from engine.simulation import PlantParameters, simulate, simulate_batch; \
-simulate(PlantParameters()); simulate_batch([PlantParameters(), PlantParameters(K=0.005)])"
-# and the EMPS plant's loop, on the shipped record (which also proves the records are in the package)
-RUN python -c "from importlib.resources import files; from engine.plants.emps import EmpsPlant, load_mat; \
-EmpsPlant().simulate(load_mat(str(files('engine.plants.emps') / 'data' / 'DATA_EMPS.mat')).head(1.0), {})"
-# and the BRFD's friction element and reversal finder, on its shipped record (likewise in the package)
-RUN python -c "from engine.plants.brfd import BrfdPlant; p = BrfdPlant(); r = p.example(seconds=2.0); \
-p.simulate(r, {'backlash': 0.003}); p.events(r)"
+# compile the numba kernels into NUMBA_CACHE_DIR now, so the first request is fast: the drive's serial and
+# parallel kernels, the EMPS loop and the BRFD element on their records shipped in the package (which also proves
+# the records are there), the speed quantum's scan and the paper's network (engine/warm_up.py, as `make test`)
+RUN python -m engine.warm_up
 
 VOLUME ["/data"]
 EXPOSE 8000

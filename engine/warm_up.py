@@ -9,7 +9,7 @@ build (``Dockerfile``), so that its first request is fast.
 
 What it runs: one simulation of MODEL.md's reference case on the serial kernel and a batch of two on the
 parallel one, the EMPS plant on the first second of its shipped record, and the BRFD friction element and
-reversal finder on its example record.
+reversal finder on its example record, the speed quantum's lattice scan and the paper's network training.
 """
 
 from __future__ import annotations
@@ -45,8 +45,23 @@ def _brfd() -> None:
     plant.events(record)
 
 
+def _diagnosis_and_network() -> None:
+    import numpy as np
+
+    from engine.diagnosis.quantisation import lattice_quantum
+    from engine.identification._network import initial_weights, train
+
+    lattice_quantum(np.repeat(np.arange(40.0), 8), (0.5, 5.0))
+    train(initial_weights(np.full(3, 0.1), 4, 3, 2), np.zeros((5, 4)), np.zeros(2), 0.1, 1.0, 2)
+
+
 #: The steps, by name, in the order they run.
-STEPS: dict[str, Callable[[], None]] = {"backlash drive": _drive, "EMPS": _emps, "BRFD": _brfd}
+STEPS: dict[str, Callable[[], None]] = {
+    "backlash drive": _drive,
+    "EMPS": _emps,
+    "BRFD": _brfd,
+    "speed quantum and the paper's network": _diagnosis_and_network,
+}
 
 
 def warm_up() -> dict[str, float]:

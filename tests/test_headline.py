@@ -121,6 +121,7 @@ def test_a_left_out_effect_is_unexplained_and_located() -> None:
     assert term["dominant_frequency_hz"] == pytest.approx(LOAD_RIPPLE_HZ, rel=0.1)
 
 
+@pytest.mark.slow  # 45 s; the default run diagnoses the first 2.5 s of the pulse record over HTTP and through the CLI (tests/app)
 def test_the_emps_diagnosis_of_the_estimation_record_is_the_committed_one() -> None:
     """DATA_EMPS (real measurements, 25 s), calibrated on itself: the answer of ``docs/real-data/runs/emps.json``.
 

@@ -139,6 +139,7 @@ def test_periodic_load_torque_has_its_frequency_and_amplitude() -> None:
     assert term.description.count("on the load") == 1, term.description  # the place is said once
 
 
+@pytest.mark.slow  # the default run keeps the periodic term's shape (above)
 def test_clutch_offset_is_a_constant_angle() -> None:
     term = known_point("clutch_offset").report.term
     assert term is not None and term.follows == "constant" and term.unit == "rad"
@@ -146,6 +147,7 @@ def test_clutch_offset_is_a_constant_angle() -> None:
     assert "constant angle offset" in term.description
 
 
+@pytest.mark.slow  # the default run keeps the periodic term's shape (above)
 def test_cogging_follows_the_motor_angle() -> None:
     term = known_point("motor_cogging").report.term
     assert term is not None and term.follows == "angle"

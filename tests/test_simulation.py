@@ -52,6 +52,7 @@ def test_channel_units_are_consistent(nominal):
     assert np.max(np.abs(nominal["v2"])) < 0.1 * OMEGA_B
 
 
+@pytest.mark.serial  # with numba's threads on every core: the parallel part runs one per worker (Makefile)
 def test_batch_equals_single_runs():
     cases = [PlantParameters(K=K, J1=J1, c=c) for K, J1, c in [(0.0025, 0.8, 0.8), (0.009, 0.9, 1.4)]]
     batch = simulate_batch(cases)
@@ -209,6 +210,7 @@ def test_white_noise_has_requested_snr(nominal):
     assert abs(snr - 30.0) < 0.2
 
 
+@pytest.mark.serial  # with numba's threads on every core: the parallel part runs one per worker (Makefile)
 def test_simulation_is_safe_from_several_threads():
     from concurrent.futures import ThreadPoolExecutor
 
@@ -220,6 +222,7 @@ def test_simulation_is_safe_from_several_threads():
         np.testing.assert_array_equal(r, expected)
 
 
+@pytest.mark.serial  # with numba's threads on every core: the parallel part runs one per worker (Makefile)
 def test_serial_kernel_matches_the_parallel_one_and_runs_concurrently():
     from concurrent.futures import ThreadPoolExecutor
 

@@ -37,7 +37,6 @@ from collections.abc import Mapping, Sequence
 from typing import Protocol
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from engine.constants import CHANNELS
 from engine.diagnosis.noise import ChannelNoise, NoiseModel
@@ -406,6 +405,8 @@ class Objective:
         def jac(u: np.ndarray) -> np.ndarray:
             r0 = last["r"] if "u" in last and np.array_equal(last["u"], u) else fun(u)
             return self.jacobian(u, horizon, solver, fd_step, r0)
+
+        from scipy.optimize import least_squares  # here: scipy.optimize adds about 0.7 s to a service start
 
         res = least_squares(
             fun,

@@ -48,7 +48,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from engine.constants import Z95
 from engine.plants.base import CalibratedParameter, Plant, free_parameters
@@ -466,6 +465,8 @@ def solve_unit_box(
     RuntimeError
         When the solver fails or the residual is not finite (naming the parameters ``names``).
     """
+    from scipy.optimize import least_squares  # here: scipy.optimize adds about 0.7 s to a service start
+
     res = least_squares(
         residual,
         1.0 + np.asarray(u0, dtype=float),

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtri  # the chi-square quantile (scipy.stats costs a service start about 1 s)
 
 from engine.diagnosis.plant_gap import PlantObjective, calibrate, correlation_time, fit, solve_unit_box
 from engine.plants.base import FreeParameter, Plant, free_parameters
@@ -231,7 +231,7 @@ def fit_width(plant: Plant, records: Sequence[Any], width: str = "backlash") -> 
         corr[name] = float(cov_u[0, j] / denom) if denom > 0 else math.nan
 
     # profile interval: the coarse profile, refined at N_REFINE values per coarse step around it
-    threshold = cost + float(chi2.ppf(CONFIDENCE, 1)) * s2
+    threshold = cost + float(chdtri(1, 1.0 - CONFIDENCE)) * s2
     step = (q.hi - q.lo) / (N_PROFILE - 1)
     inside = [k for k, c in profile if c <= threshold] + [K]
     lo, hi = max(q.lo, min(inside) - step), min(q.hi, max(inside) + step)

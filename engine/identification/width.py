@@ -81,7 +81,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from scipy.stats import chi2 as chi2_dist
+from scipy.special import chdtri  # the chi-square quantile (scipy.stats costs a service start about 1 s)
 
 from engine.constants import K_GRID, Z95
 from engine.diagnosis.calibration import CalibrationError, CalibrationResult, CalibrationSettings, calibrate
@@ -341,7 +341,7 @@ def estimate_width(
     window, _ = record.test_window()
     k_param = next(p for p in default_space(window, drive=drive).params if p.name == "K")
     profile = _Profile(record, settings, cal.noise, drive)
-    q = float(chi2_dist.ppf(CONFIDENCE, 1))
+    q = float(chdtri(1, 1.0 - CONFIDENCE))  # chi2.ppf(CONFIDENCE, 1)
     previous: tuple[float, float] | None = None  # the edges about the previous optimum
     for attempt in range(MAX_RECENTRE + 1):
         K = cal.values["K"]

@@ -26,7 +26,6 @@ from pathlib import Path
 from types import MappingProxyType
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
 
 from engine.plants.base import CalibratedParameter, CandidateEffect, Channel
 from engine.plants.brfd import _kernel as k
@@ -136,6 +135,8 @@ def input_displacement(record: BrfdRecord) -> np.ndarray:
             f"{record.name}: sampled at {2 * nyquist:.4g} Hz; the model low-passes the displacement at "
             f"{INPUT_CUTOFF:g} Hz and needs more than {2 * INPUT_CUTOFF:g} Hz (the data set's records are 1024 Hz)"
         )
+    from scipy.signal import butter, sosfiltfilt  # here: scipy.signal adds about 1 s to every service start
+
     sos = butter(4, INPUT_CUTOFF / nyquist, btype="low", output="sos")
     x = sosfiltfilt(sos, record.x)
     x.flags.writeable = False

@@ -13,7 +13,6 @@ default is 15, so the pad length is given explicitly.
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import butter, filtfilt
 
 from engine.plants.emps.record import EmpsRecord
 
@@ -56,6 +55,8 @@ def process(position: np.ndarray, force: np.ndarray, ts: float) -> dict[str, np.
     ts : float
         Sample interval [s].
     """
+    from scipy.signal import butter, filtfilt  # here: scipy.signal adds about 1 s to every service start
+
     b, a = butter(BUTTER_ORDER, BUTTER_CUTOFF / (0.5 / ts))
     q = filtfilt(b, a, position, padtype="odd", padlen=3 * (max(len(a), len(b)) - 1))
     dq = diffcent(q, ts)
