@@ -328,7 +328,8 @@ def identify_from_store(
     check_record_drive(record_drive, drive)
     check_units(record.units, drive)
     sel = select_pattern_set(store, channel, record, set_id=set_id, kind=kind, any_set=any_set, drive=drive)
-    res = identify(record, channel, sel.pattern_set)
+    identifier = identifier_from_pattern_set(sel.pattern_set)  # rebuilt once: it gives the widths below too
+    res = identifier.identify(to_protocol_grid(record)[channel])
     analysed, window = record.test_window()
     if not (np.all(np.isfinite(res.D)) and np.isfinite(res.rms)):
         largest = float(np.max(np.abs(record[channel])))
@@ -345,7 +346,7 @@ def identify_from_store(
         "D": [float(d) for d in res.D],
         "index": int(res.index),
         "width": float(res.width),
-        "widths": [float(k) for k in getattr(identifier_from_pattern_set(sel.pattern_set), "widths_", K_GRID)],
+        "widths": [float(k) for k in getattr(identifier, "widths_", K_GRID)],
         "epochs": int(res.epochs),
         "rms": float(res.rms),
         "converged": bool(res.converged),
