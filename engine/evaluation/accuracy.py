@@ -22,11 +22,11 @@ from typing import Any
 
 import numpy as np
 
-from engine.constants import C_GROUPS, CHANNELS, K_GRID, OPERATING_RANGE
+from engine.constants import C_GROUPS, CHANNELS
 from engine.distributed import dask_client, map_cases
 from engine.identification.training import make_identifier
-from engine.simulation import Case, PlantParameters, SimulationResult, add_white_noise, simulate_batch
-from engine.simulation.drive import DriveDescription
+from engine.simulation import Case, SimulationResult, add_white_noise, simulate_batch
+from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 
 logger = logging.getLogger(__name__)
 
@@ -90,18 +90,14 @@ def random_cases(n: int = 240, seed: int = 20261121, drive: DriveDescription | N
 
     With ``drive``: on its nominal plant, J1 and c uniform over its operating range
     (:func:`engine.validation.protocol.operating_range`, MODEL.md's scaled by the drive's nominal values) and the
-    width among its six (:meth:`DriveDescription.k_grid`), within its ``t_event_max``. The same draws as without it
-    for the reference drive.
+    width among its six (:meth:`DriveDescription.k_grid`), within its ``t_event_max``. Without it, on MODEL.md's
+    reference drive, whose range, widths and plant are ``OPERATING_RANGE``, ``K_GRID`` and ``PlantParameters``'
+    defaults: the same draws and records.
     """
-    rng = np.random.default_rng(seed)
-    if drive is None or drive.is_reference:
-        K = rng.choice(np.asarray(K_GRID), n)
-        J1 = rng.uniform(*OPERATING_RANGE["J1"][:2], n)
-        c = rng.uniform(*OPERATING_RANGE["c"][:2], n)
-        cases = [PlantParameters(K=float(k), J1=float(j), c=float(cc)) for k, j, cc in zip(K, J1, c, strict=True)]
-        return simulate_batch(cases)
     from engine.validation.protocol import operating_range
 
+    drive = drive or REFERENCE_DRIVE
+    rng = np.random.default_rng(seed)
     box = operating_range(drive)
     K = rng.choice(np.asarray(drive.k_grid()), n)
     J1 = rng.uniform(*box["J1"][:2], n)
