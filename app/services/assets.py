@@ -28,7 +28,7 @@ from engine.history.trend import Trend, TrendError, WidthPoint, fit_trend
 from engine.simulation.drive import REFERENCE_DRIVE
 from engine.storage import PatternStore
 
-#: Newest diagnoses of an asset looked through for one with an answer (the newest may still be queued or running).
+#: Newest diagnoses of an asset looked through for one whose drive is known (the newest one's record may be gone).
 MAX_PENDING_LOOKUP = 20
 
 __all__ = [
@@ -54,21 +54,45 @@ def measurement_drive(answer: dict[str, Any] | None) -> str:
     return REFERENCE_DRIVE.fingerprint
 
 
+def submitted_drive(store: PatternStore, record_id: str) -> str | None:
+    """The fingerprint of the drive a stored diagnosis record was submitted with (its request read again, as its job
+    reads it), or None when the record is gone or no longer reads."""
+    from app.db.records import RecordRepository
+    from app.services.diagnosis_requests import DiagnosisRequest, parse
+
+    stored = RecordRepository(store).get(record_id)
+    if stored is None:
+        return None
+    try:
+        parsed = parse(DiagnosisRequest(stored.media, stored.body or b"", stored.params))
+    except (InvalidInputError, IncompatibleError):
+        return None
+    return (REFERENCE_DRIVE if parsed.drive is None else parsed.drive).fingerprint
+
+
 def asset_drive(store: PatternStore, asset: str) -> str | None:
-    """The fingerprint of the drive of ``asset``'s newest measurement with an answer (None: it has none yet)."""
-    newest: list[tuple[datetime, dict[str, Any] | None]] = []
+    """The fingerprint of the drive of ``asset``'s newest measurement (None: it has none yet).
+
+    A diagnosis counts from its submission: one still queued or running (or one that ended without an answer) is of
+    the drive its stored request names (:func:`submitted_drive`), so two measurements of different drives submitted
+    one after the other cannot both enter the asset's history.
+    """
+    newest: list[tuple[datetime, str]] = []
     for i in IdentificationRepository(store).newest(asset, limit=1):
         found = IdentificationRepository(store).get(i.id)
-        newest.append((i.measured_at, found.result if found else None))
+        if found is not None and found.result is not None:
+            newest.append((i.measured_at, measurement_drive(found.result)))
     for d in DiagnosisRepository(store).newest(asset, limit=MAX_PENDING_LOOKUP):
         stored = DiagnosisRepository(store).get(d.id)
-        if stored is not None and stored.result is not None:
-            newest.append((d.measured_at or d.created_at, stored.result))
+        if stored is None:
+            continue
+        drive = measurement_drive(stored.result) if stored.result is not None else submitted_drive(store, d.record_id)
+        if drive is not None:
+            newest.append((d.measured_at or d.created_at, drive))
             break
-    answered = [(when, result) for when, result in newest if result is not None]
-    if not answered:
+    if not newest:
         return None
-    return measurement_drive(max(answered, key=lambda p: p[0])[1])
+    return max(newest, key=lambda p: p[0])[1]
 
 
 def check_asset_drive(store: PatternStore, asset: str | None, fingerprint: str) -> None:

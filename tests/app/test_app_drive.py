@@ -322,3 +322,30 @@ def test_a_diagnosis_on_a_drive_refuses_omega1_in_pu(client: httpx.Client, examp
     record["channels"] = {"omega1": rec["channels"]["omega1"]}
     r = client.post("/v1/diagnose", json={"record": record, "drive": example})
     assert r.status_code == 422 and "give omega1 in rad/s or rpm" in r.json()["detail"]
+
+
+def test_a_queued_diagnosis_already_holds_its_assets_drive(tmp_path: Path, example: dict[str, Any]) -> None:
+    """A diagnosis counts from its submission: while the first measurement of an asset (on a described drive) is
+    still queued, with no answer yet, a measurement of another drive for the same asset is refused."""
+    from app.db.diagnoses import DiagnosisRepository
+    from app.db.records import RecordRepository
+    from app.services.assets import asset_drive
+    from app.services.diagnoses import new_record
+    from app.services.diagnosis_requests import DiagnosisRequest
+    from app.services.errors import IncompatibleError
+    from engine.storage import PatternStore
+
+    store = PatternStore(tmp_path / "queued.sqlite3")
+    v2 = np.sin(np.arange(2048) / 100.0).tolist()
+    record = {"sample_interval": 1e-4, "event_index": 48, "channels": {"v2": v2}, "asset": "line-3"}
+    queued = new_record(store, DiagnosisRequest("json", json.dumps({"record": record, "drive": example}).encode()))
+    with store.writing() as conn:  # stored and queued as submit() does, its job never run
+        RecordRepository.insert(conn, queued)
+    DiagnosisRepository(store).create(
+        job_id="queued", record_id=queued.record.id, plant="backlash_drive", asset="line-3", measured_at=None
+    )
+    assert asset_drive(store, "line-3") == load_drive(EXAMPLE).fingerprint
+    with pytest.raises(IncompatibleError, match="holds measurements of drive"):
+        new_record(store, DiagnosisRequest("json", json.dumps({"record": record}).encode()))
+    # the same drive again is taken
+    new_record(store, DiagnosisRequest("json", json.dumps({"record": record, "drive": example}).encode()))
