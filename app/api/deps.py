@@ -204,12 +204,22 @@ class CSVRecordParams:
                 examples=["2026-11-20T08:00:00Z"],
             ),
         ] = None,
+        drive: Annotated[
+            str | None,
+            Query(
+                description="CSV form: the drive the record was measured on, its description as a JSON object "
+                "(URL-encoded; the sections of its TOML file, docs/drive-description.md). Omitted: MODEL.md's "
+                "reference plant.",
+                examples=['{"name": "my drive", "mechanics": {"J2": 0.6}}'],
+            ),
+        ] = None,
     ) -> None:
         self.sample_interval = sample_interval
         self.event_index = event_index
         self.units_text = units
         self.asset = asset
         self.measured_at = measured_at
+        self.drive = drive
         given = {"J1": J1, "c": c, "c1": c1, "K": K, BASE_TORQUE: base_torque}
         self.conditions = {k: v for k, v in given.items() if v is not None}
 
@@ -235,6 +245,7 @@ class CSVRecordParams:
             "conditions": dict(self.conditions),
             "asset": self.asset,
             "measured_at": self.measured_at,
+            "drive": self.drive,
         }
 
 
@@ -268,7 +279,19 @@ def reject_query(request: Request, names: tuple[str, ...]) -> None:
 
 
 #: Query parameters of the CSV form of record bodies.
-CSV_QUERY = ("sample_interval", "event_index", "units", "J1", "c", "c1", "K", BASE_TORQUE, "asset", "measured_at")
+CSV_QUERY = (
+    "sample_interval",
+    "event_index",
+    "units",
+    "J1",
+    "c",
+    "c1",
+    "K",
+    BASE_TORQUE,
+    "asset",
+    "measured_at",
+    "drive",
+)
 
 
 async def diagnosis_request(request: Request, params: CSVRecordParams) -> DiagnosisRequest:

@@ -169,10 +169,12 @@ def _parse_csv(raw: bytes, params: dict[str, Any]) -> ParsedDiagnosis:
         units = parse_units(params.get("units"))
     except RecordFormatError as exc:
         raise InvalidInputError(f"query parameter {exc}") from None
+    drive = simulation.drive_from_query(params.get("drive"))  # before the body: a refused description reads nothing
     record = record_from_csv(
         lines, params.get("sample_interval"), params.get("event_index"), params.get("conditions") or {}, units
     )
-    return ParsedDiagnosis(plant=DEFAULT_PLANT, record=record, asset=asset, measured_at=measured_at)
+    simulation.check_units(record.units, drive)  # omega1 in pu would be read with MODEL.md's base speed
+    return ParsedDiagnosis(plant=DEFAULT_PLANT, record=record, asset=asset, measured_at=measured_at, drive=drive)
 
 
 def named_asset(asset: str | None, measured_at: str | None) -> tuple[str | None, datetime | None]:

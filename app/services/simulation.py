@@ -10,6 +10,7 @@ states, a subset of channels, units, and whether the event index is given.
 
 from __future__ import annotations
 
+import json
 import logging
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -149,6 +150,30 @@ def drive_of(data: Mapping[str, Any] | None) -> DriveDescription | None:
         A description the engine refuses; the message names the key and what to fix.
     """
     return None if data is None else DriveDescription.from_mapping(data)
+
+
+def drive_from_query(text: str | None) -> DriveDescription | None:
+    """The CSV form's ``drive`` query parameter: a drive description as a JSON object (None when absent).
+
+    Raises
+    ------
+    InvalidInputError
+        Not a JSON object (a fingerprint alone, say): the message says what to give.
+    engine.simulation.ParameterError
+        A description the engine refuses; the message names the key and what to fix.
+    """
+    if text is None:
+        return None
+    try:
+        data = json.loads(text)
+    except ValueError:
+        data = None
+    if not isinstance(data, dict):
+        raise InvalidInputError(
+            "query parameter drive: give the drive description itself as a JSON object (URL-encoded), with the "
+            "sections of its TOML file (docs/drive-description.md), not a fingerprint or a file name"
+        )
+    return DriveDescription.from_mapping(data)
 
 
 def protocol_span(drive: DriveDescription | None) -> dict[str, float]:

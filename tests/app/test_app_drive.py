@@ -349,3 +349,41 @@ def test_a_queued_diagnosis_already_holds_its_assets_drive(tmp_path: Path, examp
         new_record(store, DiagnosisRequest("json", json.dumps({"record": record}).encode()))
     # the same drive again is taken
     new_record(store, DiagnosisRequest("json", json.dumps({"record": record, "drive": example}).encode()))
+
+
+def test_the_csv_form_takes_the_drive_as_a_query_parameter(client: httpx.Client, example: dict[str, Any]) -> None:
+    """A described drive's record sent as CSV: ``?drive=`` holds its description as JSON, and the record is
+    diagnosed and identified on that drive as its JSON form is; a fingerprint alone or a bad description is
+    refused with what to give."""
+    drive = load_drive(EXAMPLE)
+    sim = client.post(
+        "/v1/simulate",
+        json={"K": 0.004, "drive": example, "sample_interval": 1e-4},
+        headers={"Accept": "text/csv"},
+    )
+    assert sim.status_code == 200, sim.text
+    params = {
+        "sample_interval": sim.headers["X-Sample-Interval"],
+        "event_index": sim.headers["X-Event-Index"],
+        "c1": drive.c1,
+        "drive": json.dumps(example),
+    }
+    csv_headers = {"Content-Type": "text/csv"}
+    r = client.post("/v1/diagnose", content=sim.text, params=params, headers=csv_headers)
+    assert r.status_code == 200, r.text
+    answer = r.json()
+    assert answer["drive"]["fingerprint"] == drive.fingerprint
+    assert answer["width"]["K"] == pytest.approx(0.004, rel=1e-2) and answer["warnings"] == [], answer["warnings"]
+    # identified on its own drive: this service holds no pattern set of it, and says which drive it looked for
+    r = client.post("/v1/identify", content=sim.text, params={**params, "channel": "v2"}, headers=csv_headers)
+    assert r.status_code == 404 and f"drive {drive.fingerprint[:12]}" in r.json()["detail"], r.text
+    # a fingerprint is not a description; a description the engine refuses says which key
+    for given, says in (
+        (drive.fingerprint, "give the drive description itself as a JSON object"),
+        (json.dumps({"motor": {"pole_pairs": 0.5}}), "motor.pole_pairs must be a whole number"),
+    ):
+        r = client.post("/v1/diagnose", content=sim.text, params={**params, "drive": given}, headers=csv_headers)
+        assert r.status_code == 422 and says in r.json()["detail"], r.text
+    # the parameter belongs to the CSV form
+    r = client.post("/v1/diagnose", json={"record": {"channels": {"v2": [0.0] * 64}}}, params={"drive": "{}"})
+    assert r.status_code == 422 and "drive" in r.json()["detail"]

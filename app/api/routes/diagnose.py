@@ -44,8 +44,8 @@ async def diagnose(request: Request, csv_params: CSVRecordDep, sync: SyncDiagnos
     """Where the record differs from the calibrated simulation, which unmodelled effect explains it and how far
     the gap shrinks with it. The body is ``{"record": ..., "effects": [...], "bounds": {...}}`` as JSON, or the
     record's CSV form
-    (optionally with a ``t`` column; ``sample_interval``, ``event_index``, ``units``, ``base_torque`` and the
-    known conditions as query parameters).
+    (optionally with a ``t`` column; ``sample_interval``, ``event_index``, ``units``, ``base_torque``, the
+    known conditions and the ``drive`` description as JSON as query parameters).
 
     ``"plant": "emps"`` diagnoses a record of the EMPS benchmark instead (``PlantDiagnoseCreate``: the record's
     signals and gains as its .mat file holds them), ``"plant": "brfd"`` one of the BRFD friction damper

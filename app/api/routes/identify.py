@@ -70,8 +70,8 @@ async def identify(
     The body is ``{"record": ..., "channel": ..., "pattern_set": ..., "continuous": ...}`` as JSON,
     or the record's CSV form (``Content-Type: text/csv``, optionally with a ``t`` column) with
     ``channel``, ``pattern_set``, ``continuous``, ``sample_interval``, ``event_index``, ``units``
-    (e.g. ``omega1:rpm,a1:g``), ``base_torque`` and the known conditions (``c``, ``J1``, ...) as
-    query parameters.
+    (e.g. ``omega1:rpm,a1:g``), ``base_torque``, the known conditions (``c``, ``J1``, ...) and the
+    ``drive`` description as JSON as query parameters.
 
     ``"plant": "brfd"`` identifies the width of a BRFD record instead (``PlantIdentifyCreate``: the data
     set's JSON object as it is, optionally ``joint`` records of the same device sharing one width): the
@@ -83,6 +83,7 @@ async def identify(
     if body_kind(request) == "csv":
         if channel is None:
             raise InvalidInputError("with a CSV body, give the channel to identify from as query parameter ?channel=")
+        csv_drive = await run_in_threadpool(simulation.drive_from_query, csv_params.drive)
         record = await csv_record(request, csv_params)
         asset, measured_at = named_asset(csv_params.asset, csv_params.measured_at)
         args: tuple[Any, ...] = (
@@ -92,7 +93,7 @@ async def identify(
             kind,
             continuous or asset is not None,
             any_set,
-            None,
+            csv_drive,
             None,
         )
     else:
