@@ -93,19 +93,20 @@ def test_main_job_on_a_described_drive(tmp_path):
     reference.params["source"] = "main-job"
     kept = store.save(reference).id
 
-    result = run(tmp_path / "out", db_path=db, n_random=8, kinds={"template": {}}, n_jobs=0, drive=drive)
+    kinds = {"template": {}, "paper": {}}  # the paper's method is scored on the drive's own widths (not K_GRID's)
+    result = run(tmp_path / "out", db_path=db, n_random=8, kinds=kinds, n_jobs=0, drive=drive)
     assert result.tables == [] and f"Drive {drive.name}" in result.report()
     sets = [s for s in store.list() if s.id != kept]
-    assert len(sets) == len(drive.c_groups()) * 5 and kept in {s.id for s in store.list()}
+    assert len(sets) == len(drive.c_groups()) * 5 * 2 and kept in {s.id for s in store.list()}
     assert {drive_fingerprint(s) for s in sets} == {drive.fingerprint}
     assert sorted({s.c for s in sets}) == sorted(drive.c_groups())
-    rows = {(r.channel, r.split): r for r in result.accuracy}
-    assert rows["v2", "random"].n == 8 and rows["v2", "leave-one-J1-out"].n == len(drive.c_groups()) * 6 * len(
-        drive.j1_grid()
-    )
+    rows = {(r.identifier, r.channel, r.split): r for r in result.accuracy}
+    for kind in kinds:
+        assert rows[kind, "v2", "random"].n == 8
+        assert rows[kind, "v2", "leave-one-J1-out"].n == len(drive.c_groups()) * 6 * len(drive.j1_grid())
     # a clean record of the drive at one of its widths, its nominal J1 and the c of a group: identified exactly
     c = drive.c_groups()[1]
-    ps = next(s for s in sets if s.channel == "v2" and s.c == c)
+    ps = next(s for s in sets if s.channel == "v2" and s.c == c and s.kind == "template")
     width = drive.k_grid()[3]
     rec = simulate_batch([Case(drive.plant(K=width, c=c))], solver=drive.solver()).channel("v2")[0]
     assert identifier_from_pattern_set(store.get(ps.id)).identify(rec).width == width

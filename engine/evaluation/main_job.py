@@ -28,7 +28,7 @@ from engine.evaluation import figures
 from engine.evaluation.accuracy import AccuracyRow, accuracy_markdown, evaluate, random_cases
 from engine.evaluation.paper_tables import TableRow, rerun_tables, table_csv_rows, table_markdown
 from engine.identification.selection import drive_fingerprint
-from engine.identification.training import IDENTIFIERS, simulate_training_grid, train_pattern_set
+from engine.identification.training import IDENTIFIERS, identifier_params, simulate_training_grid, train_pattern_set
 from engine.simulation import paper_grid, simulate_batch
 from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 from engine.storage import PatternStore, default_store_path
@@ -177,7 +177,8 @@ def run(
     acc = evaluate(
         grids,
         random,
-        kinds,
+        # the paper's method on a drive is given the drive's width grid, as its stored sets are (train_pattern_set)
+        {kind: {**params, **identifier_params(kind, drive)} for kind, params in kinds.items()},
         n_jobs=n_jobs,
         progress=lambda i, n, what: logger.info("  evaluation task %d/%d (%s)", i, n, what),
         scheduler=scheduler,
