@@ -198,25 +198,31 @@ def select_pattern_set(
         if drive is not None and not drive.is_reference:
             what += f" and drive {_drive_label(wanted, drive)}"
             train = train[:-1] + ', "drive": {...}}'
-        others = [
-            s
-            for s in store.list(channel, kind=kind, model_version=MODEL_VERSION)
-            if not is_plain(s) and drive_fingerprint(s) == wanted
-        ]
+        stored = store.list(channel, kind=kind, model_version=MODEL_VERSION)
+        others = [s for s in stored if not is_plain(s) and drive_fingerprint(s) == wanted]
         skipped = (
             f"; {len(others)} set(s) trained with effects or on another J1 grid are chosen only when named "
             f"(pattern_set: {', '.join(s.id for s in others[:3])})"
             if others
             else ""
         )
+        # a record of a described drive read without its description (a CSV, say) looks for the reference's sets
+        drives = sorted({drive_fingerprint(s)[:12] for s in stored if drive_fingerprint(s) != wanted})
+        elsewhere = (
+            f"; sets of {channel!r} are stored for drive(s) {', '.join(drives[:3])}: if the record is of one of them, "
+            "give its description ({})"
+            if drives
+            else ""
+        )
         head = (
             f"no pattern set for {what} (model version {MODEL_VERSION}) trained as the paper trains (no effects, "
-            f"its J1 grid) is stored{skipped}; train one first, e.g. "
+            f"its J1 grid) is stored{skipped}"
         )
         drive_option = "" if drive is None or drive.is_reference else " --drive FILE"
         raise NotFoundError(
-            f"{head}{train}, or allow any set (any_set)",
-            cli=f"{head}backlash train --channel {channel} --c {c_used:g}{drive_option}, or allow any set (--any-set)",
+            f"{head}{elsewhere.format('drive')}; train one first, e.g. {train}, or allow any set (any_set)",
+            cli=f"{head}{elsewhere.format('--drive FILE')}; train one first, e.g. backlash train --channel {channel} "
+            f"--c {c_used:g}{drive_option}, or allow any set (--any-set)",
         )
     distance = abs(ps.c - c_used)
     if distance > MAX_C_DISTANCE + 1e-12:

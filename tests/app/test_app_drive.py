@@ -387,3 +387,23 @@ def test_the_csv_form_takes_the_drive_as_a_query_parameter(client: httpx.Client,
     # the parameter belongs to the CSV form
     r = client.post("/v1/diagnose", json={"record": {"channels": {"v2": [0.0] * 64}}}, params={"drive": "{}"})
     assert r.status_code == 422 and "drive" in r.json()["detail"]
+
+
+def test_a_record_read_without_its_drive_is_told_which_drives_have_sets(tmp_path: Path) -> None:
+    """With only a described drive's sets stored, a record read as the reference plant's (a CSV without its
+    description, say) is told that sets of that drive exist and to give its description."""
+    from app.services.errors import NotFoundError
+    from app.services.identification import select_pattern_set
+    from engine.identification.training import train_pattern_set
+    from engine.records import Record
+    from engine.storage import PatternStore
+
+    drive = load_drive(EXAMPLE)
+    store = PatternStore(tmp_path / "drive-sets.sqlite3")
+    store.save(train_pattern_set("v2", drive.c, kind="template", J1_values=drive.j1_grid(), drive=drive))
+    record = Record({"v2": np.zeros(2048)}, 1e-4, 48)
+    with pytest.raises(NotFoundError) as refused:
+        select_pattern_set(store, "v2", record)
+    assert f"stored for drive(s) {drive.fingerprint[:12]}" in str(refused.value), refused.value
+    assert "give its description (drive)" in str(refused.value) and "--drive FILE" in str(refused.value.cli_message)
+    assert select_pattern_set(store, "v2", record, drive=drive).pattern_set.c == drive.c
