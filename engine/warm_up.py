@@ -4,12 +4,12 @@ numba compiles a kernel the first time a process calls it and keeps the machine 
 (``cache=True``), where every later process loads it in well under a second. From a fresh checkout the
 backlash drive's serial kernel takes about 15 s of one core to compile (three minutes until its helpers stopped
 being inlined, 2026-11-29); two processes that start cold both compile it. ``make test`` therefore runs this module once, beside the linters
-and the documentation build, before the test workers start. The container image runs the same steps in its
+and the documentation build, before the test workers start. The container image runs this module in its
 build (``Dockerfile``), so that its first request is fast.
 
 What it runs: one simulation of MODEL.md's reference case on the serial kernel and a batch of two on the
-parallel one, the EMPS plant on the first second of its shipped record, and the BRFD friction element and
-reversal finder on its example record, the speed quantum's lattice scan and the paper's network training.
+parallel one, the EMPS plant on the first second of its shipped record, the BRFD friction element and reversal
+finder on its example record, the speed quantum's lattice scan and a two-epoch training of the paper's network.
 """
 
 from __future__ import annotations
