@@ -207,21 +207,24 @@ def select_pattern_set(
             else ""
         )
         # a record of a described drive read without its description (a CSV, say) looks for the reference's sets
-        drives = sorted({drive_fingerprint(s)[:12] for s in stored if drive_fingerprint(s) != wanted})
-        elsewhere = (
-            f"; sets of {channel!r} are stored for drive(s) {', '.join(drives[:3])}: if the record is of one of them, "
-            "give its description ({})"
-            if drives
-            else ""
-        )
+        drives = sorted({fp[:12] for fp in map(drive_fingerprint, stored) if fp != wanted})
+
+        def elsewhere(option: str) -> str:
+            if not drives:
+                return ""
+            return (
+                f"; sets of {channel!r} are stored for drive(s) {', '.join(drives[:3])}: if the record is of one of "
+                f"them, give its description ({option})"
+            )
+
         head = (
             f"no pattern set for {what} (model version {MODEL_VERSION}) trained as the paper trains (no effects, "
             f"its J1 grid) is stored{skipped}"
         )
         drive_option = "" if drive is None or drive.is_reference else " --drive FILE"
         raise NotFoundError(
-            f"{head}{elsewhere.format('drive')}; train one first, e.g. {train}, or allow any set (any_set)",
-            cli=f"{head}{elsewhere.format('--drive FILE')}; train one first, e.g. backlash train --channel {channel} "
+            f"{head}{elsewhere('drive')}; train one first, e.g. {train}, or allow any set (any_set)",
+            cli=f"{head}{elsewhere('--drive FILE')}; train one first, e.g. backlash train --channel {channel} "
             f"--c {c_used:g}{drive_option}, or allow any set (--any-set)",
         )
     distance = abs(ps.c - c_used)

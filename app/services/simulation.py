@@ -173,7 +173,7 @@ def drive_from_query(text: str | None) -> DriveDescription | None:
             "query parameter drive: give the drive description itself as a JSON object (URL-encoded), with the "
             "sections of its TOML file (docs/drive-description.md), not a fingerprint or a file name"
         )
-    return DriveDescription.from_mapping(data)
+    return drive_of(data)
 
 
 def protocol_span(drive: DriveDescription | None) -> dict[str, float]:
