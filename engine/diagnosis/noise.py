@@ -63,6 +63,7 @@ import pywt
 
 from engine.constants import CHANNEL_WAVELETS
 from engine.features.wavelet import level_for_interval
+from engine.plants.noise import robust_sigma
 from engine.records import Record, RecordError
 from engine.simulation.noise import LOWPASS_ORDERS
 
@@ -103,13 +104,6 @@ _CUTOFF_GRID: np.ndarray = np.geomspace(1.0 / 80.0, 0.45, 64)
 #: Frequency grid of the level gains: points on [0, fs/2].
 _N_FREQ: int = 1 << 15
 
-#: Clipping of the noise estimate [sigma] and the variance of a unit normal truncated there.
-_CLIP = 4.0
-_CLIP_VARIANCE = 1.0 - 2.0 * _CLIP * math.exp(-(_CLIP**2) / 2.0) / math.sqrt(2.0 * math.pi) / math.erf(
-    _CLIP / math.sqrt(2.0)
-)
-#: Median absolute deviation of a unit normal (Donoho & Johnstone's 0.6745).
-_MAD_NORMAL = 0.6744897501960817
 #: Largest magnitude of a channel processed as it is [channel unit] (2**100, about 1.3e30): a channel
 #: reaching beyond it is divided by a power of two first (exact in binary floating point) and its
 #: noise multiplied back, so that no square or sum of squares overflows to inf (issue 50: values
@@ -133,15 +127,6 @@ def _rms(x: np.ndarray) -> float:
     if s == 1.0:
         return float(np.sqrt(np.mean(np.square(x))))
     return s * float(np.sqrt(np.mean(np.square(x / s))))
-
-
-def _robust_sigma(c: np.ndarray) -> float:
-    """Robust standard deviation of wavelet coefficients: MAD, then the truncation-corrected RMS within 4 of those."""
-    s0 = float(np.median(np.abs(c)) / _MAD_NORMAL)
-    if s0 > 0:
-        kept = c[np.abs(c) <= _CLIP * s0]
-        s0 = float(np.sqrt(np.mean(kept**2) / _CLIP_VARIANCE)) if kept.size else s0
-    return s0
 
 
 def _wavedec(x: np.ndarray, wavelet: str, level: int) -> list[np.ndarray]:
@@ -482,14 +467,14 @@ def _levels_of(name: str, x: np.ndarray, sample_interval: float) -> tuple[_Level
     wavelet = CHANNEL_WAVELETS[name]
     x = np.array(x, dtype=float)  # a writable copy (pywt needs one)
     _, cd1 = pywt.dwt(x, wavelet, mode="periodization")
-    white = _robust_sigma(cd1)
+    white = robust_sigma(cd1)
     level = _whitening_level(sample_interval, x.size)
     noise_only = 1.0 / sample_interval / 2 ** (NOISE_FIT_LEVELS + 1) >= SIGNAL_BAND_HZ
     n_levels = min(NOISE_BOUND_LEVELS, level)
     if white <= 0 or not noise_only or level < NOISE_FIT_LEVELS + 1:
         return None, white
     details = _wavedec(x, wavelet, level)[::-1][:n_levels]  # D1, D2, ...
-    s_hat = np.array([_robust_sigma(c) for c in details])
+    s_hat = np.array([robust_sigma(c) for c in details])
     if np.any(s_hat <= 0):
         return None, white
     n_coef = np.array([c.size for c in details], dtype=float)

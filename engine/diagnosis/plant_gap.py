@@ -50,7 +50,9 @@ from typing import Any
 import numpy as np
 
 from engine.constants import Z95
+from engine.diagnosis.settings import DiagnosisSettings
 from engine.plants.base import CalibratedParameter, Plant, free_parameters
+from engine.plants.noise import NoiseLevel, integrated_time
 
 __all__ = [
     "BANDS",
@@ -59,17 +61,21 @@ __all__ = [
     "Cell",
     "EffectFit",
     "Fit",
+    "NoiseGate",
     "PlantGapReport",
     "PlantObjective",
     "absorbed_effects",
     "calibrate",
     "correlation_time",
     "diagnose_plant",
+    "effect_strength",
     "event_shares",
     "fit",
     "gap_budget",
     "integrated_time",
     "localise",
+    "noise_gate",
+    "noise_limits",
     "rank_effects",
     "relative_errors",
     "solve_unit_box",
@@ -101,9 +107,10 @@ MAX_SET: int = 3
 #: Function evaluations per least-squares fit (the step of its finite differences is the plant's
 #: own :attr:`~engine.plants.base.Plant.diff_step`: how rough its simulation is depends on the plant).
 MAX_NFEV: int = 60
-#: Window constant of the integrated autocorrelation time (:func:`integrated_time`; Sokal's c, 5 for
-#: a residual whose correlation decays roughly exponentially).
-SOKAL_WINDOW: float = 5.0
+#: z of the chi-square's sampling scatter a fit "to the noise" may reach on a channel of few
+#: independent samples: the thresholds are the backlash drive's (:class:`DiagnosisSettings`:
+#: ``max_reduced_chi2``, ``max_channel_chi2``) or 1 + Z sqrt(2 / n_eff), whichever is larger.
+CHI2_SCATTER_Z: float = 3.0
 #: The catalogue effect that is a play: its fitted value is the width an answer shows (the BRFD's).
 WIDTH_EFFECT: str = "backlash"
 
@@ -183,6 +190,64 @@ class Cell:
 
 
 @dataclass(frozen=True)
+class NoiseGate:
+    """A fit's residual against the plant's noise (:meth:`~engine.plants.base.Plant.noise`).
+
+    Attributes
+    ----------
+    levels : dict of str to NoiseLevel
+        Each channel's noise.
+    before, after : dict of str to float
+        chi2_c / n_c of each channel (mean squared residual over the noise's variance) for the
+        calibrated model and for the model the answer ends with.
+    limits : dict of str to float
+        The largest chi2_c / n_c of a fit to the noise, per channel, and ``"total"`` for their mean.
+    strength : float or None
+        How far the named effects move the record: the largest channel RMS of their change [noise
+        RMS] (None when nothing was named).
+    status : str
+        What the gate decides: ``no_gap``, ``weak_gap``, or ``gap`` (the named model decides).
+    reason : str
+        Why, in words.
+    """
+
+    levels: dict[str, NoiseLevel]
+    before: dict[str, float]
+    after: dict[str, float]
+    limits: dict[str, float]
+    strength: float | None
+    status: str
+    reason: str
+
+    @staticmethod
+    def fits(chi2: Mapping[str, float], limits: Mapping[str, float]) -> bool:
+        """Whether per-channel chi2/n (``chi2``) fit to the noise: each channel and their mean within ``limits``."""
+        total = sum(chi2.values()) / max(len(chi2), 1)
+        return total <= limits["total"] and all(v <= limits[c] for c, v in chi2.items())
+
+    def gap(self) -> dict[str, dict[str, float]]:
+        """The residual's RMS over the noise's [-] (the root of the channels' mean chi2/n), before
+        and after: the shape of the backlash drive's ``gap`` (:class:`engine.diagnosis.gap.Gap`)."""
+        return {
+            k: {"rms_over_noise": math.sqrt(sum(v.values()) / max(len(v), 1))}
+            for k, v in (("before", self.before), ("after", self.after))
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {
+            "status": self.status,
+            "reason": self.reason,
+            "levels": {
+                c: {"sigma": v.sigma, "correlation_samples": v.tau, "source": v.source} for c, v in self.levels.items()
+            },
+            "reduced_chi2": {"before": self.before, "after": self.after},
+            "limits": self.limits,
+            "strength_noise_rms": self.strength,
+        }
+
+
+@dataclass(frozen=True)
 class PlantGapReport:
     """Where, which and how far, for one record of one plant.
 
@@ -215,6 +280,8 @@ class PlantGapReport:
     absorbed : dict of str to float
         Effects the refitted calibration absorbs on this record (:func:`absorbed_effects`), not
         fitted: no record can name them beside a refitted calibration.
+    gate : NoiseGate or None
+        The residuals against the plant's noise (None: not computed, the share rule alone decides).
     """
 
     plant: str
@@ -229,15 +296,18 @@ class PlantGapReport:
     calibration_refitted: bool
     budget: dict[str, float] = field(default_factory=dict)
     absorbed: dict[str, float] = field(default_factory=dict)
+    gate: NoiseGate | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
     def status(self) -> str:
-        """``unexplained`` (no effect removes :data:`MIN_SHARE`), ``explained`` (the named set removes
-        at least :data:`EXPLAINED_SHARE` of the gap) or ``partly_explained``."""
+        """``no_gap`` or ``weak_gap`` (the noise gate's, nothing named), ``unexplained`` (no effect
+        removes :data:`MIN_SHARE`), ``explained`` (the named set removes at least
+        :data:`EXPLAINED_SHARE` of the gap, or its fit reaches the noise) or ``partly_explained``."""
         if self.named is None:
-            return "unexplained"
-        return "explained" if self.named.share >= EXPLAINED_SHARE else "partly_explained"
+            return self.gate.status if self.gate is not None and self.gate.status != "gap" else "unexplained"
+        reaches = self.gate is not None and NoiseGate.fits(self.gate.after, self.gate.limits)
+        return "explained" if self.named.share >= EXPLAINED_SHARE or reaches else "partly_explained"
 
     def width(self, plant: Plant, effect: str = WIDTH_EFFECT) -> dict[str, Any]:
         """The backlash width of the answer (the shape of :class:`engine.diagnosis.width.AnswerWidth`).
@@ -296,6 +366,7 @@ class PlantGapReport:
                 "locus": effects[0]["locus"] if effects else None,
                 "share": self.named.share if self.named else 0.0,
                 "left": 1.0 - self.named.share if self.named else 1.0,
+                "reason": self.gate.reason if self.gate is not None else None,
             },
             "calibration": {
                 "values": {k: self.calibration.values[k] for k in units if k in self.calibration.values},
@@ -321,6 +392,8 @@ class PlantGapReport:
                 for e in ([self.named] if self.named and len(self.named.effects) > 1 else []) + self.ranking
             ],
             "absorbed_by_calibration": sorted(self.absorbed),
+            "noise": self.gate.to_dict() if self.gate is not None else None,
+            "gap": self.gate.gap() if self.gate is not None else None,
             "n_simulations": self.extra.get("n_eval", 0),
         }
 
@@ -479,28 +552,6 @@ def solve_unit_box(
     if res.status < 0 or not np.all(np.isfinite(res.fun)):
         raise RuntimeError(f"least squares failed on {list(names)}: {res.message}")
     return res
-
-
-def integrated_time(x: np.ndarray, c: float = SOKAL_WINDOW) -> float:
-    """Integrated autocorrelation time of a residual, in samples (1 for white noise).
-
-    ``tau = 1 + 2 sum_{k=1}^{M} rho_k``, with rho the sample autocorrelation (scipy's FFT
-    correlation of the mean-removed signal) and M the smallest lag with ``M >= c tau(M)``
-    (Sokal's automatic window; A. Sokal, "Monte Carlo methods in statistical mechanics", 1997,
-    section 3). Never below 1.
-    """
-    x = np.asarray(x, dtype=float) - float(np.mean(x))
-    n = x.size
-    if n < 4 or not np.any(x):
-        return 1.0
-    from scipy.signal import correlate  # here, not at the top: scipy.signal adds 1-2 s to every process start
-
-    acf = correlate(x, x, mode="full", method="fft")[n - 1 :]
-    rho = acf / acf[0]
-    taus = 1.0 + 2.0 * np.cumsum(rho[1:])
-    ok = np.flatnonzero(np.arange(1, n) >= c * taus)
-    tau = float(taus[ok[0]]) if ok.size else float(taus[-1])
-    return max(tau, 1.0)
 
 
 def correlation_time(residuals: Sequence[np.ndarray]) -> float:
@@ -729,6 +780,96 @@ def event_shares(
     return shares, float(near.mean())
 
 
+def _reduced_chi2(
+    obj: PlantObjective, values: Mapping[str, float], levels: Mapping[str, NoiseLevel]
+) -> dict[str, float]:
+    """chi2_c / n_c of each channel at ``values``: the mean squared residual over the noise's variance."""
+    res = obj.residuals(values)
+    return {c: float(np.mean(res[c] ** 2)) / levels[c].sigma ** 2 for c in obj.channels}
+
+
+def noise_limits(
+    obj: PlantObjective, levels: Mapping[str, NoiseLevel], settings: DiagnosisSettings
+) -> dict[str, float]:
+    """The largest chi2/n of a fit to the noise, per channel and (``"total"``) for the channels' mean.
+
+    The backlash drive's thresholds, or 1 + :data:`CHI2_SCATTER_Z` standard deviations of chi2/n over
+    the channel's n / tau independent samples, whichever is larger (a correlated channel scatters more).
+    """
+    n = {c: max(obj.y[c].size / levels[c].tau, 1.0) for c in obj.channels}
+    out = {c: max(settings.max_channel_chi2, 1.0 + CHI2_SCATTER_Z * math.sqrt(2.0 / n[c])) for c in obj.channels}
+    sd_total = math.sqrt(sum(2.0 / v for v in n.values())) / len(n)
+    out["total"] = max(settings.max_reduced_chi2, 1.0 + CHI2_SCATTER_Z * sd_total)
+    return out
+
+
+def effect_strength(
+    plant: Plant, record: Any, named: EffectFit, levels: Mapping[str, NoiseLevel], objective: PlantObjective
+) -> float:
+    """How far the named effects move the record at their fitted values: the largest channel RMS of
+    the change [noise RMS], against the same model with the effects at their neutral values."""
+    neutral = {**named.fit.values, **{n: plant.catalogue[n].neutral for n in named.effects}}
+    a = objective.residuals(named.fit.values)
+    b = objective.residuals(neutral)
+    return max(float(np.sqrt(np.mean((a[c] - b[c]) ** 2))) / levels[c].sigma for c in objective.channels)
+
+
+def noise_gate(
+    plant: Plant,
+    record: Any,
+    calibration: Fit,
+    named: EffectFit | None,
+    objective: PlantObjective,
+    settings: DiagnosisSettings | None = None,
+) -> NoiseGate:
+    """The calibrated and the named model's residuals against the plant's noise, and what they decide.
+
+    The backlash drive's rule (:mod:`engine.diagnosis.decision`) on the plant's noise model:
+
+    - the calibrated model fits to the noise and nothing strong is named: ``no_gap``;
+    - a misfit beyond the noise, but weak (its worst channel's excess at most ``min_strength`` noise
+      RMS) with nothing named, or the named effects move the record by at most ``min_strength`` noise
+      RMS: ``weak_gap``;
+    - otherwise ``gap``: the share rule names the answer (:func:`rank_effects`).
+
+    A real record's residual is mostly model error, far above the sensors' noise: there the gate says
+    ``gap`` and the answer is the share rule's, as before the gate existed.
+    """
+    s = settings or DiagnosisSettings()
+    levels = dict(plant.noise(record))
+    missing = [c for c in objective.channels if c not in levels]
+    if missing:
+        raise ValueError(f"plant {plant.name!r} gives no noise level for channel(s) {missing}")
+    limits = noise_limits(objective, levels, s)
+    before = _reduced_chi2(objective, calibration.values, levels)
+    after = _reduced_chi2(objective, named.fit.values, levels) if named is not None else dict(before)
+    fits = NoiseGate.fits(before, limits)
+    worst = max(before, key=lambda c: before[c])
+    gap_rms = math.sqrt(max(before[worst] - 1.0, 0.0))
+    strength = effect_strength(plant, record, named, levels, objective) if named is not None else None
+    total = sum(before.values()) / len(before)
+    fit_text = f"chi2/n {total:.3g}, worst channel {worst} {before[worst]:.3g}"
+    if named is not None and strength is not None and strength > s.min_strength:
+        status, reason = "gap", f"{'+'.join(named.effects)} moves the record by {strength:.3g} noise RMS"
+    elif named is not None and strength is not None:
+        what = f"the best set, {'+'.join(named.effects)}, moves the record by only {strength:.2f} noise RMS"
+        if fits:
+            status, reason = "no_gap", f"the calibrated model fits to the noise ({fit_text}) and {what}"
+        else:
+            status, reason = "weak_gap", f"a misfit beyond the noise ({fit_text}), and {what}: too weak to attribute"
+    elif fits:
+        status, reason = "no_gap", f"the calibrated model fits to the noise ({fit_text})"
+    elif gap_rms <= s.min_strength:
+        status, reason = (
+            "weak_gap",
+            f"a misfit beyond the noise ({fit_text}) but a weak one ({gap_rms:.2f} noise RMS, "
+            f"<= {s.min_strength:g}), and no effect removes {100 * MIN_SHARE:.0f} % of it",
+        )
+    else:
+        status, reason = "gap", f"a misfit of {gap_rms:.3g} noise RMS ({fit_text})"
+    return NoiseGate(levels, before, after, limits, strength, status, reason)
+
+
 def diagnose_plant(
     plant: Plant,
     record: Any,
@@ -765,6 +906,10 @@ def diagnose_plant(
         summary["band_hz"][band] = summary["band_hz"].get(band, 0.0) + cell.share
     absorbed = absorbed_effects(plant, calibration, obj) if refit else {}
     ranking, named = rank_effects(plant, record, calibration, refit=refit, objective=obj, absorbed=absorbed)
+    gate = noise_gate(plant, record, calibration, named, obj)
+    set_aside = None
+    if gate.status in ("no_gap", "weak_gap") and named is not None:
+        set_aside, named = named, None  # too weak to attribute: the answer ends with the calibrated model
     after_values = named.fit.values if named else calibration.values
     budget = gap_budget(named) if named else {}
     before_share, samples = event_shares(plant, record, calibration.values, objective=obj)
@@ -789,5 +934,10 @@ def diagnose_plant(
         calibration_refitted=refit,
         budget=budget,
         absorbed=absorbed,
-        extra={"n_eval": obj.n_eval, **({"calibrated_on": calibrated_on} if calibrated_on else {})},
+        gate=gate,
+        extra={
+            "n_eval": obj.n_eval,
+            **({"calibrated_on": calibrated_on} if calibrated_on else {}),
+            **({"set_aside": set_aside} if set_aside is not None else {}),
+        },
     )

@@ -17,6 +17,7 @@ import numpy as np
 from engine.constants import CHANNEL_UNITS, CHANNELS
 from engine.diagnosis.space import DEFAULT_BOUNDS, LOG_SCALED_EFFECTS, LOG_SCALED_PARAMETERS, default_space
 from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, within_span
+from engine.plants.noise import NoiseLevel, white_noise_level
 from engine.records import Record
 from engine.simulation import (
     CATALOGUE,
@@ -111,6 +112,11 @@ class BacklashDrivePlant:
     def near_events(self, record: Record) -> np.ndarray:
         """Samples within :data:`EVENT_SPAN` of the event t_e."""
         return within_span(record.time, self.events(record), EVENT_SPAN)
+
+    def noise(self, record: Record) -> dict[str, NoiseLevel]:
+        """Each channel's white noise, from its finest wavelet level (MODEL.md's records carry white
+        noise; the drive's own diagnosis fits a coloured model too, :mod:`engine.diagnosis.noise`)."""
+        return {n: white_noise_level(v[self.scored(record)]) for n, v in self.measured(record).items()}
 
     def synthesize(self, record: Record, values: Mapping[str, float], rng: np.random.Generator) -> Record:
         """The record's channels simulated at ``values`` plus white noise at :data:`SYNTHETIC_SNR_DB`."""

@@ -10,6 +10,8 @@ A plant (in the manner of motulator's subsystems, reduced to what a diagnosis re
 - the record's sample instants and the instants of its known input **events** (a pulse, a switch-off);
 - its **example records**: records shipped with the package (real or of its reference test), on
   whose inputs the synthetic check of the diagnosis (:mod:`engine.validation.plant_check`) runs;
+- its sensors' **noise** on a record: per channel, its level and correlation time
+  (:class:`engine.plants.noise.NoiseLevel`), against which a fit's residual is noise or a gap;
 - how to obtain the **measured** channels from one of its records, and how to **simulate** the record's channels on the record's own grid for given parameter and effect
   values (names not given keep their nominal or neutral value).
 
@@ -24,6 +26,8 @@ from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
+
+from engine.plants.noise import NoiseLevel
 
 __all__ = [
     "CalibratedParameter",
@@ -207,6 +211,16 @@ class Plant(Protocol):
         """Calibrated parameters whose values the record itself fixes (its known conditions).
 
         The diagnosis neither fits them nor passes them to :meth:`simulate`; see :func:`free_parameters`.
+        """
+        ...
+
+    def noise(self, record: Any) -> Mapping[str, NoiseLevel]:
+        """The noise the plant's sensors add to each channel of ``record``, over its scored samples.
+
+        The plant's noise model: what a residual at noise level looks like on this record. A real
+        record's residual is mostly model error, far above it; a synthetic record's (from
+        :meth:`synthesize`) reaches it when the model is right. Raises ``ValueError`` for a channel
+        whose level cannot be estimated (too short, not finite, zero throughout).
         """
         ...
 

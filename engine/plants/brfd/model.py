@@ -31,6 +31,7 @@ from engine.plants.base import CalibratedParameter, CandidateEffect, Channel
 from engine.plants.brfd import _kernel as k
 from engine.plants.brfd.catalogue import CATALOGUE, EFFECT_FIELDS, LOCI
 from engine.plants.brfd.record import BrfdRecord, load_json, load_record
+from engine.plants.noise import NoiseLevel, white_noise_level
 from engine.records import RecordError
 
 __all__ = [
@@ -255,6 +256,12 @@ class BrfdPlant:
         from engine.plants.brfd.plots import plot_force_displacement
 
         return [plot_force_displacement(self, record, before, after, Path(out_dir) / "force_displacement.png")]
+
+    def noise(self, record: BrfdRecord) -> dict[str, NoiseLevel]:
+        """The load cell's noise, white: estimated from the record's finest wavelet level
+        (:func:`engine.plants.noise.white_noise_level`; the shipped tests' force varies below 20 Hz at
+        rates of 100 Hz and more, so that level holds noise only)."""
+        return {"force": white_noise_level(self.measured(record)["force"][self.scored(record)])}
 
     def synthesize(self, record: BrfdRecord, values: Mapping[str, float], rng: np.random.Generator) -> BrfdRecord:
         """A record like ``record`` whose force is simulated at ``values`` plus white noise."""

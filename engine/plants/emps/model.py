@@ -34,6 +34,7 @@ from engine.plants.emps import _kernel as k
 from engine.plants.emps.catalogue import CATALOGUE, EFFECT_FIELDS, LOCI
 from engine.plants.emps.channels import N_BORDER, measured_channels, process
 from engine.plants.emps.record import EmpsRecord, load_mat, load_record
+from engine.plants.noise import NoiseLevel, finest_level_sigma, integrated_time, white_noise_level
 
 __all__ = [
     "CALIBRATED",
@@ -86,6 +87,12 @@ DATA_DIR: Path = Path(__file__).resolve().parent / "data"
 
 #: The encoder's position quantum, load side [m]: the smallest step of qm in the files.
 ENCODER_QUANTUM: float = 5e-8
+
+#: Seed of the quantisation error drawn to carry the encoder's noise through the channels' chain
+#: (:meth:`EmpsPlant.noise`; fixed, so a record's noise model is the same at every call).
+QUANTUM_NOISE_SEED: int = 0
+#: Phases of the count grid the quantisation error is drawn on (:meth:`EmpsPlant.noise`).
+N_QUANTUM_PHASES: int = 4
 
 #: The channels of this plant.
 CHANNELS: tuple[Channel, ...] = (
@@ -222,6 +229,39 @@ class EmpsPlant:
     def near_events(self, record: EmpsRecord) -> np.ndarray:
         """Samples within :data:`EVENT_SPAN` of a pulse edge."""
         return within_span(record.t, self.events(record), EVENT_SPAN)
+
+    def noise(self, record: EmpsRecord) -> dict[str, NoiseLevel]:
+        """The encoder's quantum through the measurement chain, and the command's own noise.
+
+        Position, velocity and acceleration: the quantisation error of the record's motion carried
+        through the chain of :func:`~engine.plants.emps.channels.process` (zero-phase 100 Hz
+        low-pass, two central differences): the position the nominal model simulates on the record's
+        inputs (the closed loop follows the record's reference, so its speed profile is the record's),
+        rounded to :data:`ENCODER_QUANTUM` on :data:`N_QUANTUM_PHASES` random phases of the count
+        grid as :meth:`synthesize` reads it; the error's level and correlation time on the scored
+        samples, pooled over the phases. (The record's own filtered position will not do: it lies on
+        its count grid's phase, and re-rounding it gives an error that depends on the phase drawn.) The record's own finest-level estimate instead when it is larger (a noisier encoder
+        than the benchmark's). Force: the command's white noise from its finest wavelet level (on a
+        real record, the controller's reaction to the quantised position).
+        """
+        sl = self.scored(record)
+        meas = self.measured(record)
+        rng = np.random.default_rng(QUANTUM_NOISE_SEED)
+        q = self.states(record, {})["position"]
+        errs: dict[str, list[np.ndarray]] = {"position": [], "velocity": [], "acceleration": []}
+        for phase in rng.uniform(0.0, ENCODER_QUANTUM, N_QUANTUM_PHASES):
+            err = np.round((q + phase) / ENCODER_QUANTUM) * ENCODER_QUANTUM - phase - q
+            chain = process(err, np.zeros(err.size), record.ts)
+            for name, e in errs.items():
+                e.append(chain[name][sl])
+        out: dict[str, NoiseLevel] = {}
+        for name, e in errs.items():
+            sigma = float(np.sqrt(np.mean(np.square(e))))
+            tau = float(np.mean([integrated_time(x) for x in e]))
+            own = finest_level_sigma(meas[name][sl])
+            out[name] = NoiseLevel(sigma, tau, "encoder quantum") if sigma >= own else NoiseLevel(own, 1.0, "record")
+        out["force"] = white_noise_level(meas["force"][sl])
+        return out
 
     def synthesize(self, record: EmpsRecord, values: Mapping[str, float], rng: np.random.Generator) -> EmpsRecord:
         """A record like ``record`` whose qm and vir are simulated at ``values``.
