@@ -36,10 +36,12 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from engine.atomic import write_json_atomic
 from engine.diagnosis.plant_gap import diagnose_plant
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.plants.base import Plant, free_parameters, relative_errors
@@ -51,8 +53,11 @@ __all__ = [
     "QUIET",
     "CheckCase",
     "CheckRow",
+    "Measure",
     "draw_cases",
     "draw_clean",
+    "measures",
+    "report",
     "run_check",
     "summary",
 ]
@@ -229,67 +234,113 @@ def run_check(plant: Plant, record: Any, cases: Sequence[CheckCase], seed: int) 
     return rows
 
 
+@dataclass(frozen=True)
+class Measure:
+    """One rate of the check: ``k`` of ``n`` cases of group ``group`` are hits."""
+
+    key: str
+    label: str
+    group: str
+    k: int
+    n: int
+
+    def to_dict(self) -> dict[str, Any]:
+        lo, hi = wilson_interval(self.k, self.n)
+        return {
+            "key": self.key,
+            "label": self.label,
+            "group": self.group,
+            "k": self.k,
+            "n": self.n,
+            "low": lo,
+            "high": hi,
+        }
+
+
+def measures(rows: Sequence[CheckRow]) -> list[Measure]:
+    """The check's rates, each over its group of cases (groups without a case are left out)."""
+    clean = [r for r in rows if r.clean]
+    effects = [r for r in rows if not r.clean]
+    open_ = [r for r in effects if not r.truth_absorbed]
+    strong = [r for r in open_ if not r.weak]
+    specs: tuple[tuple[str, str, str, list[CheckRow], Callable[[CheckRow], object]], ...] = (
+        ("clean_no_gap", "clean: answered `no_gap`", "clean", clean, lambda r: r.status == "no_gap"),
+        (
+            "clean_false_alarm",
+            "clean: false alarm (an effect named, or `unexplained`)",
+            "clean",
+            clean,
+            lambda r: r.false_alarm,
+        ),
+        ("strong_top1", "strong: first named effect is the true one", "strong, not absorbed", strong, lambda r: r.top1),
+        (
+            "weak_ok",
+            "weak: answered `no_gap`/`weak_gap` or the true effect first",
+            "weak, not absorbed",
+            [r for r in open_ if r.weak],
+            lambda r: r.weak_ok,
+        ),
+        ("top1", "first named effect is the true one", "not absorbed", open_, lambda r: r.top1),
+        ("found", "true effect in the named set", "not absorbed", open_, lambda r: r.found),
+        ("exact", "named set is the true effect alone", "not absorbed", open_, lambda r: r.exact),
+        ("none_named", "no effect named", "not absorbed", open_, lambda r: not r.named),
+        ("unexplained", "answered `unexplained`", "not absorbed", open_, lambda r: r.status == "unexplained"),
+        (
+            "absorbed",
+            "true effect reported as absorbed by the calibration",
+            "with an effect",
+            effects,
+            lambda r: r.truth_absorbed,
+        ),
+        (
+            "named_where_absorbed",
+            "another effect named where the truth was absorbed",
+            "absorbed",
+            [r for r in rows if r.truth_absorbed],
+            lambda r: r.named,
+        ),
+        (
+            "top1_moderate",
+            f"first named effect true, strength <= {STRONG:g} %",
+            "not absorbed",
+            [r for r in open_ if r.case.strength <= STRONG],
+            lambda r: r.top1,
+        ),
+        (
+            "top1_large",
+            f"first named effect true, strength > {STRONG:g} %",
+            "not absorbed",
+            [r for r in open_ if r.case.strength > STRONG],
+            lambda r: r.top1,
+        ),
+    )
+    return [
+        Measure(key, label, group, sum(bool(hit(r)) for r in members), len(members))
+        for key, label, group, members, hit in specs
+        if members
+    ]
+
+
 def summary(rows: Sequence[CheckRow]) -> str:
     """Markdown: rates with Wilson 95 % intervals, then one row per case."""
     n = len(rows)
     if n == 0:
         return "no cases\n"
-    clean = [r for r in rows if r.clean]
-    effects = [r for r in rows if not r.clean]
-    open_ = [r for r in effects if not r.truth_absorbed]
-    strong = [r for r in open_ if not r.weak]
+    n_clean = sum(r.clean for r in rows)
+    n_absorbed = sum(r.truth_absorbed for r in rows)
     min_strength = DiagnosisSettings().min_strength
     out = [
-        f"{n} synthetic cases: {len(clean)} clean, {len(effects)} with one effect; in {len(effects) - len(open_)} of "
+        f"{n} synthetic cases: {n_clean} clean, {n - n_clean} with one effect; in {n_absorbed} of "
         "these the diagnosis reported the true effect as absorbed by the calibration (it cannot be named beside a "
         f"refitted calibration). Strong: the true effect moves the record by more than {min_strength:g} noise RMS.\n",
         "| measure | cases | rate | 95 % interval |",
         "| --- | --- | --- | --- |",
     ]
-    measures: tuple[tuple[str, list[CheckRow], Callable[[CheckRow], object]], ...] = (
-        ("clean: answered `no_gap`", clean, lambda r: r.status == "no_gap"),
-        ("clean: false alarm (an effect named, or `unexplained`)", clean, lambda r: r.false_alarm),
-        ("strong: first named effect is the true one", strong, lambda r: r.top1),
-        (
-            "weak: answered `no_gap`/`weak_gap` or the true effect first",
-            [r for r in open_ if r.weak],
-            lambda r: r.weak_ok,
-        ),
-        ("first named effect is the true one", open_, lambda r: r.top1),
-        ("true effect in the named set", open_, lambda r: r.found),
-        ("named set is the true effect alone", open_, lambda r: r.exact),
-        ("no effect named", open_, lambda r: not r.named),
-        ("answered `unexplained`", open_, lambda r: r.status == "unexplained"),
-        ("true effect reported as absorbed by the calibration", effects, lambda r: r.truth_absorbed),
-        ("another effect named where the truth was absorbed", [r for r in rows if r.truth_absorbed], lambda r: r.named),
-        (
-            f"first named effect true, strength <= {STRONG:g} %",
-            [r for r in open_ if r.case.strength <= STRONG],
-            lambda r: r.top1,
-        ),
-        (
-            f"first named effect true, strength > {STRONG:g} %",
-            [r for r in open_ if r.case.strength > STRONG],
-            lambda r: r.top1,
-        ),
-    )
-    for label, group, hit in measures:
-        if not group:
-            continue
-        k, m = sum(bool(hit(r)) for r in group), len(group)
-        lo, hi = wilson_interval(k, m)
-        which = (
-            "not absorbed"
-            if group is open_
-            else "clean"
-            if group is clean
-            else "with an effect"
-            if group is effects
-            else "strong, not absorbed"
-            if group is strong
-            else "subset"
+    for m in measures(rows):
+        lo, hi = wilson_interval(m.k, m.n)
+        out.append(
+            f"| {m.label} | {m.group} | {m.k}/{m.n} = {100 * m.k / m.n:.0f} % | [{100 * lo:.1f}, {100 * hi:.1f}] % |"
         )
-        out.append(f"| {label} | {which} | {k}/{m} = {100 * k / m:.0f} % | [{100 * lo:.1f}, {100 * hi:.1f}] % |")
     times = sorted(r.seconds for r in rows)
     out.append(f"\nseconds per diagnosis: median {times[n // 2]:.0f}, max {times[-1]:.0f}\n")
     out += [
@@ -305,6 +356,35 @@ def summary(rows: Sequence[CheckRow]) -> str:
             f"{', '.join(r.absorbed) or '-'} |"
         )
     return "\n".join(out) + "\n"
+
+
+def report(rows: Sequence[CheckRow], run: dict[str, Any]) -> dict[str, Any]:
+    """The JSON report of a run: what ran (``run``), the rates with Wilson 95 % intervals, every case."""
+    times = sorted(r.seconds for r in rows)
+    return {
+        "run": run,
+        "n": len(rows),
+        "min_strength_noise_rms": DiagnosisSettings().min_strength,
+        "measures": [m.to_dict() for m in measures(rows)],
+        "seconds": {"median": times[len(times) // 2], "max": times[-1]} if times else None,
+        "cases": [
+            {
+                "index": r.case.index,
+                "effect": r.case.effect,
+                "value": None if r.case.effect is None else r.case.value,
+                "calibration": r.case.calibration,
+                "strength_percent": r.case.strength,
+                "strength_noise_rms": r.noise_strength,
+                "status": r.status,
+                "named": list(r.named),
+                "named_value": r.value,
+                "share": r.share,
+                "absorbed": list(r.absorbed),
+                "seconds": r.seconds,
+            }
+            for r in rows
+        ],
+    }
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -323,6 +403,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="length of the record's head the cases use [s], where the plant's records can be cut",
     )
     p.add_argument("--record", help="the shipped record whose inputs the cases use (default the plant's first)")
+    p.add_argument("--json", type=Path, help="also write the JSON report (rates and every case) to this file")
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     logging.getLogger("engine.diagnosis.plant_gap").setLevel(logging.WARNING)
@@ -332,7 +413,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     record = plant.example(args.record, args.seconds)
     cases = draw_cases(plant, record, args.cases, args.seed)
     cases += draw_clean(plant, record, args.clean, args.seed, first=len(cases))
-    sys.stdout.write(summary(run_check(plant, record, cases, args.seed)))
+    rows = run_check(plant, record, cases, args.seed)
+    sys.stdout.write(summary(rows))
+    if args.json is not None:
+        run = {
+            "plant": args.plant,
+            "record": getattr(record, "name", args.record),
+            "seconds_of_record": args.seconds,
+            "seed": args.seed,
+            "cases": args.cases,
+            "clean": args.clean,
+            "command": "python -m engine.validation.plant_check " + " ".join(sys.argv[1:] if argv is None else argv),
+        }
+        write_json_atomic(args.json, report(rows, run), indent=1)
     return 0
 
 
