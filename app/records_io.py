@@ -293,6 +293,8 @@ def record_from_csv(
     event_index: int | None = None,
     conditions: Mapping[str, float] | None = None,
     units: Mapping[str, str] | None = None,
+    *,
+    default_interval: float | None = None,
 ) -> Record:
     """Parse the CSV form of a record.
 
@@ -309,8 +311,8 @@ def record_from_csv(
         one row per sample; any number of rows, the same for every column. A string, or its
         lines (an open text file).
     sample_interval : float, optional
-        Ts [s] (10 us to 1 ms). Default: the step of the ``t`` column, or MODEL.md's 0.1 ms
-        without one; given together with ``t`` the two must agree.
+        Ts [s] (10 us to 1 ms). Default: the step of the ``t`` column, or without one
+        ``default_interval``; given together with ``t`` the two must agree.
     event_index : int, optional
         Index of the sample at the event t_e; omitted, the event is located from m_el or a1
         (the record's ``event_location`` says how).
@@ -319,6 +321,9 @@ def record_from_csv(
         ``base_torque`` [N*m] for an m_el in N*m).
     units : mapping of str to str, optional
         Unit per channel (:data:`engine.records.UNITS`); a channel not named is in its model unit.
+    default_interval : float, optional
+        Ts [s] of a CSV with neither ``sample_interval`` nor a ``t`` column: the drive's protocol interval
+        when a drive is given (``DriveDescription.grid().sample_interval``), else MODEL.md's 0.1 ms.
 
     Returns
     -------
@@ -345,7 +350,14 @@ def record_from_csv(
         ({name: block[:, j] for name, j in columns.items()}, None if at_time is None else block[:, at_time])
         for block in blocks
     )
-    return record_from_chunks(chunks, sample_interval, event_index, dict(conditions or {}), dict(units or {}))
+    return record_from_chunks(
+        chunks,
+        sample_interval,
+        event_index,
+        dict(conditions or {}),
+        dict(units or {}),
+        default_interval=default_interval,
+    )
 
 
 def record_to_csv(record: Record, with_time: bool = False) -> str:
@@ -408,6 +420,8 @@ def record_from_json(
     event_index: int | None = None,
     conditions: Mapping[str, float] | None = None,
     units: Mapping[str, str] | None = None,
+    *,
+    default_interval: float | None = None,
 ) -> Record:
     """Parse the JSON record format (NaN / Infinity tokens are rejected).
 
@@ -420,6 +434,9 @@ def record_from_json(
         Replace the record's values when given.
     conditions, units : mapping, optional
         Merged over the record's (a value given here wins).
+    default_interval : float, optional
+        Ts [s] of a record with neither ``sample_interval`` nor ``t``: the drive's protocol interval when a
+        drive is given, else MODEL.md's 0.1 ms.
 
     Raises
     ------
@@ -449,7 +466,7 @@ def record_from_json(
     if units:
         data["units"] = {**(data.get("units") or {}), **dict(units)}
     try:
-        return Record.from_dict(data)
+        return Record.from_dict(data, default_interval=default_interval)
     except RecordError:
         raise
     except (TypeError, ValueError) as exc:  # e.g. a sample that is a string
@@ -470,13 +487,17 @@ def read_record(
     event_index: int | None = None,
     conditions: Mapping[str, float] | None = None,
     units: Mapping[str, str] | None = None,
+    *,
+    default_interval: float | None = None,
 ) -> Record:
     """Read a record file: ``.json`` (record format) or ``.csv`` (CSV form).
 
     ``sample_interval`` [s], ``event_index``, ``conditions`` and ``units`` complete a CSV
     file (see :func:`record_from_csv`: without them Ts comes from its ``t`` column or is
-    0.1 ms, and the event is located); for a JSON file they override its values when given
-    (see :func:`record_from_json`).
+    ``default_interval`` [s], and the event is located); for a JSON file they override its values when given
+    (see :func:`record_from_json`). ``default_interval``: the Ts [s] of a record (CSV or JSON) that gives
+    neither ``sample_interval`` nor ``t``, the drive's protocol interval when a drive is given; default
+    MODEL.md's 0.1 ms.
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -485,11 +506,13 @@ def read_record(
     try:
         if suffix == ".csv":  # read as it is parsed (a long one is never held whole: record_from_csv)
             with path.open(encoding="utf-8-sig") as lines:
-                return record_from_csv(lines, sample_interval, event_index, conditions, units)
+                return record_from_csv(
+                    lines, sample_interval, event_index, conditions, units, default_interval=default_interval
+                )
         text = path.read_text(encoding="utf-8-sig")
     except OSError as exc:
         raise RecordFormatError(f"cannot read record file {path}: {exc.strerror or exc}") from exc
-    return record_from_json(text, sample_interval, event_index, conditions, units)
+    return record_from_json(text, sample_interval, event_index, conditions, units, default_interval=default_interval)
 
 
 def stated_provenance(path: str | Path) -> dict[str, Any] | None:

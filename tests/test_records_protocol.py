@@ -159,6 +159,25 @@ def test_time_column_contradicting_sample_interval_is_refused() -> None:
         record_from_data({"v2": np.zeros(g.n_samples)}, 1e-4, g.event_index, time=np.arange(g.n_samples) * 5e-5)
 
 
+def test_default_interval_reads_a_record_without_interval_or_time_column() -> None:
+    """A record with neither ``sample_interval`` nor ``t`` is read at ``default_interval`` (a drive's protocol
+    interval), MODEL.md's 0.1 ms without one; a time column or a given interval still wins."""
+    g = SampleGrid.protocol(5e-5)  # 4096 samples, the event at 96: the test window at 50 us, 0.1 ms and 0.2 ms
+    channels = {"v2": np.zeros(g.n_samples)}
+    assert record_from_data(channels, event_index=g.event_index).sample_interval == 1e-4
+    assert record_from_data(channels, event_index=g.event_index, default_interval=2e-4).sample_interval == 2e-4
+    given = record_from_data(channels, 5e-5, g.event_index, default_interval=2e-4)
+    assert given.sample_interval == 5e-5
+    timed = record_from_data(
+        channels, event_index=g.event_index, time=np.arange(g.n_samples) * 5e-5, default_interval=2e-4
+    )
+    assert timed.sample_interval == pytest.approx(5e-5, rel=1e-12)
+    with pytest.raises(RecordError, match="contradicts the time column"):  # the two must still agree
+        record_from_data(channels, 1e-4, g.event_index, time=np.arange(g.n_samples) * 5e-5, default_interval=5e-5)
+    from_dict = Record.from_dict({"channels": {"v2": [0.0] * g.n_samples}, "event_index": 96}, default_interval=2e-4)
+    assert from_dict.sample_interval == 2e-4
+
+
 # -- event location --------------------------------------------------------------------------------
 
 

@@ -199,6 +199,17 @@ def test_excerpt_covers_every_reading_of_the_analyses() -> None:
         assert reach(ts) <= MARGIN_SAMPLES
 
 
+@pytest.mark.parametrize("hold", [None, 5_000])
+def test_a_record_read_in_pieces_without_interval_or_time_is_read_at_the_default(hold: int | None) -> None:
+    """Held whole or read as a long record: without ``sample_interval`` or a time column, ``default_interval``
+    (a drive's protocol interval) is the record's interval, MODEL.md's 0.1 ms without it; a given one wins."""
+    channels = {"v2": np.zeros(12_000)}
+    for default, given, expected in ((2e-4, None, 2e-4), (None, None, 1e-4), (2e-4, 5e-5, 5e-5)):
+        record = record_from_chunks(_chunks(channels, None), given, 96, hold=hold, default_interval=default)
+        assert record.sample_interval == expected
+        assert (record.excerpt is not None) == (hold is not None)
+
+
 def test_short_record_read_in_pieces_is_held_whole(long_capture: Capture) -> None:
     channels, t, _ = long_capture
     short = {c: x[25_000 : 25_000 + HOLD_SAMPLES] for c, x in channels.items()}

@@ -162,7 +162,8 @@ class CSVRecordParams:
                 gt=0,
                 allow_inf_nan=False,
                 description=f"CSV form: Ts [s], {MIN_SAMPLE_INTERVAL:g} to {MAX_SAMPLE_INTERVAL:g}. Default: the "
-                f"step of the CSV's t column, else {SAMPLE_INTERVAL:g}; given with a t column, the two must agree.",
+                f"step of the CSV's t column, else {SAMPLE_INTERVAL:g}, or the drive's protocol interval when `drive` is "
+                "given; given with a t column, the two must agree.",
             ),
         ] = None,
         event_index: Annotated[
@@ -252,17 +253,24 @@ class CSVRecordParams:
 CSVRecordDep = Annotated[CSVRecordParams, Depends()]
 
 
-async def csv_record(request: Request, params: CSVRecordParams) -> Record:
+async def csv_record(request: Request, params: CSVRecordParams, default_interval: float | None = None) -> Record:
     """The record sent in CSV form (header of channel names, optionally ``t``; one row per sample).
 
-    Decoded and parsed in a worker thread, off the event loop (as :func:`json_body`).
+    Decoded and parsed in a worker thread, off the event loop (as :func:`json_body`). ``default_interval`` [s]:
+    the Ts of a CSV with neither ``sample_interval`` nor a ``t`` column, the protocol interval of the drive the
+    request gives (``DriveDescription.grid().sample_interval``); default MODEL.md's 0.1 ms.
     """
     raw = await request.body()
     units = params.units()
 
     def read() -> Record:
         return record_from_csv(
-            csv_body_lines(raw), params.sample_interval, params.event_index, params.conditions, units
+            csv_body_lines(raw),
+            params.sample_interval,
+            params.event_index,
+            params.conditions,
+            units,
+            default_interval=default_interval,
         )
 
     return await run_in_threadpool(read)

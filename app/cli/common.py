@@ -97,7 +97,8 @@ def add_record_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--sample-interval",
         type=finite,
-        help=f"Ts [s], 10 us to 1 ms (default: the step of the CSV's t column, else {SAMPLE_INTERVAL:g})",
+        help=f"Ts [s], 10 us to 1 ms (default: the step of the record's t column, else the --drive's protocol "
+        f"interval, else {SAMPLE_INTERVAL:g})",
     )
     p.add_argument(
         "--event-index",
@@ -194,14 +195,26 @@ def open_store(args: argparse.Namespace) -> PatternStore:
     return PatternStore(settings(args).db_path)
 
 
-def read_record(args: argparse.Namespace) -> Record:
-    """The record file of :func:`add_record_options`, completed by its options."""
+def read_record(args: argparse.Namespace, drive: DriveDescription | None = None) -> Record:
+    """The record file of :func:`add_record_options`, completed by its options.
+
+    ``drive``: the drive the record is read for (``--drive``, or the one the record states); a record with neither
+    ``--sample-interval`` nor a ``t`` is read at its protocol interval (without a drive, MODEL.md's 0.1 ms).
+    """
     from app.records_io import read_record as read_file
+    from app.services.simulation import record_interval
 
     conditions = {k: getattr(args, k) for k in ("J1", "c", "c1", "K") if getattr(args, k, None) is not None}
     if getattr(args, "base_torque", None) is not None:
         conditions["base_torque"] = args.base_torque
-    return read_file(args.record, args.sample_interval, args.event_index, conditions, units_of(args))
+    return read_file(
+        args.record,
+        args.sample_interval,
+        args.event_index,
+        conditions,
+        units_of(args),
+        default_interval=record_interval(drive),
+    )
 
 
 def units_of(args: argparse.Namespace) -> dict[str, str]:

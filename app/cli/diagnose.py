@@ -41,7 +41,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     drive = drive_for_record(read_drive(args), stated_provenance(args.record))
     if args.drive is None and drive is not None:
         output.info(f"diagnosing on the drive the record states: {drive.name} ({drive.fingerprint[:12]})")
-    record = read_record(args)
+    record = read_record(args, drive)  # without a sample interval or t: read at the drive's protocol interval
     check_units(record.units, drive)  # omega1 in pu would be read with MODEL.md's base speed: refused
     for name in args.effects or ():
         CATALOGUE[name]  # UnknownEffectError names the known effects before any work is done

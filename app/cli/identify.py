@@ -43,7 +43,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     drive = drive_for_record(read_drive(args), stated)  # --drive, else the drive the record states in full
     if args.drive is None and drive is not None:
         output.info(f"identifying on the drive the record states: {drive.name} ({drive.fingerprint[:12]})")
-    record = read_record(args)
+    record = read_record(args, drive)  # without a sample interval or t: read at the drive's protocol interval
     path = settings(args).db_path
     if not path.exists():  # no empty store left behind, and the CLI's way to fill one
         raise CommandError(

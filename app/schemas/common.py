@@ -122,7 +122,8 @@ class RecordIn(BaseModel):
     sample_interval: Interval | None = Field(
         default=None,
         description=f"Ts [s], {MIN_SAMPLE_INTERVAL:g} to {MAX_SAMPLE_INTERVAL:g}. Default: the step of `t` when "
-        f"given, else MODEL.md's {SAMPLE_INTERVAL:g}; given with `t`, the two must agree.",
+        f"given, else MODEL.md's {SAMPLE_INTERVAL:g}, or the drive's protocol interval when the request gives a "
+        "drive; given with `t`, the two must agree.",
     )
     event_index: Annotated[StrictInt, Field(ge=0)] | None = Field(
         default=None,
@@ -156,8 +157,15 @@ class RecordIn(BaseModel):
         "description): it must be the request's drive; a diagnosis request without a drive runs on this one.",
     )
 
-    def to_record(self) -> Record:
+    def to_record(self, default_interval: float | None = None) -> Record:
         """The engine's record, read by :func:`engine.records.record_from_data`.
+
+        Parameters
+        ----------
+        default_interval : float, optional
+            Ts [s] of a record that gives neither ``sample_interval`` nor ``t``: the protocol interval of the
+            request's drive when it gives one (``DriveDescription.grid().sample_interval``); default MODEL.md's
+            0.1 ms.
 
         Raises
         ------
@@ -174,6 +182,7 @@ class RecordIn(BaseModel):
             units=self.units or {},
             time=self.t,
             event_time=self.event_time,
+            default_interval=default_interval,
         )
 
 

@@ -62,10 +62,10 @@ def _read(plant_name: str, path: Path, drive: DriveDescription | None = None) ->
     if plant_name == DEFAULT_PLANT:
         from app.records_io import read_record, stated_provenance
         from app.services.identification import drive_for_record
-        from app.services.simulation import check_units
+        from app.services.simulation import check_units, record_interval
 
         drive = drive_for_record(drive, stated_provenance(path))  # a record of another drive: refused
-        record = read_record(path)
+        record = read_record(path, default_interval=record_interval(drive))  # without Ts or t: the drive's protocol's
         check_units(record.units, drive)  # omega1 in pu would be read with MODEL.md's base speed: refused
         return record, drive
     from app.services.plant_diagnosis import read_file

@@ -149,7 +149,7 @@ def parse(request: DiagnosisRequest) -> ParsedDiagnosis:
     # what to fix
     drive = drive_for_record(simulation.drive_of(body.drive), stated)
     check_bounds(body.bounds, drive or REFERENCE_DRIVE)  # BoundsError (422) says what to fix before any work
-    record = body.record.to_record()
+    record = body.record.to_record(simulation.record_interval(drive))  # without Ts or t: the drive's protocol's
     simulation.check_units(record.units, drive)  # omega1 in pu would be read with MODEL.md's base speed
     return ParsedDiagnosis(
         plant=DEFAULT_PLANT,
@@ -170,8 +170,13 @@ def _parse_csv(raw: bytes, params: dict[str, Any]) -> ParsedDiagnosis:
     except RecordFormatError as exc:
         raise InvalidInputError(f"query parameter {exc}") from None
     drive = simulation.drive_from_query(params.get("drive"))  # before the body: a refused description reads nothing
-    record = record_from_csv(
-        lines, params.get("sample_interval"), params.get("event_index"), params.get("conditions") or {}, units
+    record = record_from_csv(  # without sample_interval or a t column: read at the drive's protocol interval
+        lines,
+        params.get("sample_interval"),
+        params.get("event_index"),
+        params.get("conditions") or {},
+        units,
+        default_interval=simulation.record_interval(drive),
     )
     simulation.check_units(record.units, drive)  # omega1 in pu would be read with MODEL.md's base speed
     return ParsedDiagnosis(plant=DEFAULT_PLANT, record=record, asset=asset, measured_at=measured_at, drive=drive)

@@ -176,6 +176,15 @@ def drive_from_query(text: str | None) -> DriveDescription | None:
     return drive_of(data)
 
 
+def record_interval(drive: DriveDescription | None) -> float | None:
+    """The sample interval [s] of a record read for ``drive`` that gives neither ``sample_interval`` nor ``t``.
+
+    The drive's protocol interval (``drive.grid().sample_interval``); None without a drive, which the record
+    readers take as MODEL.md's 0.1 ms.
+    """
+    return None if drive is None else drive.grid().sample_interval
+
+
 def protocol_span(drive: DriveDescription | None) -> dict[str, float]:
     """The rendering's ``sample_interval`` [s], ``before`` [s] and ``after`` [s] of a drive's test protocol.
 

@@ -93,6 +93,8 @@ def record_from_data(
     units: Mapping[str, str] | None = None,
     time: Sequence[float] | np.ndarray | None = None,
     event_time: float | None = None,
+    *,
+    default_interval: float | None = None,
 ) -> Record:
     """Read a record as a bench gives it (see the module notes).
 
@@ -101,7 +103,7 @@ def record_from_data(
     channels : mapping of str to sequence of float
         Non-empty subset of ``a1, m_el, omega1, a2, v2``, in the units ``units`` says.
     sample_interval : float, optional
-        Ts [s]; from ``time`` when omitted, else MODEL.md's 0.1 ms.
+        Ts [s]; from ``time`` when omitted, else ``default_interval``.
     event_index : int, optional
         Index of the sample at the event; located from m_el or a1 when omitted.
     conditions : mapping of str to float, optional
@@ -112,6 +114,10 @@ def record_from_data(
         Sample times [s] (a CSV's ``t`` column); defines the interval.
     event_time : float, optional
         t_e since switch-on [s], when known.
+    default_interval : float, optional
+        Ts [s] of a record that gives neither ``sample_interval`` nor ``time``: the protocol interval of the
+        drive it was taken on, when one is given (``DriveDescription.grid().sample_interval``). Default:
+        MODEL.md's 0.1 ms (:data:`~engine.constants.SAMPLE_INTERVAL`).
 
     Returns
     -------
@@ -136,7 +142,8 @@ def record_from_data(
         from_time = interval_from_time(time)
         if len(time) != n:
             raise RecordError(f"the time column 't' has {len(time)} values and the channels {n} samples")
-    ts = sample_interval_of(from_time, sample_interval, SAMPLE_INTERVAL)
+    default = SAMPLE_INTERVAL if default_interval is None else default_interval
+    ts = sample_interval_of(from_time, sample_interval, default)
     try:
         model = to_model_units(arrays, units, conditions)
     except UnitError as exc:

@@ -289,8 +289,12 @@ class Record:
         return out
 
     @classmethod
-    def from_dict(cls, data: Mapping) -> Record:
-        """Build a record from the service's JSON record format (see :func:`engine.records.protocol.record_from_data`)."""
+    def from_dict(cls, data: Mapping, *, default_interval: float | None = None) -> Record:
+        """Build a record from the service's JSON record format (see :func:`engine.records.protocol.record_from_data`).
+
+        ``default_interval`` [s]: the sample interval of a record that gives neither ``sample_interval`` nor ``t``
+        (the protocol interval of the drive it was taken on, when one is given); default MODEL.md's 0.1 ms.
+        """
         from engine.records.protocol import record_from_data  # the boundary; imports this module
 
         if "channels" not in data:
@@ -305,6 +309,7 @@ class Record:
             units=dict(data.get("units") or {}),
             time=data.get("t"),
             event_time=data.get("event_time"),
+            default_interval=default_interval,
         )
         if located is not None and index is not None:  # written by to_dict: the event was located, keep saying so
             try:

@@ -78,6 +78,7 @@ def record_from_chunks(
     event_time: float | None = None,
     *,
     hold: int | None = None,
+    default_interval: float | None = None,
 ) -> Record:
     """Read a record given a chunk at a time (see the module notes).
 
@@ -90,6 +91,10 @@ def record_from_chunks(
         As :func:`~engine.records.protocol.record_from_data` takes them.
     hold : int, optional
         Samples up to which the record is held whole (default :data:`HOLD_SAMPLES`).
+    default_interval : float, optional
+        Ts [s] of a record with neither ``sample_interval`` nor a time column (the protocol interval of the
+        drive it was taken on, when one is given); default MODEL.md's 0.1 ms. As
+        :func:`~engine.records.protocol.record_from_data` takes it.
 
     Returns
     -------
@@ -112,9 +117,10 @@ def record_from_chunks(
         if n > hold:
             break
     else:
-        return _whole(held, sample_interval, event_index, conditions, units, event_time)
+        return _whole(held, sample_interval, event_index, conditions, units, event_time, default_interval)
     with Spill([*held[0][0], *([_TIME] if held[0][1] is not None else [])]) as spill:
-        return _LongRecord(spill, sample_interval, event_index, conditions, units, event_time).read(held, stream)
+        reader = _LongRecord(spill, sample_interval, event_index, conditions, units, event_time, default_interval)
+        return reader.read(held, stream)
 
 
 def _length(chunk: Chunk) -> int:
@@ -137,13 +143,16 @@ def _whole(
     conditions: Mapping[str, float] | None,
     units: Mapping[str, str] | None,
     event_time: float | None,
+    default_interval: float | None = None,
 ) -> Record:
     """A short record, joined and read by the one boundary of records held whole."""
     names = list(held[0][0]) if held else []
     channels = {name: np.concatenate([np.asarray(c[name], dtype=float) for c, _ in held]) for name in names}
     has_time = bool(held) and held[0][1] is not None
     time = np.concatenate([np.asarray(t, dtype=float) for _, t in held if t is not None]) if has_time else None
-    return record_from_data(channels, sample_interval, event_index, conditions, units, time, event_time)
+    return record_from_data(
+        channels, sample_interval, event_index, conditions, units, time, event_time, default_interval=default_interval
+    )
 
 
 class _LongRecord:
@@ -157,11 +166,13 @@ class _LongRecord:
         conditions: Mapping[str, float] | None,
         units: Mapping[str, str] | None,
         event_time: float | None,
+        default_interval: float | None = None,
     ) -> None:
         self.spill = spill
         self.names = [name for name in spill.columns if name != _TIME]
         self.has_time = _TIME in spill.columns
         self.sample_interval = sample_interval
+        self.default_interval = SAMPLE_INTERVAL if default_interval is None else default_interval
         self.event_index = event_index
         self.conditions = {k: float(v) for k, v in dict(conditions or {}).items()}
         self.units = {str(k): str(v) for k, v in dict(units or {}).items()}
@@ -259,7 +270,7 @@ class _LongRecord:
         if self.has_time:
             column = self.spill.columns[_TIME]
             from_time = self.steps.interval(again=lambda: (piece for _, piece in pieces(column)))
-        return sample_interval_of(from_time, self.sample_interval, SAMPLE_INTERVAL)
+        return sample_interval_of(from_time, self.sample_interval, self.default_interval)
 
     def _excerpt(self, grid: SampleGrid, location: EventLocation | None) -> Record:
         """What the analyses read of the record: the excerpt around its event, read back from the spill."""

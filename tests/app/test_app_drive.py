@@ -407,3 +407,84 @@ def test_a_record_read_without_its_drive_is_told_which_drives_have_sets(tmp_path
     assert f"stored for drive(s) {drive.fingerprint[:12]}" in str(refused.value), refused.value
     assert "give its description (drive)" in str(refused.value) and "--drive FILE" in str(refused.value.cli_message)
     assert select_pattern_set(store, "v2", record, drive=drive).pattern_set.c == drive.c
+
+
+def _csv(n: int, step: float | None = None) -> bytes:
+    """A CSV record of ``n`` samples of v2 = 0, with a time column of ``step`` [s] when given."""
+    rows = ["t,v2" if step else "v2", *(f"{k * step!r},0.0" if step else "0.0" for k in range(n))]
+    return ("\n".join(rows) + "\n").encode()
+
+
+def test_a_record_without_interval_or_time_is_read_at_the_drive_protocol_interval(example: dict[str, Any]) -> None:
+    """A diagnosis request (as the sync route and a job read it) with a described drive (its protocol at 50 us)
+    and a record that gives neither sample_interval nor t: the record is read at the drive's interval, not at
+    MODEL.md's 0.1 ms; without a drive at 0.1 ms; a given interval or a t column still wins. CSV and JSON."""
+    from app.services.diagnosis_requests import DiagnosisRequest, parse
+
+    drive = load_drive(EXAMPLE)
+    assert drive.grid().sample_interval == 5e-5
+    n, event = drive.n_samples, drive.event_index  # the test window at 50 us and at 0.1 ms
+    params: dict[str, Any] = {"event_index": event, "drive": json.dumps(example)}
+
+    def csv_interval(raw: bytes, **given: Any) -> float:
+        return parse(DiagnosisRequest("csv", raw, {**params, **given})).record.sample_interval
+
+    assert csv_interval(_csv(n)) == 5e-5
+    assert csv_interval(_csv(n), drive=None) == 1e-4
+    assert csv_interval(_csv(n), sample_interval=1e-4) == 1e-4
+    assert csv_interval(_csv(n, 1e-4)) == pytest.approx(1e-4, rel=1e-9)
+    record = {"event_index": event, "channels": {"v2": [0.0] * n}}
+
+    def json_interval(body: dict[str, Any]) -> float:
+        return parse(DiagnosisRequest("json", json.dumps(body).encode())).record.sample_interval
+
+    assert json_interval({"record": record, "drive": example}) == 5e-5
+    assert json_interval({"record": record}) == 1e-4
+    assert json_interval({"record": {**record, "sample_interval": 1e-4}, "drive": example}) == 1e-4
+    assert json_interval({"record": {**record, "t": (np.arange(n) * 1e-4).tolist()}, "drive": example}) == (
+        pytest.approx(1e-4, rel=1e-9)
+    )
+
+
+def test_the_service_reads_a_record_without_interval_at_the_drive_protocol_interval(
+    client: httpx.Client, example: dict[str, Any]
+) -> None:
+    """Over HTTP: a record too short for the test window is refused naming the interval it was read at, the drive's
+    50 us with ``drive`` (identify, diagnose, diagnosis jobs; CSV and JSON), MODEL.md's 0.1 ms without."""
+    routes: tuple[tuple[str, dict[str, Any]], ...] = (
+        ("/v1/identify", {"channel": "v2"}),
+        ("/v1/diagnose", {}),
+        ("/v1/diagnoses", {}),
+    )
+    for path, extra in routes:
+        query = {"event_index": 96, **extra}
+        for given, ts in (({"drive": json.dumps(example)}, "5e-05"), ({}, "0.0001")):
+            r = client.post(path, content=_csv(1000), params={**query, **given}, headers={"Content-Type": "text/csv"})
+            assert r.status_code == 422 and f"1000 samples of {ts} s" in r.json()["detail"], (path, r.text)
+        record = {"event_index": 96, "channels": {"v2": [0.0] * 1000}}
+        for given, ts in (({"drive": example}, "5e-05"), ({}, "0.0001")):
+            r = client.post(path, json={"record": record, **extra, **given})
+            assert r.status_code == 422 and f"1000 samples of {ts} s" in r.json()["detail"], (path, r.text)
+
+
+def test_cli_reads_a_record_file_without_interval_at_the_drive_protocol_interval(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--drive FILE``: a record file (CSV or JSON) with neither a sample interval nor t is read at the drive's
+    protocol interval by diagnose, identify and diagnose-batch; at MODEL.md's 0.1 ms without --drive."""
+    from app.services.batch import run_batch
+
+    short_csv = tmp_path / "short.csv"
+    short_csv.write_bytes(_csv(1000))
+    short_json = tmp_path / "short.json"
+    short_json.write_text(json.dumps({"event_index": 96, "channels": {"v2": [0.0] * 1000}}), encoding="utf-8")
+    for command in (["diagnose"], ["identify", "--channel", "v2"]):
+        for path in (short_csv, short_json):
+            for drive, ts in ((["--drive", str(EXAMPLE)], "5e-05"), ([], "0.0001")):
+                assert cli.main([*command, str(path), "--event-index", "96", *drive]) == 2
+                err = capsys.readouterr().err
+                assert f"1000 samples of {ts} s" in err, (command, path, err)
+    (row,) = run_batch([short_json], tmp_path / "batch", drive=load_drive(EXAMPLE))
+    assert row["status"] == "refused" and "1000 samples of 5e-05 s" in row["detail"], row
+    (row,) = run_batch([short_json], tmp_path / "batch-reference")
+    assert row["status"] == "refused" and "1000 samples of 0.0001 s" in row["detail"], row

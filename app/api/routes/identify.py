@@ -84,7 +84,8 @@ async def identify(
         if channel is None:
             raise InvalidInputError("with a CSV body, give the channel to identify from as query parameter ?channel=")
         csv_drive = await run_in_threadpool(simulation.drive_from_query, csv_params.drive)
-        record = await csv_record(request, csv_params)
+        # without sample_interval or a t column, the CSV is read at the drive's protocol interval
+        record = await csv_record(request, csv_params, simulation.record_interval(csv_drive))
         asset, measured_at = named_asset(csv_params.asset, csv_params.measured_at)
         args: tuple[Any, ...] = (
             record,
@@ -113,7 +114,7 @@ async def identify(
         # the request's drive, else the one the record states in full (ParameterError / IncompatibleError: 422)
         drive = await run_in_threadpool(identification.drive_for_record, simulation.drive_of(body.drive), stated)
         args = (
-            await run_in_threadpool(body.record.to_record),
+            await run_in_threadpool(body.record.to_record, simulation.record_interval(drive)),
             body.channel,
             body.pattern_set,
             body.kind,
