@@ -814,6 +814,165 @@ def render_emps_diagnosis(page: Page) -> str:
     return table(head, rows) + note + sources(page, paths)
 
 
+#: The synthetic checks of the noise gate (issue 52, item 2), blind for the code of their commit.
+PLANT_CHECK_RUNS = (
+    "brfd-seed21",
+    "brfd-seed22",
+    "emps-seed23",
+    "emps-seed24",
+    "backlash_drive-seed25",
+    "backlash_drive-seed26",
+    "backlash_drive-seed27",
+)
+#: Runs of code since changed for their plant: in the table, left out of the README's pooled line.
+PLANT_CHECK_SUPERSEDED: dict[str, str] = {
+    "backlash_drive-seed25": "before the drive's calibration started from its global search",
+}
+#: The rates the gate's table shows, in order.
+PLANT_CHECK_MEASURES = (
+    "clean_no_gap",
+    "clean_false_alarm",
+    "strong_top1",
+    "weak_ok",
+    "absorbed",
+    "named_where_absorbed",
+)
+
+
+def render_plant_checks(page: Page) -> str:
+    """The synthetic checks through the plant interface: clean cases, strong and weak effects, per run."""
+    paths = [
+        f"docs/real-data/check/{name}.json"
+        for name in PLANT_CHECK_RUNS
+        if (ROOT / f"docs/real-data/check/{name}.json").exists()
+    ]
+    runs = [read_json(p) for p in paths]
+    names = [Path(p).stem for p in paths]
+    head = [
+        "measure",
+        *(
+            f"{r['run']['plant']}, {r['run']['record']}, seed {r['run']['seed']}"
+            + (f" ({PLANT_CHECK_SUPERSEDED[n]})" if n in PLANT_CHECK_SUPERSEDED else "")
+            for r, n in zip(runs, names, strict=True)
+        ),
+    ]
+    labels: dict[str, str] = {}
+    cells: dict[str, list[str]] = {key: [] for key in PLANT_CHECK_MEASURES}
+    for r in runs:
+        by_key = {m["key"]: m for m in r["measures"]}
+        for key in PLANT_CHECK_MEASURES:
+            m = by_key.get(key)
+            if m is not None:
+                labels.setdefault(key, m["label"])
+            cells[key].append("-" if m is None else rate(m["k"], m["n"], m["low"], m["high"]))
+    rows = [[labels.get(key, key), *cells[key]] for key in PLANT_CHECK_MEASURES if key in labels]
+    rows.append(
+        [
+            "seconds per diagnosis, median / max",
+            *(f"{r['seconds']['median']:.0f} / {r['seconds']['max']:.0f}" if r["seconds"] else "-" for r in runs),
+        ]
+    )
+    note = (
+        f"\n\nStrong: the true effect moves the record by more than {runs[0]['min_strength_noise_rms']:g} noise RMS "
+        "(computed from the truth after the diagnosis); Wilson 95 % intervals."
+        if runs
+        else ""
+    )
+    return table(head, rows) + note + sources(page, paths)
+
+
+def render_plant_checks_summary(page: Page) -> str:
+    """One line for the README: the gate's checks pooled over every plant's runs."""
+    paths = [
+        f"docs/real-data/check/{n}.json" for n in PLANT_CHECK_RUNS if (ROOT / f"docs/real-data/check/{n}.json").exists()
+    ]
+    runs = [read_json(p) for p in paths]
+    pooled: dict[str, list[int]] = {}
+    for r in runs:
+        for m in r["measures"]:
+            k, n = pooled.setdefault(m["key"], [0, 0])
+            pooled[m["key"]] = [k + m["k"], n + m["n"]]
+    plants = sorted({r["run"]["plant"] for r in runs})
+
+    def pooled_rate(key: str) -> str:
+        k, n = pooled.get(key, [0, 0])
+        return rate(k, n)
+
+    text = (
+        f"- **Clean and weak records on every plant** ({', '.join(plants)}; {len(runs)} blind synthetic checks through "
+        f"the plant interface, pooled): a record the model already fits is answered `no_gap` in "
+        f"{pooled_rate('clean_no_gap')}, with a false alarm in {pooled_rate('clean_false_alarm')}; an effect "
+        f"beyond 3 noise RMS is named first in {pooled_rate('strong_top1')}; a weaker one is answered `no_gap`/"
+        f"`weak_gap` or named right in {pooled_rate('weak_ok')} ({page.link('docs/real-data.md', 'real data, section 6')})."
+    )
+    return text + sources(page, paths)
+
+
+#: The logs of ``time ./.ci/run`` on fresh clones: ``YYYY-MM-DD-HHMM-COMMIT-WHERE.log`` (UTC, when the
+#: run ended), so that they sort oldest first.
+TEST_RUN_LOGS = "docs/validation/test-run"
+_PYTEST_LINE = re.compile(
+    r"^(?:(?P<failed>\d+) failed, )?(?P<passed>\d+) passed(?:, \d+ deselected)? in (?P<s>[\d.]+)s", re.M
+)
+_TIME_LINE = re.compile(r"^(?P<what>real|user)\s+(?P<m>\d+)m(?P<s>[\d.]+)s$", re.M)
+
+
+def test_run(path: Path) -> dict[str, Any]:
+    """One fresh-clone run from its log: the two pytest parts, wall and CPU time, exit status."""
+    text = path.read_text()
+    fields = path.stem.split("-")
+    date = "-".join(fields[:3]) + f" {fields[3][:2]}:{fields[3][2:]}"
+    commit, where = fields[4], " ".join(fields[5:])
+    parts = [
+        {"passed": int(m["passed"]), "failed": int(m["failed"] or 0), "seconds": float(m["s"])}
+        for m in _PYTEST_LINE.finditer(text)
+    ]
+    times = {m["what"]: 60 * int(m["m"]) + float(m["s"]) for m in _TIME_LINE.finditer(text)}
+    rc = re.search(r"^rc (\d+)$", text, re.M)
+    return {"date": date, "commit": commit, "where": where, "parts": parts, **times, "rc": int(rc[1]) if rc else None}
+
+
+def _min_s(x: float | None) -> str:
+    return "-" if x is None else f"{int(x // 60)} min {x % 60:.0f} s"
+
+
+def render_test_run_times(page: Page) -> str:
+    """The default run's time from fresh clones (set-up, linters, docs, warm-up and both pytest parts)."""
+    logs = sorted((ROOT / TEST_RUN_LOGS).glob("*.log"))
+    rows = []
+    for log in logs:
+        r = test_run(log)
+        parts = r["parts"]
+        cells = [
+            f"{p['passed'] + p['failed']} tests in {_min_s(p['seconds'])}"
+            + (f" ({p['failed']} failed)" if p["failed"] else "")
+            for p in parts[:2]
+        ] + ["-"] * (2 - len(parts[:2]))
+        rows.append(
+            [
+                r["date"],
+                f"`{r['commit']}`",
+                r["where"],
+                _min_s(r.get("real")),
+                *cells,
+                _min_s(r.get("user")),
+                str(r["rc"]),
+            ]
+        )
+    head = [
+        "ended (UTC)",
+        "commit",
+        "where",
+        "wall time",
+        "on two workers",
+        "alone (serial)",
+        "user CPU",
+        "exit status",
+    ]
+    paths = [log.relative_to(ROOT).as_posix() for log in logs]
+    return table(head, rows) + sources(page, paths)
+
+
 # --- the headline ---------------------------------------------------------------------------------
 
 
@@ -1068,6 +1227,9 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "p1-runs": render_p1_runs,
     "p1-identification": render_p1_identification,
     "emps-diagnosis": render_emps_diagnosis,
+    "plant-checks": render_plant_checks,
+    "plant-checks-summary": render_plant_checks_summary,
+    "test-run-times": render_test_run_times,
     "service-load": render_service_load,
     "service-fuzz": render_service_fuzz,
     "service-summary": render_service_summary,

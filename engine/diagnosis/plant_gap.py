@@ -564,8 +564,14 @@ def correlation_time(residuals: Sequence[np.ndarray]) -> float:
 
 
 def calibrate(plant: Plant, record: Any, objective: PlantObjective | None = None) -> Fit:
-    """Fit the plant's calibrated parameters to a record, from their nominal values."""
-    out = fit(plant, record, free_parameters(plant, record), objective=objective)
+    """Fit the plant's calibrated parameters to a record, from where the plant says
+    (:meth:`~engine.plants.base.Plant.calibration_start`: a global search's result, or the nominal values)."""
+    free = free_parameters(plant, record)
+    start = plant.calibration_start(record)
+    if start is not None:
+        names = {p.name for p in free}
+        start = {n: float(v) for n, v in start.items() if n in names}
+    out = fit(plant, record, free, start=start, objective=objective)
     logger.info("calibrated %s on %s: %s (cost %.4g)", plant.name, getattr(record, "name", ""), out.values, out.cost)
     return out
 

@@ -113,6 +113,16 @@ class BacklashDrivePlant:
         """Samples within :data:`EVENT_SPAN` of the event t_e."""
         return within_span(record.time, self.events(record), EVENT_SPAN)
 
+    def calibration_start(self, record: Record) -> dict[str, float]:
+        """The drive's own nominal calibration (:func:`engine.diagnosis.calibration.calibrate` with
+        :data:`~engine.diagnosis.settings.NOMINAL_CALIBRATION`: a Sobol search, then continuation over
+        growing horizons). From the nominal values alone, least squares stopped in a local minimum on
+        half of the clean records of the synthetic check (seed 25, docs/real-data.md section 6)."""
+        from engine.diagnosis.calibration import calibrate
+        from engine.diagnosis.settings import NOMINAL_CALIBRATION
+
+        return dict(calibrate(record, default_space(record), NOMINAL_CALIBRATION).values)
+
     def noise(self, record: Record) -> dict[str, NoiseLevel]:
         """Each channel's white noise, from its finest wavelet level (MODEL.md's records carry white
         noise; the drive's own diagnosis fits a coloured model too, :mod:`engine.diagnosis.noise`)."""

@@ -10,6 +10,7 @@ A plant (in the manner of motulator's subsystems, reduced to what a diagnosis re
 - the record's sample instants and the instants of its known input **events** (a pulse, a switch-off);
 - its **example records**: records shipped with the package (real or of its reference test), on
   whose inputs the synthetic check of the diagnosis (:mod:`engine.validation.plant_check`) runs;
+- where its **calibration starts** on a record (nominal values, or a global search's result);
 - its sensors' **noise** on a record: per channel, its level and correlation time
   (:class:`engine.plants.noise.NoiseLevel`), against which a fit's residual is noise or a gap;
 - how to obtain the **measured** channels from one of its records, and how to **simulate** the record's channels on the record's own grid for given parameter and effect
@@ -221,6 +222,15 @@ class Plant(Protocol):
         record's residual is mostly model error, far above it; a synthetic record's (from
         :meth:`synthesize`) reaches it when the model is right. Raises ``ValueError`` for a channel
         whose level cannot be estimated (too short, not finite, zero throughout).
+        """
+        ...
+
+    def calibration_start(self, record: Any) -> Mapping[str, float] | None:
+        """Where the calibration's local least squares starts on ``record``, or None for the nominal values.
+
+        A plant whose calibration cost has local minima near its nominal values (the backlash drive's
+        strongly nonlinear test) gives a global search's result; a plant whose cost is well behaved
+        from nominal (EMPS, BRFD) returns None. Names are calibrated parameters the record leaves free.
         """
         ...
 

@@ -257,6 +257,10 @@ class BrfdPlant:
 
         return [plot_force_displacement(self, record, before, after, Path(out_dir) / "force_displacement.png")]
 
+    def calibration_start(self, record: BrfdRecord) -> None:
+        """None: the calibration's least squares starts at the nominal values (its cost is well behaved from there)."""
+        return None
+
     def noise(self, record: BrfdRecord) -> dict[str, NoiseLevel]:
         """The load cell's noise, white: estimated from the record's finest wavelet level
         (:func:`engine.plants.noise.white_noise_level`; the shipped tests' force varies below 20 Hz at

@@ -230,6 +230,10 @@ class EmpsPlant:
         """Samples within :data:`EVENT_SPAN` of a pulse edge."""
         return within_span(record.t, self.events(record), EVENT_SPAN)
 
+    def calibration_start(self, record: EmpsRecord) -> None:
+        """None: the calibration's least squares starts at the nominal values (its cost is well behaved from there)."""
+        return None
+
     def noise(self, record: EmpsRecord) -> dict[str, NoiseLevel]:
         """The encoder's quantum through the measurement chain, and the command's own noise.
 
