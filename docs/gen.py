@@ -851,7 +851,7 @@ def render_plant_checks(page: Page) -> str:
     head = [
         "measure",
         *(
-            f"{r['run']['plant']}, {r['run']['record']}, seed {r['run']['seed']}"
+            f"{r['run']['plant']}, {r['run']['record'] or 'reference test'}, seed {r['run']['seed']}"
             + (f" ({PLANT_CHECK_SUPERSEDED[n]})" if n in PLANT_CHECK_SUPERSEDED else "")
             for r, n in zip(runs, names, strict=True)
         ),
@@ -882,9 +882,11 @@ def render_plant_checks(page: Page) -> str:
 
 
 def render_plant_checks_summary(page: Page) -> str:
-    """One line for the README: the gate's checks pooled over every plant's runs."""
+    """One line for the README: the gate's checks pooled over every plant's runs of the current code."""
     paths = [
-        f"docs/real-data/check/{n}.json" for n in PLANT_CHECK_RUNS if (ROOT / f"docs/real-data/check/{n}.json").exists()
+        f"docs/real-data/check/{n}.json"
+        for n in PLANT_CHECK_RUNS
+        if n not in PLANT_CHECK_SUPERSEDED and (ROOT / f"docs/real-data/check/{n}.json").exists()
     ]
     runs = [read_json(p) for p in paths]
     pooled: dict[str, list[int]] = {}
@@ -899,8 +901,8 @@ def render_plant_checks_summary(page: Page) -> str:
         return rate(k, n)
 
     text = (
-        f"- **Clean and weak records on every plant** ({', '.join(plants)}; {len(runs)} blind synthetic checks through "
-        f"the plant interface, pooled): a record the model already fits is answered `no_gap` in "
+        f"- **Clean and weak records on every plant** ({', '.join(plants)}; {len(runs)} blind synthetic checks of the "
+        f"current code through the plant interface, pooled): a record the model already fits is answered `no_gap` in "
         f"{pooled_rate('clean_no_gap')}, with a false alarm in {pooled_rate('clean_false_alarm')}; an effect "
         f"beyond 3 noise RMS is named first in {pooled_rate('strong_top1')}; a weaker one is answered `no_gap`/"
         f"`weak_gap` or named right in {pooled_rate('weak_ok')} ({page.link('docs/real-data.md', 'real data, section 6')})."
