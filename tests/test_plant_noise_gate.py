@@ -80,6 +80,7 @@ def test_a_clean_brfd_record_is_no_gap_and_a_play_is_named_beyond_the_noise() ->
     assert answer["status"] == "no_gap" and answer["verdict"]["effect"] is None
     assert answer["noise"]["levels"]["force"]["source"] == "record"
     assert answer["width"]["identifiable"] is False
+    assert set(answer["gap"]) == {"before"}  # nothing named: no "after" to shrink to
     played = diagnose_plant(plant, plant.synthesize(record, {**truth, "backlash": 0.01}, rng))
     assert played.status == "explained" and played.named is not None and played.named.effects[0] == "backlash"
     assert played.gate is not None and played.gate.strength is not None and played.gate.strength > 3.0

@@ -225,13 +225,12 @@ class NoiseGate:
         total = sum(chi2.values()) / max(len(chi2), 1)
         return total <= limits["total"] and all(v <= limits[c] for c, v in chi2.items())
 
-    def gap(self) -> dict[str, dict[str, float]]:
-        """The residual's RMS over the noise's [-] (the root of the channels' mean chi2/n), before
-        and after: the shape of the backlash drive's ``gap`` (:class:`engine.diagnosis.gap.Gap`)."""
-        return {
-            k: {"rms_over_noise": math.sqrt(sum(v.values()) / max(len(v), 1))}
-            for k, v in (("before", self.before), ("after", self.after))
-        }
+    def gap(self, named: bool) -> dict[str, dict[str, float]]:
+        """The residual's RMS over the noise's [-] (the root of the channels' mean chi2/n): before, and
+        after the named effects when the answer names any (the shape of the backlash drive's ``gap``,
+        :class:`engine.diagnosis.gap.Gap`)."""
+        pairs = (("before", self.before), ("after", self.after)) if named else (("before", self.before),)
+        return {k: {"rms_over_noise": math.sqrt(sum(v.values()) / max(len(v), 1))} for k, v in pairs}
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
@@ -393,7 +392,7 @@ class PlantGapReport:
             ],
             "absorbed_by_calibration": sorted(self.absorbed),
             "noise": self.gate.to_dict() if self.gate is not None else None,
-            "gap": self.gate.gap() if self.gate is not None else None,
+            "gap": self.gate.gap(named=self.named is not None) if self.gate is not None else None,
             "n_simulations": self.extra.get("n_eval", 0),
         }
 
