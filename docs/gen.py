@@ -975,6 +975,33 @@ def render_test_run_times(page: Page) -> str:
     return table(head, rows) + sources(page, paths)
 
 
+#: The logs of ``make test-slow``'s command on the working tree of a commit: ``YYYY-MM-DD-HHMM-COMMIT.log``
+#: (UTC, when the run started).
+SLOW_RUN_LOGS = "docs/validation/test-run/slow"
+_PYTEST_SUMMARY = re.compile(r"^(?P<counts>(?:\d+ [a-z]+(?:, )?)+) in (?P<s>[\d.]+)s", re.M)
+
+
+def render_slow_suite_times(page: Page) -> str:
+    """The slow suite's runs: tests by outcome and wall time (two workers, one numba thread each)."""
+    logs = sorted((ROOT / SLOW_RUN_LOGS).glob("*.log"))
+    rows = []
+    for log in logs:
+        fields = log.stem.split("-")
+        m = _PYTEST_SUMMARY.search(log.read_text())
+        rc = re.search(r"^rc (\d+)$", log.read_text(), re.M)
+        rows.append(
+            [
+                "-".join(fields[:3]) + f" {fields[3][:2]}:{fields[3][2:]}",
+                f"`{fields[4]}`",
+                m["counts"] if m else "-",
+                _min_s(float(m["s"])) if m else "-",
+                rc[1] if rc else "-",
+            ]
+        )
+    head = ["started (UTC)", "commit", "tests", "time", "exit status"]
+    return table(head, rows) + sources(page, [log.relative_to(ROOT).as_posix() for log in logs])
+
+
 # --- the headline ---------------------------------------------------------------------------------
 
 
@@ -1232,6 +1259,7 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "plant-checks": render_plant_checks,
     "plant-checks-summary": render_plant_checks_summary,
     "test-run-times": render_test_run_times,
+    "slow-suite-times": render_slow_suite_times,
     "service-load": render_service_load,
     "service-fuzz": render_service_fuzz,
     "service-summary": render_service_summary,
