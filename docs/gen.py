@@ -913,9 +913,19 @@ def render_plant_checks_summary(page: Page) -> str:
 #: The logs of ``time ./.ci/run`` on fresh clones: ``YYYY-MM-DD-HHMM-COMMIT-WHERE.log`` (UTC, when the
 #: run ended), so that they sort oldest first.
 TEST_RUN_LOGS = "docs/validation/test-run"
-_PYTEST_LINE = re.compile(
-    r"^(?:(?P<failed>\d+) failed, )?(?P<passed>\d+) passed(?:, \d+ deselected)? in (?P<s>[\d.]+)s", re.M
-)
+#: pytest's closing line: ``51 passed, 1 xfailed in 1554.69s``, any outcomes in any order.
+_PYTEST_SUMMARY = re.compile(r"^(?P<counts>(?:\d+ [a-z]+(?:, )?)+) in (?P<s>[\d.]+)s", re.M)
+
+
+def pytest_runs(text: str) -> list[tuple[dict[str, int], float]]:
+    """Every pytest closing line of a log: its counts by outcome and its seconds."""
+    out = []
+    for m in _PYTEST_SUMMARY.finditer(text):
+        counts = {word: int(k) for k, word in (item.split() for item in m["counts"].split(", "))}
+        out.append((counts, float(m["s"])))
+    return out
+
+
 _TIME_LINE = re.compile(r"^(?P<what>real|user)\s+(?P<m>\d+)m(?P<s>[\d.]+)s$", re.M)
 
 
@@ -926,8 +936,8 @@ def test_run(path: Path) -> dict[str, Any]:
     date = "-".join(fields[:3]) + f" {fields[3][:2]}:{fields[3][2:]}"
     commit, where = fields[4], " ".join(fields[5:])
     parts = [
-        {"passed": int(m["passed"]), "failed": int(m["failed"] or 0), "seconds": float(m["s"])}
-        for m in _PYTEST_LINE.finditer(text)
+        {"passed": counts.get("passed", 0), "failed": counts.get("failed", 0), "seconds": sec}
+        for counts, sec in pytest_runs(text)
     ]
     times = {m["what"]: 60 * int(m["m"]) + float(m["s"]) for m in _TIME_LINE.finditer(text)}
     rc = re.search(r"^rc (\d+)$", text, re.M)
@@ -978,7 +988,6 @@ def render_test_run_times(page: Page) -> str:
 #: The logs of ``make test-slow``'s command on the working tree of a commit: ``YYYY-MM-DD-HHMM-COMMIT.log``
 #: (UTC, when the run started).
 SLOW_RUN_LOGS = "docs/validation/test-run/slow"
-_PYTEST_SUMMARY = re.compile(r"^(?P<counts>(?:\d+ [a-z]+(?:, )?)+) in (?P<s>[\d.]+)s", re.M)
 
 
 def render_slow_suite_times(page: Page) -> str:
@@ -987,14 +996,15 @@ def render_slow_suite_times(page: Page) -> str:
     rows = []
     for log in logs:
         fields = log.stem.split("-")
-        m = _PYTEST_SUMMARY.search(log.read_text())
-        rc = re.search(r"^rc (\d+)$", log.read_text(), re.M)
+        text = log.read_text()
+        runs = pytest_runs(text)
+        rc = re.search(r"^rc (\d+)$", text, re.M)
         rows.append(
             [
                 "-".join(fields[:3]) + f" {fields[3][:2]}:{fields[3][2:]}",
                 f"`{fields[4]}`",
-                m["counts"] if m else "-",
-                _min_s(float(m["s"])) if m else "-",
+                ", ".join(f"{k} {word}" for word, k in runs[-1][0].items()) if runs else "-",
+                _min_s(runs[-1][1]) if runs else "-",
                 rc[1] if rc else "-",
             ]
         )

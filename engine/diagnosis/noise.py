@@ -63,7 +63,7 @@ import pywt
 
 from engine.constants import CHANNEL_WAVELETS
 from engine.features.wavelet import level_for_interval
-from engine.plants.noise import robust_sigma
+from engine.plants.noise import NOISE_FLOOR_REL, robust_sigma
 from engine.records import Record, RecordError
 from engine.simulation.noise import LOWPASS_ORDERS
 
@@ -81,9 +81,6 @@ __all__ = [
     "noise_weights",
 ]
 
-#: Relative floor of the noise level used as a weight, as a fraction of the channel's RMS
-#: (60 dB SNR); keeps noiseless (simulated) records from giving infinite weights.
-NOISE_FLOOR_REL: float = 1e-3
 #: Finest detail levels whose robust noise estimates the noise model is fitted to [-].
 NOISE_FIT_LEVELS: int = 3
 #: Highest frequency of the records' signal [Hz]: detail levels wholly above it hold noise

@@ -66,6 +66,7 @@ __all__ = [
     "PlantObjective",
     "absorbed_effects",
     "calibrate",
+    "change_over_noise",
     "correlation_time",
     "diagnose_plant",
     "effect_strength",
@@ -199,12 +200,13 @@ class NoiseGate:
         Each channel's noise.
     before, after : dict of str to float
         chi2_c / n_c of each channel (mean squared residual over the noise's variance) for the
-        calibrated model and for the model the answer ends with.
+        calibrated model and for the model the answer ends with (the calibrated one unless the gate
+        says ``gap`` and a set is named).
     limits : dict of str to float
         The largest chi2_c / n_c of a fit to the noise, per channel, and ``"total"`` for their mean.
     strength : float or None
-        How far the named effects move the record: the largest channel RMS of their change [noise
-        RMS] (None when nothing was named).
+        How far the best set moves the record: the largest channel RMS of its change [noise RMS]
+        (None when no set removes :data:`MIN_SHARE`); when the gate sets it aside, what it says why.
     status : str
         What the gate decides: ``no_gap``, ``weak_gap``, or ``gap`` (the named model decides).
     reason : str
@@ -220,17 +222,21 @@ class NoiseGate:
     reason: str
 
     @staticmethod
+    def total(chi2: Mapping[str, float]) -> float:
+        """The channels' mean chi2/n."""
+        return sum(chi2.values()) / max(len(chi2), 1)
+
+    @staticmethod
     def fits(chi2: Mapping[str, float], limits: Mapping[str, float]) -> bool:
         """Whether per-channel chi2/n (``chi2``) fit to the noise: each channel and their mean within ``limits``."""
-        total = sum(chi2.values()) / max(len(chi2), 1)
-        return total <= limits["total"] and all(v <= limits[c] for c, v in chi2.items())
+        return NoiseGate.total(chi2) <= limits["total"] and all(v <= limits[c] for c, v in chi2.items())
 
     def gap(self, named: bool) -> dict[str, dict[str, float]]:
         """The residual's RMS over the noise's [-] (the root of the channels' mean chi2/n): before, and
         after the named effects when the answer names any (the shape of the backlash drive's ``gap``,
         :class:`engine.diagnosis.gap.Gap`)."""
         pairs = (("before", self.before), ("after", self.after)) if named else (("before", self.before),)
-        return {k: {"rms_over_noise": math.sqrt(sum(v.values()) / max(len(v), 1))} for k, v in pairs}
+        return {k: {"rms_over_noise": math.sqrt(NoiseGate.total(v))} for k, v in pairs}
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
@@ -808,15 +814,20 @@ def noise_limits(
     return out
 
 
+def change_over_noise(
+    a: Mapping[str, np.ndarray], b: Mapping[str, np.ndarray], levels: Mapping[str, NoiseLevel]
+) -> float:
+    """The largest channel RMS of ``b - a`` [noise RMS] (channels ``name -> samples``, the same samples each)."""
+    return max(float(np.sqrt(np.mean((b[c] - a[c]) ** 2))) / levels[c].sigma for c in a)
+
+
 def effect_strength(
     plant: Plant, record: Any, named: EffectFit, levels: Mapping[str, NoiseLevel], objective: PlantObjective
 ) -> float:
     """How far the named effects move the record at their fitted values: the largest channel RMS of
     the change [noise RMS], against the same model with the effects at their neutral values."""
     neutral = {**named.fit.values, **{n: plant.catalogue[n].neutral for n in named.effects}}
-    a = objective.residuals(named.fit.values)
-    b = objective.residuals(neutral)
-    return max(float(np.sqrt(np.mean((a[c] - b[c]) ** 2))) / levels[c].sigma for c in objective.channels)
+    return change_over_noise(objective.residuals(neutral), objective.residuals(named.fit.values), levels)
 
 
 def noise_gate(
@@ -847,13 +858,11 @@ def noise_gate(
         raise ValueError(f"plant {plant.name!r} gives no noise level for channel(s) {missing}")
     limits = noise_limits(objective, levels, s)
     before = _reduced_chi2(objective, calibration.values, levels)
-    after = _reduced_chi2(objective, named.fit.values, levels) if named is not None else dict(before)
     fits = NoiseGate.fits(before, limits)
     worst = max(before, key=lambda c: before[c])
     gap_rms = math.sqrt(max(before[worst] - 1.0, 0.0))
     strength = effect_strength(plant, record, named, levels, objective) if named is not None else None
-    total = sum(before.values()) / len(before)
-    fit_text = f"chi2/n {total:.3g}, worst channel {worst} {before[worst]:.3g}"
+    fit_text = f"chi2/n {NoiseGate.total(before):.3g}, worst channel {worst} {before[worst]:.3g}"
     if named is not None and strength is not None and strength > s.min_strength:
         status, reason = "gap", f"{'+'.join(named.effects)} moves the record by {strength:.3g} noise RMS"
     elif named is not None and strength is not None:
@@ -872,7 +881,9 @@ def noise_gate(
         )
     else:
         status, reason = "gap", f"a misfit of {gap_rms:.3g} noise RMS ({fit_text})"
-    return NoiseGate(levels, before, after, limits, strength, status, reason)
+    # the model the answer ends with: the named set's only when the gate leaves it named
+    after = _reduced_chi2(objective, named.fit.values, levels) if named is not None and status == "gap" else before
+    return NoiseGate(levels, before, dict(after), limits, strength, status, reason)
 
 
 def diagnose_plant(

@@ -45,8 +45,8 @@ _CLIP_VARIANCE = 1.0 - 2.0 * _CLIP * math.exp(-(_CLIP**2) / 2.0) / math.sqrt(2.0
 _MAD_NORMAL = 0.6744897501960817
 #: Wavelet of the D1 estimate (Daubechies 4: short, so an edge in the signal touches few coefficients).
 NOISE_WAVELET: str = "db4"
-#: Smallest noise level of a channel, as a share of the channel's RMS: a noiseless (simulated) channel
-#: would otherwise weigh infinitely (the same floor as the backlash drive's, :mod:`engine.diagnosis.noise`).
+#: Smallest noise level of a channel, as a share of the channel's RMS (60 dB): a noiseless (simulated) channel
+#: would otherwise weigh infinitely (every plant's, and the backlash drive's diagnosis, :mod:`engine.diagnosis.noise`).
 NOISE_FLOOR_REL: float = 1e-3
 #: Window constant of the integrated autocorrelation time (:func:`integrated_time`; Sokal's c, 5 for
 #: a residual whose correlation decays roughly exponentially).

@@ -34,7 +34,7 @@ import logging
 import math
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -42,9 +42,10 @@ from typing import Any
 import numpy as np
 
 from engine.atomic import write_json_atomic
-from engine.diagnosis.plant_gap import diagnose_plant
+from engine.diagnosis.plant_gap import change_over_noise, diagnose_plant
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.plants.base import Plant, free_parameters, relative_errors
+from engine.plants.noise import NoiseLevel
 from engine.validation.stats import wilson_interval
 
 __all__ = [
@@ -73,6 +74,8 @@ MIN_EFFECT: float = 1.0
 STRONG: float = 100.0
 #: Draws of an effect's value before the case gives up on that effect and draws another.
 MAX_REDRAWS: int = 20
+#: The strength [noise RMS] at or below which an effect is weak: the diagnosis's own ``min_strength``.
+MIN_STRENGTH: float = DiagnosisSettings().min_strength
 #: The answers that say the record shows no gap to attribute.
 QUIET: tuple[str, ...] = ("no_gap", "weak_gap")
 
@@ -127,7 +130,7 @@ class CheckRow:
     @property
     def weak(self) -> bool:
         """An effect case whose effect moves the record by at most ``min_strength`` noise RMS."""
-        return not self.clean and self.noise_strength <= DiagnosisSettings().min_strength
+        return not self.clean and self.noise_strength <= MIN_STRENGTH
 
     @property
     def weak_ok(self) -> bool:
@@ -162,6 +165,14 @@ def _strength(plant: Plant, record: Any, base: dict[str, float], effect: str, va
     return math.sqrt(sum(e**2 for e in relative_errors(a, b, sl).values()))
 
 
+def _perturbed(plant: Plant, record: Any, rng: np.random.Generator) -> dict[str, float]:
+    """The calibrated parameters the record leaves free, each within +-:data:`PERTURBATION` of nominal."""
+    return {
+        p.name: float(np.clip(p.nominal + PERTURBATION * abs(p.nominal) * rng.uniform(-1, 1), p.lo, p.hi))
+        for p in free_parameters(plant, record)
+    }
+
+
 def draw_cases(plant: Plant, record: Any, n: int, seed: int) -> list[CheckCase]:
     """Draw ``n`` cases, the effects in turn through the catalogue (module docstring)."""
     rng = np.random.default_rng(seed)
@@ -171,10 +182,7 @@ def draw_cases(plant: Plant, record: Any, n: int, seed: int) -> list[CheckCase]:
     for i, name in enumerate(order):
         effect = plant.catalogue[name].as_parameter()
         for _ in range(MAX_REDRAWS):
-            cal = {
-                p.name: float(np.clip(p.nominal + PERTURBATION * abs(p.nominal) * rng.uniform(-1, 1), p.lo, p.hi))
-                for p in free_parameters(plant, record)
-            }
+            cal = _perturbed(plant, record, rng)
             value = float(effect.value(float(rng.uniform(0.0, 1.0))))
             strength = _strength(plant, record, cal, name, value)
             if strength >= MIN_EFFECT:
@@ -191,25 +199,18 @@ def draw_clean(plant: Plant, record: Any, n: int, seed: int, first: int = 0) -> 
     ``first`` is the first case's index (after the effect cases of the same run).
     """
     rng = np.random.default_rng([seed, 1])  # a stream of its own: the effect cases of a seed stay as they were
-    cases = []
-    for i in range(n):
-        cal = {
-            p.name: float(np.clip(p.nominal + PERTURBATION * abs(p.nominal) * rng.uniform(-1, 1), p.lo, p.hi))
-            for p in free_parameters(plant, record)
-        }
-        cases.append(CheckCase(first + i, None, math.nan, cal, 0.0))
-    return cases
+    return [CheckCase(first + i, None, math.nan, _perturbed(plant, record, rng), 0.0) for i in range(n)]
 
 
-def _noise_strength(plant: Plant, synthetic: Any, case: CheckCase) -> float:
-    """How far the true effect moves the synthetic record: the largest channel RMS of its change [noise RMS]."""
+def _noise_strength(plant: Plant, synthetic: Any, case: CheckCase, levels: Mapping[str, NoiseLevel]) -> float:
+    """How far the true effect moves the synthetic record: the largest channel RMS of its change [noise RMS],
+    against the noise ``levels`` the diagnosis read on that record."""
     if case.effect is None:
         return 0.0
     sl = plant.scored(synthetic)
     a = plant.simulate(synthetic, case.calibration)
     b = plant.simulate(synthetic, {**case.calibration, case.effect: case.value})
-    levels = plant.noise(synthetic)
-    return max(float(np.sqrt(np.mean((b[c][sl] - a[c][sl]) ** 2))) / levels[c].sigma for c in a)
+    return change_over_noise({c: v[sl] for c, v in a.items()}, {c: v[sl] for c, v in b.items()}, levels)
 
 
 def run_check(plant: Plant, record: Any, cases: Sequence[CheckCase], seed: int) -> list[CheckRow]:
@@ -226,7 +227,8 @@ def run_check(plant: Plant, record: Any, cases: Sequence[CheckCase], seed: int) 
         named = report.named.effects if report.named else ()
         value = report.named.fit.values.get(case.effect) if report.named and case.effect else None
         share = report.named.share if report.named else 0.0
-        strength = _noise_strength(plant, synthetic, case)
+        levels = report.gate.levels if report.gate is not None else plant.noise(synthetic)
+        strength = _noise_strength(plant, synthetic, case, levels)
         rows.append(CheckRow(case, named, value, report.status, share, dt, tuple(sorted(report.absorbed)), strength))
         logger.info(
             "case %d %s=%.4g: %s, named %s (%.0f s)", case.index, case.effect, case.value, report.status, named, dt
@@ -328,7 +330,7 @@ def summary(rows: Sequence[CheckRow]) -> str:
         return "no cases\n"
     n_clean = sum(r.clean for r in rows)
     n_absorbed = sum(r.truth_absorbed for r in rows)
-    min_strength = DiagnosisSettings().min_strength
+    min_strength = MIN_STRENGTH
     out = [
         f"{n} synthetic cases: {n_clean} clean, {n - n_clean} with one effect; in {n_absorbed} of "
         "these the diagnosis reported the true effect as absorbed by the calibration (it cannot be named beside a "
@@ -364,7 +366,7 @@ def report(rows: Sequence[CheckRow], run: dict[str, Any]) -> dict[str, Any]:
     return {
         "run": run,
         "n": len(rows),
-        "min_strength_noise_rms": DiagnosisSettings().min_strength,
+        "min_strength_noise_rms": MIN_STRENGTH,
         "measures": [m.to_dict() for m in measures(rows)],
         "seconds": {"median": times[len(times) // 2], "max": times[-1]} if times else None,
         "cases": [

@@ -244,8 +244,9 @@ class EmpsPlant:
         rounded to :data:`ENCODER_QUANTUM` on :data:`N_QUANTUM_PHASES` random phases of the count
         grid as :meth:`synthesize` reads it; the error's level and correlation time on the scored
         samples, pooled over the phases. (The record's own filtered position will not do: it lies on
-        its count grid's phase, and re-rounding it gives an error that depends on the phase drawn.) The record's own finest-level estimate instead when it is larger (a noisier encoder
-        than the benchmark's). Force: the command's white noise from its finest wavelet level (on a
+        its count grid's phase, and re-rounding it gives an error that depends on the phase drawn.)
+        The record's own finest-level estimate instead when it is larger (a noisier encoder than the
+        benchmark's). Force: the command's white noise from its finest wavelet level (on a
         real record, the controller's reaction to the quantised position).
         """
         sl = self.scored(record)
