@@ -16,7 +16,7 @@ import numpy as np
 
 from engine.constants import CHANNEL_UNITS, CHANNELS
 from engine.diagnosis.space import DEFAULT_BOUNDS, LOG_SCALED_EFFECTS, LOG_SCALED_PARAMETERS, default_space
-from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, within_span
+from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, LocusSignal, within_span
 from engine.plants.noise import NoiseLevel, white_noise_level
 from engine.records import Record
 from engine.simulation import (
@@ -68,6 +68,12 @@ class BacklashDrivePlant:
         }
     )
 
+    #: Protocol 2's families (:data:`engine.simulation.HELD_BACK`, ``SEALED``) score this plant's open
+    #: world through its own validation, not through the plant interface: none here.
+    held_back: Mapping[str, CandidateEffect] = MappingProxyType({})
+    #: The drive's unknown inputs are :class:`engine.simulation.Disturbance`, read by its own locus
+    #: estimate (:mod:`engine.diagnosis.locus`): none through the interface.
+    entries: Mapping[str, str] = MappingProxyType({})
     diff_step: float = DIFF_STEP
 
     def __init__(self, solver: SolverSettings | None = None) -> None:
@@ -133,7 +139,13 @@ class BacklashDrivePlant:
         sim = self.simulate(record, values)
         return record.with_channels({n: add_white_noise(v, SYNTHETIC_SNR_DB, rng) for n, v in sim.items()})
 
-    def simulate(self, record: Record, values: Mapping[str, float]) -> dict[str, np.ndarray]:
+    def locus_signals(self, record: Record, values: Mapping[str, float]) -> tuple[LocusSignal, ...]:
+        """None: the drive's locus estimate is its own (:mod:`engine.diagnosis.locus`)."""
+        return ()
+
+    def simulate(
+        self, record: Record, values: Mapping[str, float], inputs: Mapping[str, np.ndarray] | None = None
+    ) -> dict[str, np.ndarray]:
         """The record's channels simulated on its grid (names not given: nominal or neutral).
 
         A calibrated parameter the record's conditions fix keeps the record's value; another value
@@ -148,6 +160,8 @@ class BacklashDrivePlant:
         SimulationError
             When the simulation fails (no event, divergence).
         """
+        if inputs:
+            raise KeyError(f"the backlash drive takes no inputs through the plant interface, got {sorted(inputs)}")
         space = default_space(record)
         unknown = [n for n in values if n not in space.names and n not in DEFAULT_BOUNDS and n not in CATALOGUE]
         if unknown:

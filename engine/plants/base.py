@@ -7,6 +7,11 @@ A plant (in the manner of motulator's subsystems, reduced to what a diagnosis re
   plausible search interval (the diagnosis refits them with every candidate effect);
 - its **catalogue** of candidate effects: named one-scalar extensions of the model (the shape of
   pysindy's feature libraries), each acting at one **locus**, a part of the plant;
+- its **held-back family**: effects outside the catalogue, at each locus, kept for scoring the
+  open world (a synthetic record may carry one; the diagnosis never names them);
+- its **entries**: additive inputs its simulation accepts (a force on a mass, a displacement, a
+  sensor's error), and per locus the **signals** a missing term there would follow
+  (:class:`LocusSignal`): what the locus estimate of an unexplained gap reads;
 - the record's sample instants and the instants of its known input **events** (a pulse, a switch-off);
 - its **example records**: records shipped with the package (real or of its reference test), on
   whose inputs the synthetic check of the diagnosis (:mod:`engine.validation.plant_check`) runs;
@@ -35,6 +40,7 @@ __all__ = [
     "CandidateEffect",
     "Channel",
     "FreeParameter",
+    "LocusSignal",
     "Plant",
     "free_parameters",
     "relative_error",
@@ -162,6 +168,47 @@ class CandidateEffect:
         return CalibratedParameter(self.name, lo, hi, self.unit, self.log, nominal=self.neutral)
 
 
+@dataclass(frozen=True, eq=False)
+class LocusSignal:
+    """A space of missing terms at one locus: an additive input that follows one of the plant's signals.
+
+    The missing term is ``d(t) = factor(t) f(s(t))`` added at the plant's input ``entry``, with
+    ``s`` the signal and ``f`` an unknown smooth function (the locus estimate,
+    :mod:`engine.diagnosis.plant_locus`, expands it in hat functions over the signal's range, or
+    in harmonics of a periodic signal). E.g. on a positioning axis a force following the velocity
+    is a friction law at the guides; one following the position is an external load.
+
+    Parameters
+    ----------
+    locus : str
+        The part of the plant (one of the plant's loci).
+    entry : str
+        The additive input it enters by (a key of the plant's ``entries``).
+    signal : str
+        Name of the signal (e.g. ``velocity``), as the answer states it.
+    unit : str
+        Unit of the signal.
+    values : ndarray, shape (n,)
+        The signal on the record's grid, from the calibrated model (or measured).
+    factor : ndarray, shape (n,), optional
+        A known multiplier of ``f`` (e.g. the direction of motion for a friction level, the force
+        for a gain); None for 1.
+    factor_name : str
+        What the factor is, for the answer.
+    period : float, optional
+        The signal's period in its unit when it is an angle or a phase (harmonics, not hats).
+    """
+
+    locus: str
+    entry: str
+    signal: str
+    unit: str
+    values: np.ndarray
+    factor: np.ndarray | None = None
+    factor_name: str = ""
+    period: float | None = None
+
+
 @runtime_checkable
 class Plant(Protocol):
     """What the diagnosis knows of a plant (see the module docstring).
@@ -178,6 +225,11 @@ class Plant(Protocol):
         Parameters refitted with every candidate effect.
     catalogue : mapping of str to CandidateEffect
         The candidate effects.
+    held_back : mapping of str to CandidateEffect
+        Effects outside the catalogue, kept for scoring the diagnosis of a gap the catalogue cannot
+        explain (:meth:`simulate` accepts their names; the diagnosis never fits them). May be empty.
+    entries : mapping of str to str
+        Additive inputs :meth:`simulate` accepts (``inputs=``), name -> unit. May be empty.
     diff_step : float
         Step of the diagnosis' finite differences, as a share of each parameter's search interval:
         the smallest step at which the plant's simulated channels change smoothly (a simulation
@@ -189,18 +241,31 @@ class Plant(Protocol):
     channels: tuple[Channel, ...]
     calibrated: tuple[CalibratedParameter, ...]
     catalogue: Mapping[str, CandidateEffect]
+    held_back: Mapping[str, CandidateEffect]
+    entries: Mapping[str, str]
     diff_step: float
 
     def measured(self, record: Any) -> dict[str, np.ndarray]:
         """The record's measured channels, ``name -> samples`` in channel order and unit."""
         ...
 
-    def simulate(self, record: Any, values: Mapping[str, float]) -> dict[str, np.ndarray]:
+    def simulate(
+        self, record: Any, values: Mapping[str, float], inputs: Mapping[str, np.ndarray] | None = None
+    ) -> dict[str, np.ndarray]:
         """The channels simulated on the record's grid with its inputs.
 
-        ``values`` holds calibrated parameters and effect scalars by name; a name not given keeps
-        its nominal (parameters) or neutral (effects) value. Raises on an unknown name and on
-        solver failure.
+        ``values`` holds calibrated parameters, effect scalars and held-back effect scalars by
+        name; a name not given keeps its nominal (parameters) or neutral (effects) value.
+        ``inputs`` adds schedules (one value per sample of the record, in the entry's unit) at
+        the plant's :attr:`entries`. Raises on an unknown name or entry and on solver failure.
+        """
+        ...
+
+    def locus_signals(self, record: Any, values: Mapping[str, float]) -> tuple[LocusSignal, ...]:
+        """Per locus, the signals a missing term there would follow, on ``record``'s grid at ``values``.
+
+        The plant's statement of what each of its parts sees (:class:`LocusSignal`); empty for a
+        plant whose locus estimate is its own (the backlash drive's :mod:`engine.diagnosis.locus`).
         """
         ...
 

@@ -9,11 +9,15 @@ transmits. Per sample k (interval dt):
   law ``de/dx = 1 - sigma0 e sign(dx) / g(v)``, integrated exactly over the sample for constant
   g (an exponential approach to ``sign(dx) g / sigma0``); a deflection pushed below zero by the
   unloading leaves contact (``e = 0`` and the gap opens);
-- ``g(v) = Fc (1 + asym sign(v)) + Fs exp(-(v / v_s)^2)`` (Coulomb level, its asymmetry and a
-  Stribeck term); v is the actuator's velocity (central difference of x);
-- the transmitted force ``F = (sigma0 e + sigma2 v) (1 + kappa w)`` in contact, 0 in the gap;
-  ``w = |x - x_rev|`` is the wind-up since the last reversal of x (a reversal: x retreats more
-  than ``rev_tol`` from its running extreme): the band brake's self-energizing amplification.
+- ``g(v) = (Fc (1 + asym sign(v)) + Fs exp(-(v / v_s)^2)) max(1 - phi s, 0.1)`` (Coulomb level,
+  its asymmetry and a Stribeck term, faded along the travel ``s = sum |dx|`` since the record's
+  start by the held-back ``friction_fade`` phi [1/m], neutral 0); v is the actuator's velocity
+  (central difference of x);
+- the transmitted force ``F = (sigma0 e + sigma2 v) (1 + kappa w) (1 + a exp(-w / w_a))`` in
+  contact, 0 in the gap; ``w = |x - x_rev|`` is the wind-up since the last reversal of x (a
+  reversal: x retreats more than ``rev_tol`` from its running extreme): the band brake's
+  self-energizing amplification kappa, and the held-back ``band_relaxation`` a (neutral 0) over the
+  wind-up scale w_a.
 
 Exact per-sample integration makes the kernel unconditionally stable for any sigma0 (no sub-steps).
 """
@@ -35,7 +39,10 @@ P_ASYM = 5
 P_PLAY = 6
 P_KAPPA = 7
 P_REV_TOL = 8
-N_PARAMS = 9
+P_FADE = 9
+P_RELAX = 10
+P_W_RELAX = 11
+N_PARAMS = 12
 
 
 @njit(cache=True)
@@ -54,6 +61,10 @@ def transmitted_force(x: np.ndarray, dt: float, p: np.ndarray, out: np.ndarray, 
     h = 0.5 * p[P_PLAY]
     kappa = p[P_KAPPA]
     rev_tol = p[P_REV_TOL]
+    fade = p[P_FADE]
+    relax = p[P_RELAX]
+    w_relax = p[P_W_RELAX]
+    travel = 0.0  # travel of the actuator since the start [m]
     s = 0.0  # relative displacement across linkage and play [m]
     e = 0.0  # elastic deflection of the friction element [m]
     x_rev = x[0]
@@ -69,6 +80,7 @@ def transmitted_force(x: np.ndarray, dt: float, p: np.ndarray, out: np.ndarray, 
         else:
             v = (x[k + 1] - x[k - 1]) / (2.0 * dt)
         dx = x[k] - x[k - 1] if k > 0 else 0.0
+        travel += abs(dx)
         # reversal tracking for the wind-up (see :func:`reversals`)
         if direction == 0.0:
             if x[k] > x_hi:
@@ -91,6 +103,8 @@ def transmitted_force(x: np.ndarray, dt: float, p: np.ndarray, out: np.ndarray, 
                 direction, x_rev, x_ext = 1.0, x_ext, x[k]
         sv = 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
         g = fc * (1.0 + asym * sv) + fs * math.exp(-((v / vs) ** 2))
+        if fade != 0.0:
+            g *= max(1.0 - fade * travel, 0.1)
         if g < 1e-9 * fc:
             g = 1e-9 * fc
         if h == 0.0:  # no play: Dahl's law on the deflection, always in contact
@@ -98,6 +112,8 @@ def transmitted_force(x: np.ndarray, dt: float, p: np.ndarray, out: np.ndarray, 
                 e_ss = (g / sigma0) * (1.0 if dx > 0.0 else -1.0)
                 e = e_ss + (e - e_ss) * math.exp(-sigma0 * abs(dx) / g)
             f = (sigma0 * e + sigma2 * v) * (1.0 + kappa * abs(x[k] - x_rev))
+            if relax != 0.0:
+                f *= 1.0 + relax * math.exp(-abs(x[k] - x_rev) / w_relax)
             if not math.isfinite(f):
                 return 1
             out[k] = f
@@ -128,6 +144,8 @@ def transmitted_force(x: np.ndarray, dt: float, p: np.ndarray, out: np.ndarray, 
         s = side * h + e
         w = abs(x[k] - x_rev)
         f = (sigma0 * e + sigma2 * v) * (1.0 + kappa * w)
+        if relax != 0.0:
+            f *= 1.0 + relax * math.exp(-w / w_relax)
         if not math.isfinite(f):
             return 1
         out[k] = f

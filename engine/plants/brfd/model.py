@@ -27,9 +27,9 @@ from types import MappingProxyType
 
 import numpy as np
 
-from engine.plants.base import CalibratedParameter, CandidateEffect, Channel
+from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, LocusSignal
 from engine.plants.brfd import _kernel as k
-from engine.plants.brfd.catalogue import CATALOGUE, EFFECT_FIELDS, LOCI
+from engine.plants.brfd.catalogue import CATALOGUE, EFFECT_FIELDS, HELD_BACK, HELD_BACK_FIELDS, LOCI
 from engine.plants.brfd.record import BrfdRecord, load_json, load_record
 from engine.plants.noise import NoiseLevel, white_noise_level
 from engine.records import RecordError
@@ -54,6 +54,11 @@ REVERSAL_TOLERANCE: float = 1e-4
 #: Travel after a reversal within which the backlash regime lies [m]: the unloading of the element
 #: (Fc / sigma0, about 4 mm at the sine tests' 9 kN and 2.2e6 N/m) and the play (3-4 mm).
 REGIME_TRAVEL: float = 0.008
+#: Wind-up scale of the held-back ``band_relaxation`` effect [m] (a fifth of the sine tests' 25 mm stroke).
+RELAXATION_WINDUP: float = 0.005
+#: Additive inputs :meth:`BrfdPlant.simulate` accepts, name -> unit: a displacement lost or gained in
+#: the linkage before the friction element, and a force on the load cell's reading.
+ENTRIES: dict[str, str] = {"displacement": "m", "force": "N"}
 #: Time at the start of a record not scored [s] (the element starts unloaded).
 SETTLE: float = 0.25
 #: Share of the force's RMS drawn as white noise on a synthetic record's force.
@@ -97,6 +102,10 @@ class BrfdParameters:
     offset: float = 0.0
     gain: float = 1.0
     delay: float = 0.0
+    k_return: float = 0.0
+    fade: float = 0.0
+    relax: float = 0.0
+    drift: float = 0.0
 
     def vector(self) -> np.ndarray:
         """The kernel's parameter vector (the linkage compliance folded into the element's stiffness)."""
@@ -110,6 +119,9 @@ class BrfdParameters:
         p[k.P_PLAY] = self.play
         p[k.P_KAPPA] = self.kappa
         p[k.P_REV_TOL] = REVERSAL_TOLERANCE
+        p[k.P_FADE] = self.fade
+        p[k.P_RELAX] = self.relax
+        p[k.P_W_RELAX] = RELAXATION_WINDUP
         return p
 
 
@@ -153,6 +165,8 @@ class BrfdPlant:
     channels: tuple[Channel, ...] = CHANNELS
     calibrated: tuple[CalibratedParameter, ...] = CALIBRATED
     catalogue: Mapping[str, CandidateEffect] = MappingProxyType(CATALOGUE)
+    held_back: Mapping[str, CandidateEffect] = MappingProxyType(HELD_BACK)
+    entries: Mapping[str, str] = MappingProxyType(ENTRIES)
     diff_step: float = DIFF_STEP
 
     @property
@@ -214,16 +228,35 @@ class BrfdPlant:
         for name, v in values.items():
             if name in EFFECT_FIELDS:
                 fields[EFFECT_FIELDS[name]] = float(v)
+            elif name in HELD_BACK_FIELDS:
+                fields[HELD_BACK_FIELDS[name]] = float(v)
             elif name in {p.name for p in CALIBRATED}:
                 fields[name] = float(v)
             else:
                 raise KeyError(f"unknown BRFD parameter or effect {name!r}")
         return BrfdParameters(**fields)
 
-    def _run(self, record: BrfdRecord, values: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
-        """The element's transmitted force [N] (before the load cell) and the contact flags, per sample."""
+    def _inputs(self, record: BrfdRecord, inputs: Mapping[str, np.ndarray] | None) -> dict[str, np.ndarray]:
+        """The additive inputs by entry, checked (KeyError for an unknown entry, ValueError for a bad schedule)."""
+        out: dict[str, np.ndarray] = {}
+        for name, d in (inputs or {}).items():
+            if name not in ENTRIES:
+                raise KeyError(f"unknown BRFD input {name!r}; entries: {', '.join(ENTRIES)}")
+            d = np.asarray(d, dtype=float)
+            if d.shape != (record.n,) or not np.all(np.isfinite(d)):
+                raise ValueError(f"input {name!r} must be {record.n} finite samples, got shape {d.shape}")
+            out[name] = d
+        return out
+
+    def _run(
+        self, record: BrfdRecord, values: Mapping[str, float], inputs: Mapping[str, np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The load cell's force [N] and the contact flags, per sample."""
         p = self.parameters(values)
+        d = self._inputs(record, inputs)
         x = input_displacement(record)
+        if "displacement" in d:
+            x = x + d["displacement"]
         if p.delay != 0.0:
             x = np.interp(record.t - p.delay, record.t, x)
         force = np.empty(record.n)
@@ -231,19 +264,66 @@ class BrfdPlant:
         status = k.transmitted_force(x, record.ts, p.vector(), force, contact)
         if status != 0:
             raise RuntimeError(f"BRFD simulation failed (status {status}) at {dict(values)}")
-        return p.gain * force + p.offset, contact.astype(bool)
+        read = p.gain * force + p.offset
+        if p.k_return != 0.0:
+            read = read + p.k_return * x
+        if p.drift != 0.0:
+            read = read + p.drift * (record.t - record.t[0])
+        if "force" in d:
+            read = read + d["force"]
+        return read, contact.astype(bool)
 
-    def simulate(self, record: BrfdRecord, values: Mapping[str, float]) -> dict[str, np.ndarray]:
+    def simulate(
+        self, record: BrfdRecord, values: Mapping[str, float], inputs: Mapping[str, np.ndarray] | None = None
+    ) -> dict[str, np.ndarray]:
         """The force [N] simulated on the record's grid from its displacement, as the load cell reads it.
+
+        ``inputs`` (:data:`ENTRIES`): ``displacement`` [m] added to the displacement the element sees,
+        ``force`` [N] added to the load cell's reading.
 
         Raises
         ------
         KeyError
-            For an unknown name.
+            For an unknown name or entry.
+        ValueError
+            For an input that is not one finite value per sample.
         RuntimeError
             When the kernel produces a non-finite force.
         """
-        return {"force": self._run(record, values)[0]}
+        return {"force": self._run(record, values, inputs)[0]}
+
+    def locus_signals(self, record: BrfdRecord, values: Mapping[str, float]) -> tuple[LocusSignal, ...]:
+        """What each part of the damper sees, at ``values`` on ``record``'s grid.
+
+        - linkage: a force following the displacement (a spring, a stop), and a displacement lost
+          following the force (a compliance);
+        - brake: a force following the velocity (a friction law), and a change of the friction level
+          along the travel (wear, heat), in the direction of motion;
+        - band: a change of the force's gain along the wind-up since the last reversal;
+        - sensors: a reading error following the force (gain, offset, nonlinearity), the time (a
+          drift) or the force's rate (a lag).
+        """
+        t = record.t - record.t[0]
+        x = input_displacement(record)
+        f = self.simulate(record, values)["force"]
+        v = np.gradient(x, record.ts)
+        sign_v = np.sign(v)
+        travel = np.concatenate(([0.0], np.cumsum(np.abs(np.diff(x)))))
+        windup = np.empty(record.n)
+        rev = k.reversals(x, REVERSAL_TOLERANCE)
+        starts = np.concatenate(([0], rev))
+        for i, j in zip(starts, np.concatenate((rev, [record.n])), strict=True):
+            windup[i:j] = np.abs(x[i:j] - x[i])
+        return (
+            LocusSignal("linkage", "force", "displacement", "m", x),
+            LocusSignal("linkage", "displacement", "force", "N", f),
+            LocusSignal("brake", "force", "velocity", "m/s", v),
+            LocusSignal("brake", "force", "travel", "m", travel, sign_v, "direction of motion"),
+            LocusSignal("band", "force", "wind-up", "m", windup, f, "force"),
+            LocusSignal("sensors", "force", "force", "N", f),
+            LocusSignal("sensors", "force", "time", "s", t),
+            LocusSignal("sensors", "force", "force rate", "N/s", np.gradient(f, record.ts)),
+        )
 
     def contact(self, record: BrfdRecord, values: Mapping[str, float]) -> np.ndarray:
         """Whether the linkage is in contact (True) or inside its play (False), per sample."""

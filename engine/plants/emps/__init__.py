@@ -5,14 +5,16 @@ EMPS" (ONERA / LS2N), a nonlinear system identification benchmark; the two recor
 ``engine/plants/emps/data/`` with that citation.
 """
 
-from engine.plants.emps.catalogue import CATALOGUE, LOCI
-from engine.plants.emps.model import CALIBRATED, CHANNELS, PUBLISHED, EmpsParameters, EmpsPlant
+from engine.plants.emps.catalogue import CATALOGUE, HELD_BACK, LOCI
+from engine.plants.emps.model import CALIBRATED, CHANNELS, ENTRIES, PUBLISHED, EmpsParameters, EmpsPlant
 from engine.plants.emps.record import EmpsRecord, load_csv, load_mat, load_record
 
 __all__ = [
     "CALIBRATED",
     "CATALOGUE",
     "CHANNELS",
+    "ENTRIES",
+    "HELD_BACK",
     "LOCI",
     "PUBLISHED",
     "EmpsParameters",

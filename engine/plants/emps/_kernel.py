@@ -7,16 +7,25 @@ position q_k, filters it by ``[0.5 0.5]``, differences it over one sample, compu
 (a unit delay), saturated at +-10 V, plus the pulse signal [V]; the force ``g_tau v`` is held
 over the sample interval while the mechanics are integrated by fixed-step RK4 sub-steps.
 
-Mechanics (rigid axis of the published model, with every candidate effect of the catalogue
-written in and neutral at its neutral value)::
+Mechanics (rigid axis of the published model, with every candidate effect of the catalogue and
+of the held-back family written in, each neutral at its neutral value)::
 
-    m1 q1'' = g_tau (1 + eps_g) v(t - tau) - F_f(q1') - F_pos(q1) - (offset + d_offset) - f_s
+    m1 q1'' = g_tau (1 + eps_g) dz(v(t - tau), v0) + f_ext - F_f(q1') - F_pos(q1) - F_h(q1, q1')
+              - (offset + d_offset) - f_s
 
 (the delay tau acts on the held command, linearly mixed within one RK4 sub-step)
     m2 q2'' = f_s,        f_s = k (q1 - q2) + d (q1' - q2')     (flexible transmission only)
 
     F_f(v) = (Fc + dFc sign v) sign v + (Fv + dFv sign v) v + Fs exp(-(v / v_s)^2) sign v
     F_pos(q) = A_pos sin(2 pi q / p_pos) sign(q1')
+    F_h(q, v) = c_q v |v| + A_rip sin(2 pi q / p_pos) + k_c q        (held-back family)
+    dz(v, v0) = sign(v) max(|v| - v0, 0)      (amplifier dead band; dz(v, 0) = v)
+
+with f_ext [N] the additive force of the plant's ``force`` entry, one value per sample held over
+the sample interval (none: the input array is empty). The held-back scalars (parameter entries
+``P_DEAD_BAND`` v0 [V], ``P_QUAD_DRAG`` c_q [N s^2/m^2], ``P_RIPPLE`` A_rip [N], ``P_CABLE_K``
+k_c [N/m]) are outside the catalogue (:data:`engine.plants.emps.catalogue.HELD_BACK`); every term
+is skipped at 0, so the neutral model runs exactly the published one's operations.
 
 With the flexibility off (``f_flex <= 0``) m1 = M and m2 carries nothing: the published rigid
 model. The parameter vector layout is given by the ``P_*`` indices below; the module
@@ -36,7 +45,9 @@ P_DFC, P_DFV, P_FS, P_VS = 4, 5, 6, 7
 P_F_FLEX, P_RHO_FLEX, P_ZETA_FLEX = 8, 9, 10
 P_GAIN_ERR, P_D_OFFSET, P_A_POS, P_PERIOD_POS, P_DELAY = 11, 12, 13, 14, 15
 P_KP, P_KV, P_GTAU, P_V_SAT, P_TS, P_NSUB = 16, 17, 18, 19, 20, 21
-N_P = 22
+# held-back family (outside the catalogue): v0 [V], c_q [N s^2/m^2], A_rip [N], k_c [N/m]
+P_DEAD_BAND, P_QUAD_DRAG, P_RIPPLE, P_CABLE_K = 22, 23, 24, 25
+N_P = 26
 
 
 @njit(cache=True)
@@ -50,14 +61,31 @@ def _sign(x: float) -> float:
 
 @njit(cache=True)
 def _motor_force(p: np.ndarray, q1: float, v1: float) -> float:
-    """Friction, position-dependent friction and offset on the motor side [N] (opposing the drive)."""
+    """Friction, position-dependent forces and offset on the motor side [N], counted opposing the drive.
+
+    F_f(v) + F_pos(q) + F_h(q, v) + offset + d_offset of the module docstring: a positive value
+    pushes the motor backward (it is subtracted from the drive's force ``g_tau v``).
+    """
     s = _sign(v1)
     f = (p[P_FC] + p[P_DFC] * s) * s + (p[P_FV] + p[P_DFV] * s) * v1
     if p[P_FS] != 0.0:
         f += p[P_FS] * math.exp(-((v1 / p[P_VS]) ** 2)) * s
     if p[P_A_POS] != 0.0:
         f += p[P_A_POS] * math.sin(2.0 * math.pi * q1 / p[P_PERIOD_POS]) * s
+    if p[P_QUAD_DRAG] != 0.0:
+        f += p[P_QUAD_DRAG] * v1 * abs(v1)
+    if p[P_RIPPLE] != 0.0:
+        f += p[P_RIPPLE] * math.sin(2.0 * math.pi * q1 / p[P_PERIOD_POS])
+    if p[P_CABLE_K] != 0.0:
+        f += p[P_CABLE_K] * q1
     return f + p[P_OFFSET] + p[P_D_OFFSET]
+
+
+@njit(cache=True)
+def _dead_band(v: float, v0: float) -> float:
+    """The amplifier's dead band dz(v, v0) = sign(v) max(|v| - v0, 0) [V]."""
+    a = abs(v) - v0
+    return _sign(v) * a if a > 0.0 else 0.0
 
 
 @njit(cache=True)
@@ -73,7 +101,7 @@ def _rhs(p: np.ndarray, x: np.ndarray, force: float, m1: float, m2: float, k: fl
 
 
 @njit(cache=True)
-def simulate_loop(p: np.ndarray, qg: np.ndarray, pulse: np.ndarray) -> np.ndarray:
+def simulate_loop(p: np.ndarray, qg: np.ndarray, pulse: np.ndarray, f_ext: np.ndarray) -> np.ndarray:
     """Closed-loop response on the record's grid.
 
     Parameters
@@ -84,6 +112,9 @@ def simulate_loop(p: np.ndarray, qg: np.ndarray, pulse: np.ndarray) -> np.ndarra
         Reference position at the samples [m].
     pulse : ndarray, shape (n,)
         Pulse signal added to the saturated command at the samples [V] (zeros without pulses).
+    f_ext : ndarray, shape (n,) or (0,)
+        Additive force on the motor side per sample [N], held over the sample interval, positive
+        forward like the drive's force; empty for none (the loop then skips it).
 
     Returns
     -------
@@ -109,6 +140,10 @@ def simulate_loop(p: np.ndarray, qg: np.ndarray, pulse: np.ndarray) -> np.ndarra
     else:
         m1, m2, k, d = mass, 1.0, 0.0, 0.0
     gain = p[P_GTAU] * (1.0 + p[P_GAIN_ERR])
+    v0 = p[P_DEAD_BAND]
+    has_ext = f_ext.size > 0
+    if has_ext and f_ext.size != n:
+        raise ValueError("EMPS kernel: the force input needs one value per sample")
     # extra actuator delay in sub-steps: whole part and fraction (the force over a sub-step is the
     # mix of the two commands the delayed switch instant falls between, so the delay is continuous)
     delay_sub = max(p[P_DELAY], 0.0) / h
@@ -142,7 +177,11 @@ def simulate_loop(p: np.ndarray, qg: np.ndarray, pulse: np.ndarray) -> np.ndarra
             if delay_frac > 0.0:
                 v_before = v_applied[(s - 1) // nsub] if s >= 1 else 0.0
                 v_now = (1.0 - delay_frac) * v_now + delay_frac * v_before
+            if v0 != 0.0:
+                v_now = _dead_band(v_now, v0)
             force = gain * v_now
+            if has_ext:
+                force += f_ext[i]
             if j == 0:
                 _rhs(p, x, force, m1, m2, k, d, k1)
                 out[i, 0] = x[0]

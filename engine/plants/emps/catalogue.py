@@ -9,13 +9,18 @@ Each effect sets one field of :class:`~engine.plants.emps.model.EmpsParameters`;
 value is the published rigid model. The fixed parts of multi-parameter effects are documented
 choices (:data:`engine.plants.emps.model.STRIBECK_VELOCITY`, ``FLEX_MASS_RATIO``,
 ``FLEX_DAMPING_RATIO``, ``POSITION_FRICTION_PERIOD``).
+
+The **held-back family** (:data:`HELD_BACK`, issue 52): one effect per locus outside the
+catalogue, for scoring the diagnosis of a gap the catalogue cannot explain. The plant simulates
+them (:data:`HELD_BACK_FIELDS`); the diagnosis never fits them. They were fixed before any locus
+estimate existed and are not tuned to one.
 """
 
 from __future__ import annotations
 
 from engine.plants.base import CandidateEffect
 
-__all__ = ["CATALOGUE", "EFFECT_FIELDS", "LOCI"]
+__all__ = ["CATALOGUE", "EFFECT_FIELDS", "HELD_BACK", "HELD_BACK_FIELDS", "LOCI"]
 
 #: The parts of the EMPS axis where an effect may act (module docstring).
 LOCI: tuple[str, ...] = ("drive", "guide", "transmission", "load", "sensors")
@@ -118,6 +123,70 @@ CATALOGUE: dict[str, CandidateEffect] = {
             10.0,
             "V",
             "drive",
+        ),
+    )
+}
+
+#: name -> field of EmpsParameters a held-back effect's scalar sets.
+HELD_BACK_FIELDS: dict[str, str] = {
+    "amplifier_dead_band": "dead_band",
+    "quadratic_drag": "c_quad",
+    "screw_force_ripple": "A_ripple",
+    "cable_spring": "k_cable",
+    "position_log_skew": "log_skew",
+}
+
+#: The held-back family: one effect per locus, outside the catalogue (module docstring).
+HELD_BACK: dict[str, CandidateEffect] = {
+    e.name: e
+    for e in (
+        CandidateEffect(
+            "amplifier_dead_band",
+            "An amplifier dead band: no force for commands below v0 in magnitude, the force "
+            "g_tau dz(v, v0) with dz(v, v0) = sign(v) max(|v| - v0, 0) applied to the command after "
+            "delay, saturation and pulse, while the force channel still reads g_tau v; scalar v0 [V].",
+            (0.05, 0.5),
+            0.0,
+            "V",
+            "drive",
+        ),
+        CandidateEffect(
+            "quadratic_drag",
+            "A friction growing with the square of the speed on the motor side, c_q v |v| opposing the "
+            "motion; scalar c_q [N s^2/m^2].",
+            (20.0, 400.0),
+            0.0,
+            "N s^2/m^2",
+            "guide",
+        ),
+        CandidateEffect(
+            "screw_force_ripple",
+            "A force ripple once per screw revolution on the motor side, A sin(2 pi q / p) counted "
+            "opposing the drive whatever the direction of motion (no sign(v), unlike "
+            "position_friction; p the same period, see the model); scalar A [N].",
+            (-10.0, 10.0),
+            0.0,
+            "N",
+            "transmission",
+        ),
+        CandidateEffect(
+            "cable_spring",
+            "A cable carrier pulling the carriage back towards q = 0 with the force k_c q (q the "
+            "motor-side position); scalar k_c [N/m].",
+            (50.0, 500.0),
+            0.0,
+            "N/m",
+            "load",
+        ),
+        CandidateEffect(
+            "position_log_skew",
+            "A skew of the data logger: the logged position lags the logged force by delta (the loop "
+            "is unchanged; the recorded qm is the true position delayed by delta, linearly "
+            "interpolated on the sample grid); scalar delta [s].",
+            (0.0005, 0.003),
+            0.0,
+            "s",
+            "sensors",
         ),
     )
 }

@@ -16,6 +16,11 @@ sample, which is what the kernel :mod:`engine.plants.emps._kernel` does.
 Simulated channels are the plant's states at the samples (position, velocity, acceleration as the
 right-hand side at the sample) and ``g_tau v`` with v the command after delay, saturation and
 pulse, as the authors' script compares them (``Force1_s = gtau*vir_s``).
+
+Beyond the catalogue (issue 52): the held-back family (:data:`~engine.plants.emps.catalogue.HELD_BACK`,
+four effects in the loop's kernel, the logger's skew after it), the plant's entries
+(:data:`ENTRIES`: an additive force on the motor side, an additive error of the recorded position)
+and per locus the signals a missing term there would follow (:meth:`EmpsPlant.locus_signals`).
 """
 
 from __future__ import annotations
@@ -29,9 +34,9 @@ from types import MappingProxyType
 
 import numpy as np
 
-from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, within_span
+from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, LocusSignal, within_span
 from engine.plants.emps import _kernel as k
-from engine.plants.emps.catalogue import CATALOGUE, EFFECT_FIELDS, LOCI
+from engine.plants.emps.catalogue import CATALOGUE, EFFECT_FIELDS, HELD_BACK, HELD_BACK_FIELDS, LOCI
 from engine.plants.emps.channels import N_BORDER, measured_channels, process
 from engine.plants.emps.record import EmpsRecord, load_mat, load_record
 from engine.plants.noise import NoiseLevel, finest_level_sigma, integrated_time, white_noise_level
@@ -40,6 +45,7 @@ __all__ = [
     "CALIBRATED",
     "CHANNELS",
     "ENCODER_QUANTUM",
+    "ENTRIES",
     "FLEX_DAMPING_RATIO",
     "FLEX_MASS_RATIO",
     "N_SUBSTEPS",
@@ -49,6 +55,7 @@ __all__ = [
     "V_SATURATION",
     "EmpsParameters",
     "EmpsPlant",
+    "logged_position",
 ]
 
 #: The published rigid model (report, section 3): M [kg], Fv [N s/m], Fc [N], offset [N].
@@ -94,6 +101,12 @@ QUANTUM_NOISE_SEED: int = 0
 #: Phases of the count grid the quantisation error is drawn on (:meth:`EmpsPlant.noise`).
 N_QUANTUM_PHASES: int = 4
 
+#: The plant's additive inputs (``inputs=`` of :meth:`EmpsPlant.simulate`), name -> unit: ``force``
+#: a force on the motor side in the loop, positive forward like the drive's, held over each sample
+#: interval; ``position`` an error added to the recorded raw position qm (after the loop, before
+#: the measurement chain), like a sensor's.
+ENTRIES: dict[str, str] = {"force": "N", "position": "m"}
+
 #: The channels of this plant.
 CHANNELS: tuple[Channel, ...] = (
     Channel("position", "m", "qm, zero-phase Butterworth low-pass (4th order, 100 Hz)"),
@@ -126,6 +139,10 @@ class EmpsParameters:
         Constant force offset [N].
     dFc, dFv, Fs, f_flex, gain_err, d_offset, A_pos, delay : float
         Scalars of the candidate effects (:mod:`engine.plants.emps.catalogue`), neutral at 0.
+    dead_band, c_quad, A_ripple, k_cable, log_skew : float
+        Scalars of the held-back effects (:data:`~engine.plants.emps.catalogue.HELD_BACK`), neutral
+        at 0: the amplifier's dead band v0 [V], the quadratic drag c_q [N s^2/m^2], the screw's
+        force ripple A [N], the cable carrier's stiffness k_c [N/m], the logger's skew delta [s].
     v_sat : float
         Saturation of the controller's command [V] (effect ``command_limit``; published: 10 V).
     rho_flex, zeta_flex : float
@@ -148,6 +165,11 @@ class EmpsParameters:
     v_sat: float = V_SATURATION
     rho_flex: float = FLEX_MASS_RATIO
     zeta_flex: float = FLEX_DAMPING_RATIO
+    dead_band: float = 0.0
+    c_quad: float = 0.0
+    A_ripple: float = 0.0
+    k_cable: float = 0.0
+    log_skew: float = 0.0
 
     def vector(self, record: EmpsRecord, n_substeps: int = N_SUBSTEPS) -> np.ndarray:
         """The kernel's parameter vector for a record (its gains and sample interval)."""
@@ -159,7 +181,33 @@ class EmpsParameters:
         p[k.P_A_POS], p[k.P_PERIOD_POS], p[k.P_DELAY] = self.A_pos, POSITION_FRICTION_PERIOD, self.delay
         p[k.P_KP], p[k.P_KV], p[k.P_GTAU] = record.kp, record.kv, record.gtau
         p[k.P_V_SAT], p[k.P_TS], p[k.P_NSUB] = self.v_sat, record.ts, n_substeps
+        p[k.P_DEAD_BAND], p[k.P_QUAD_DRAG] = self.dead_band, self.c_quad
+        p[k.P_RIPPLE], p[k.P_CABLE_K] = self.A_ripple, self.k_cable
         return p
+
+
+def logged_position(q: np.ndarray, delta: float, ts: float) -> np.ndarray:
+    """The position as a logger skewed by ``delta`` records it (held-back ``position_log_skew``).
+
+    Parameters
+    ----------
+    q : ndarray, shape (n,)
+        True position at the samples [m].
+    delta : float
+        Lag of the logged position behind the logged force [s]; 0 returns ``q`` itself.
+    ts : float
+        Sample interval [s].
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        ``q(t_i - delta)`` [m], linearly interpolated on the uniform sample grid, the samples
+        before the first one held at its value.
+    """
+    if delta == 0.0:
+        return q
+    grid = np.arange(q.size, dtype=float)
+    return np.interp(grid - delta / ts, grid, q)
 
 
 class EmpsPlant:
@@ -179,6 +227,8 @@ class EmpsPlant:
     channels: tuple[Channel, ...] = CHANNELS
     calibrated: tuple[CalibratedParameter, ...] = CALIBRATED
     catalogue: Mapping[str, CandidateEffect] = MappingProxyType(CATALOGUE)
+    held_back: Mapping[str, CandidateEffect] = MappingProxyType(HELD_BACK)
+    entries: Mapping[str, str] = MappingProxyType(ENTRIES)
     diff_step: float = DIFF_STEP
 
     def __init__(self, n_substeps: int = N_SUBSTEPS, fixed: Mapping[str, float] | None = None) -> None:
@@ -281,12 +331,12 @@ class EmpsPlant:
         return dataclasses.replace(record, qm=qm, vir=x["force"] / record.gtau, name=f"synthetic({record.name})")
 
     def parameters(self, values: Mapping[str, float]) -> EmpsParameters:
-        """The model's parameters with ``values`` (calibrated names and effect names) applied.
+        """The model's parameters with ``values`` (calibrated, effect and held-back names) applied.
 
         Raises
         ------
         KeyError
-            For a name that is neither a calibrated parameter nor an effect.
+            For a name that is neither a calibrated parameter, an effect nor a held-back effect.
         """
         changes: dict[str, float] = {}
         calibrated = {p.name for p in CALIBRATED}
@@ -295,42 +345,125 @@ class EmpsPlant:
                 changes[name] = float(value)
             elif name in EFFECT_FIELDS:
                 changes[EFFECT_FIELDS[name]] = float(value)
+            elif name in HELD_BACK_FIELDS:
+                changes[HELD_BACK_FIELDS[name]] = float(value)
             else:
                 raise KeyError(f"unknown EMPS parameter or effect {name!r}")
         return dataclasses.replace(EmpsParameters(), **{**self.fixed, **changes})
 
-    def states(self, record: EmpsRecord, values: Mapping[str, float]) -> dict[str, np.ndarray]:
-        """The plant's states at the samples, as the authors' script compares them.
+    def _schedules(
+        self, record: EmpsRecord, inputs: Mapping[str, np.ndarray] | None
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """The inputs at the plant's :data:`ENTRIES`, checked: the loop's force and the position error.
 
-        Position [m], velocity [m/s], acceleration [m/s^2] (the right-hand side at the sample) of
-        the motor side, and the force ``g_tau v`` [N] with v the command after delay, saturation
-        and pulse (``Force1_s = gtau*vir_s``).
+        Returns
+        -------
+        force : ndarray, shape (n,) or (0,)
+            Additive force per sample [N], empty without a ``force`` input (the kernel skips it).
+        position : ndarray, shape (n,), or None
+            Additive error of the recorded position per sample [m], None without one.
 
         Raises
         ------
         KeyError
-            For an unknown name in ``values``.
+            For an entry not in :data:`ENTRIES`.
+        ValueError
+            For a schedule that is not one finite value per sample of the record.
+        """
+        given: dict[str, np.ndarray] = {}
+        for name, schedule in (inputs or {}).items():
+            if name not in ENTRIES:
+                raise KeyError(f"unknown EMPS entry {name!r}; entries: {', '.join(ENTRIES)}")
+            x = np.asarray(schedule, dtype=float)
+            if x.shape != (record.n,):
+                raise ValueError(f"EMPS input {name!r} needs one value per sample ({record.n}), got shape {x.shape}")
+            if not np.all(np.isfinite(x)):
+                raise ValueError(f"EMPS input {name!r} has non-finite values")
+            given[name] = x
+        return given.get("force", np.zeros(0)), given.get("position")
+
+    def _loop(self, record: EmpsRecord, params: EmpsParameters, force: np.ndarray) -> np.ndarray:
+        """The kernel's closed-loop response (:func:`~engine.plants.emps._kernel.simulate_loop`)."""
+        if not math.isfinite(params.M) or params.M <= 0.0:
+            raise ValueError(f"EMPS mass must be positive, got {params.M}")
+        return k.simulate_loop(params.vector(record, self.n_substeps), record.qg, record.pulses, force)
+
+    def states(
+        self, record: EmpsRecord, values: Mapping[str, float], inputs: Mapping[str, np.ndarray] | None = None
+    ) -> dict[str, np.ndarray]:
+        """The plant's states at the samples, as the authors' script compares them.
+
+        Position [m] as the logger records it (qm: the motor position, delayed by the held-back
+        logger skew and plus the ``position`` input, when given), velocity [m/s] and acceleration
+        [m/s^2] (the right-hand side at the sample) of the motor side, and the force ``g_tau v`` [N]
+        with v the command after delay, saturation and pulse (``Force1_s = gtau*vir_s``).
+        ``inputs`` adds schedules at the plant's :data:`ENTRIES` (:meth:`_schedules`).
+
+        Raises
+        ------
+        KeyError
+            For an unknown name in ``values`` or an unknown entry in ``inputs``.
+        ValueError
+            For a non-positive mass or a schedule that is not one finite value per sample.
         FloatingPointError
             When the integration diverges.
         """
         params = self.parameters(values)
-        if not math.isfinite(params.M) or params.M <= 0.0:
-            raise ValueError(f"EMPS mass must be positive, got {params.M}")
-        out = k.simulate_loop(params.vector(record, self.n_substeps), record.qg, record.pulses)
+        force, position_error = self._schedules(record, inputs)
+        out = self._loop(record, params, force)
+        q = logged_position(out[:, 0], params.log_skew, record.ts)
+        if position_error is not None:
+            q = q + position_error
         return {
-            "position": out[:, 0],
+            "position": q,
             "velocity": out[:, 1],
             "acceleration": out[:, 2],
             "force": record.gtau * out[:, 3],
         }
 
-    def simulate(self, record: EmpsRecord, values: Mapping[str, float]) -> dict[str, np.ndarray]:
+    def simulate(
+        self, record: EmpsRecord, values: Mapping[str, float], inputs: Mapping[str, np.ndarray] | None = None
+    ) -> dict[str, np.ndarray]:
         """Channels simulated as the record's would read them: the states through the measurement chain.
 
         The simulated position passes the very filter and differences the measured one does
         (:func:`~engine.plants.emps.channels.process`), so a residual holds no difference of
         processing: a step of force is a step of the raw simulated acceleration but a 100 Hz-limited
-        ramp of the measured one. (The authors compare the raw states, :meth:`states`.)
+        ramp of the measured one. (The authors compare the raw states, :meth:`states`.) ``inputs``
+        as :meth:`states`: a ``position`` input reaches the channels through the filter.
         """
-        x = self.states(record, values)
+        x = self.states(record, values, inputs)
         return process(x["position"], x["force"], record.ts)
+
+    def locus_signals(self, record: EmpsRecord, values: Mapping[str, float]) -> tuple[LocusSignal, ...]:
+        """Per locus, the signals a missing term there would follow, from the states at ``values``.
+
+        ``drive``: the command force ``g_tau v`` [N]; ``guide``: the motor-side velocity [m/s];
+        ``transmission``: the screw angle, the position modulo :data:`POSITION_FRICTION_PERIOD` [m]
+        (periodic); ``load``: the position [m] and the time [s]; all entering as a force at the
+        ``force`` entry. ``sensors``: the position [m] and the velocity [m/s], entering as an error
+        of the recorded position at the ``position`` entry. Raw states (before the measurement
+        chain), no inputs; the position is the motor's own (without a logger skew) except at
+        ``sensors``, where it is the recorded one. Every array has the record's n samples.
+        """
+        params = self.parameters(values)
+        out = self._loop(record, params, np.zeros(0))
+        q, v = out[:, 0].copy(), out[:, 1].copy()
+        command = record.gtau * out[:, 3]
+        logged = logged_position(q, params.log_skew, record.ts).copy()
+        return (
+            LocusSignal("drive", "force", "command force", "N", command),
+            LocusSignal("guide", "force", "velocity", "m/s", v),
+            LocusSignal(
+                "transmission",
+                "force",
+                "screw angle",
+                "m",
+                np.mod(q, POSITION_FRICTION_PERIOD),
+                period=POSITION_FRICTION_PERIOD,
+            ),
+            LocusSignal("load", "force", "position", "m", q),
+            LocusSignal("load", "force", "time", "s", np.array(self.time(record), dtype=float)),
+            LocusSignal("sensors", "position", "position", "m", logged),
+            LocusSignal("sensors", "position", "velocity", "m/s", v.copy()),
+        )
