@@ -8,15 +8,22 @@ locus signals are what a missing term at each locus would follow.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
 from engine.plants.base import LocusSignal
-from engine.plants.emps import CATALOGUE, HELD_BACK, LOCI, PUBLISHED, EmpsPlant, EmpsRecord
+from engine.plants.emps import CATALOGUE, HELD_BACK, LOCI, PUBLISHED, SEALED, EmpsParameters, EmpsPlant, EmpsRecord
+from engine.plants.emps.catalogue import EFFECT_FIELDS, HELD_BACK_FIELDS, SEALED_FIELDS
 from engine.plants.emps.channels import process
-from engine.plants.emps.model import POSITION_FRICTION_PERIOD
+from engine.plants.emps.model import (
+    CONTAMINATION_POSITION,
+    POSITION_FRICTION_PERIOD,
+    SLIP_SHARE,
+    vibration_force,
+)
 
 CHANNEL_NAMES = ("position", "velocity", "acceleration", "force")
 
@@ -201,3 +208,111 @@ def test_the_locus_signals_state_what_each_locus_sees(plant: EmpsPlant, record: 
     assert np.all((angle.values >= 0.0) & (angle.values < POSITION_FRICTION_PERIOD))
     np.testing.assert_allclose(angle.values, np.mod(x["position"], POSITION_FRICTION_PERIOD))
     assert all(s.period is None for s in signals if s is not angle)
+
+
+# -- the sealed family (scored once) ---------------------------------------------------------
+# Defined before any diagnosis ran on them; development never reads their scores. These tests
+# only simulate them (no diagnosis, no locus estimate).
+
+
+def _sealed_mid(name: str) -> float:
+    lo, hi = SEALED[name].bounds
+    return 0.5 * (lo + hi)
+
+
+def test_the_sealed_family_is_one_effect_per_locus_apart_from_every_other_name(plant: EmpsPlant) -> None:
+    assert set(plant.sealed) == {
+        "drive_gain_asymmetry",
+        "guide_contamination",
+        "screw_load_friction",
+        "load_vibration",
+        "encoder_slip",
+    }
+    assert dict(plant.sealed) == SEALED and set(SEALED_FIELDS) == set(SEALED)
+    assert not set(SEALED) & set(CATALOGUE)
+    assert not set(SEALED) & set(HELD_BACK)
+    assert not set(SEALED) & {p.name for p in plant.calibrated}
+    assert sorted(e.locus for e in SEALED.values()) == sorted(LOCI)
+    for name, e in SEALED.items():
+        assert e.name == name and e.description
+        assert e.neutral == 0.0 and 0.0 < e.bounds[0] < e.bounds[1] and not e.log
+    fields = set(SEALED_FIELDS.values())
+    assert fields <= {f.name for f in dataclasses.fields(EmpsParameters)}
+    assert not fields & (set(EFFECT_FIELDS.values()) | set(HELD_BACK_FIELDS.values()))
+
+
+def test_the_sealed_names_are_accepted(plant: EmpsPlant, record: EmpsRecord) -> None:
+    for name, field in SEALED_FIELDS.items():
+        assert getattr(plant.parameters({name: _sealed_mid(name)}), field) == _sealed_mid(name)
+    sim = plant.simulate(record, {name: _sealed_mid(name) for name in SEALED})
+    assert set(sim) == set(CHANNEL_NAMES)
+    assert all(v.shape == (record.n,) and np.all(np.isfinite(v)) for v in sim.values())
+    with pytest.raises(KeyError):
+        plant.simulate(record, {"encoder_slips": 1e-6})
+
+
+def test_neutral_sealed_values_leave_the_model_unchanged_bit_for_bit(
+    plant: EmpsPlant, record: EmpsRecord, nominal: dict[str, np.ndarray]
+) -> None:
+    neutral = {name: e.neutral for name, e in plant.sealed.items()}
+    inputs = {"force": np.full(record.n, 1.5), "position": np.full(record.n, 1e-6)}
+    for values in ({}, {"stribeck": -8.0, "actuator_delay": 0.0015, "amplifier_dead_band": 0.2}):
+        for given in (None, inputs):
+            plain = plant.states(record, values, given)
+            sealed = plant.states(record, {**values, **neutral}, given)
+            for c in CHANNEL_NAMES:
+                np.testing.assert_array_equal(sealed[c], plain[c])
+    sim = plant.simulate(record, neutral)
+    for c in CHANNEL_NAMES:
+        np.testing.assert_array_equal(sim[c], nominal[c])
+
+
+@pytest.mark.parametrize("name", sorted(SEALED))
+def test_each_sealed_effect_at_mid_range_changes_a_channel_beyond_the_noise(
+    name: str, plant: EmpsPlant, record: EmpsRecord, nominal: dict[str, np.ndarray]
+) -> None:
+    noise = plant.noise(record)
+    sl = plant.scored(record)
+    sim = plant.simulate(record, {name: _sealed_mid(name)})
+    ratio = {c: float(np.sqrt(np.mean(np.square(sim[c][sl] - nominal[c][sl])))) / noise[c].sigma for c in CHANNEL_NAMES}
+    assert max(ratio.values()) > 1.0, ratio
+
+
+def test_the_floor_vibration_is_a_force_at_the_force_entry(plant: EmpsPlant, record: EmpsRecord) -> None:
+    a = 6.0
+    vibration = vibration_force(record.t, a)
+    assert vibration[0] == 0.0 and np.max(np.abs(vibration)) == pytest.approx(a, rel=1e-3)
+    c = np.full(record.n, 2.0)
+    for given, schedule in ((None, vibration), ({"force": c}, c + vibration)):
+        with_effect = plant.states(record, {"load_vibration": a}, given)
+        as_input = plant.states(record, {}, {"force": schedule})
+        for ch in CHANNEL_NAMES:
+            np.testing.assert_array_equal(with_effect[ch], as_input[ch])
+
+
+def test_the_encoder_slip_steps_the_recorded_position_only(plant: EmpsPlant, record: EmpsRecord) -> None:
+    delta = 5e-6
+    plain = plant.states(record, {})
+    slipped = plant.states(record, {"encoder_slip": delta})
+    for c in ("velocity", "acceleration", "force"):  # the loop is unchanged
+        np.testing.assert_array_equal(slipped[c], plain[c])
+    step = slipped["position"] - plain["position"]
+    after = record.t - record.t[0] >= SLIP_SHARE * (record.t[-1] - record.t[0])
+    assert 0.35 < np.mean(after) < 0.65 and not after[0] and after[-1]
+    np.testing.assert_array_equal(step[~after], 0.0)
+    np.testing.assert_allclose(step[after], delta, rtol=1e-6)
+
+
+def test_the_contamination_sits_in_the_middle_of_the_shipped_travel(plant: EmpsPlant, record: EmpsRecord) -> None:
+    middle = 0.5 * (float(np.min(record.qm)) + float(np.max(record.qm)))
+    assert round(middle / 0.005) * 0.005 == pytest.approx(CONTAMINATION_POSITION)
+
+
+def test_the_drive_gain_asymmetry_keeps_the_force_channel_on_the_command(plant: EmpsPlant, record: EmpsRecord) -> None:
+    """More force forward than backward for the same command: the loop commands less forward, more backward."""
+    x = plant.states(record, {"drive_gain_asymmetry": 0.1})
+    ref = plant.states(record, {})
+    sl = plant.scored(record)
+    fwd, bwd = ref["force"][sl] > 5.0, ref["force"][sl] < -5.0
+    assert np.mean(x["force"][sl][fwd]) < np.mean(ref["force"][sl][fwd])
+    assert np.mean(x["force"][sl][bwd]) < np.mean(ref["force"][sl][bwd])

@@ -71,6 +71,7 @@ class BacklashDrivePlant:
     #: Protocol 2's families (:data:`engine.simulation.HELD_BACK`, ``SEALED``) score this plant's open
     #: world through its own validation, not through the plant interface: none here.
     held_back: Mapping[str, CandidateEffect] = MappingProxyType({})
+    sealed: Mapping[str, CandidateEffect] = MappingProxyType({})
     #: The drive's unknown inputs are :class:`engine.simulation.Disturbance`, read by its own locus
     #: estimate (:mod:`engine.diagnosis.locus`): none through the interface.
     entries: Mapping[str, str] = MappingProxyType({})

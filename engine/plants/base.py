@@ -8,7 +8,8 @@ A plant (in the manner of motulator's subsystems, reduced to what a diagnosis re
 - its **catalogue** of candidate effects: named one-scalar extensions of the model (the shape of
   pysindy's feature libraries), each acting at one **locus**, a part of the plant;
 - its **held-back family**: effects outside the catalogue, at each locus, kept for scoring the
-  open world (a synthetic record may carry one; the diagnosis never names them);
+  open world (a synthetic record may carry one; the diagnosis never names them), and a **sealed
+  family** of the same kind whose scores development never reads (a blind run scores it once);
 - its **entries**: additive inputs its simulation accepts (a force on a mass, a displacement, a
   sensor's error), and per locus the **signals** a missing term there would follow
   (:class:`LocusSignal`): what the locus estimate of an unexplained gap reads;
@@ -228,6 +229,9 @@ class Plant(Protocol):
     held_back : mapping of str to CandidateEffect
         Effects outside the catalogue, kept for scoring the diagnosis of a gap the catalogue cannot
         explain (:meth:`simulate` accepts their names; the diagnosis never fits them). May be empty.
+    sealed : mapping of str to CandidateEffect
+        A second family of the same kind, defined before any diagnosis ran on it, whose scores
+        development never reads. May be empty.
     entries : mapping of str to str
         Additive inputs :meth:`simulate` accepts (``inputs=``), name -> unit. May be empty.
     diff_step : float
@@ -242,6 +246,7 @@ class Plant(Protocol):
     calibrated: tuple[CalibratedParameter, ...]
     catalogue: Mapping[str, CandidateEffect]
     held_back: Mapping[str, CandidateEffect]
+    sealed: Mapping[str, CandidateEffect]
     entries: Mapping[str, str]
     diff_step: float
 

@@ -9,12 +9,13 @@ transmits. Per sample k (interval dt):
   law ``de/dx = 1 - sigma0 e sign(dx) / g(v)``, integrated exactly over the sample for constant
   g (an exponential approach to ``sign(dx) g / sigma0``); a deflection pushed below zero by the
   unloading leaves contact (``e = 0`` and the gap opens);
-- ``g(v) = (Fc (1 + asym sign(v)) + Fs exp(-(v / v_s)^2)) max(1 - phi s, 0.1)`` (Coulomb level,
-  its asymmetry and a Stribeck term, faded along the travel ``s = sum |dx|`` since the record's
-  start by the held-back ``friction_fade`` phi [1/m], neutral 0); v is the actuator's velocity
-  (central difference of x);
-- the transmitted force ``F = (sigma0 e + sigma2 v) (1 + kappa w) (1 + a exp(-w / w_a))`` in
-  contact, 0 in the gap; ``w = |x - x_rev|`` is the wind-up since the last reversal of x (a
+- ``g(v) = (Fc (1 + asym sign(v)) + Fs exp(-(v / v_s)^2)) max(1 - phi s, 0.1) max(1 + e x / x_t, 0.1)``
+  (Coulomb level, its asymmetry and a Stribeck term, faded along the travel ``s = sum |dx|`` since
+  the record's start by the held-back ``friction_fade`` phi [1/m], and varying along the stroke by
+  the sealed ``tapered_drum`` e [-] over the scale x_t; both neutral at 0); v is the actuator's
+  velocity (central difference of x);
+- the transmitted force ``F = (sigma0 e + sigma2 v) (1 + kappa w + kappa2 w^2) (1 + a exp(-w / w_a))``
+  in contact, 0 in the gap (kappa2: the sealed ``band_quadratic_wrap``, neutral 0); ``w = |x - x_rev|`` is the wind-up since the last reversal of x (a
   reversal: x retreats more than ``rev_tol`` from its running extreme): the band brake's
   self-energizing amplification kappa, and the held-back ``band_relaxation`` a (neutral 0) over the
   wind-up scale w_a.
@@ -42,7 +43,10 @@ P_REV_TOL = 8
 P_FADE = 9
 P_RELAX = 10
 P_W_RELAX = 11
-N_PARAMS = 12
+P_TAPER = 12
+P_X_TAPER = 13
+P_KAPPA2 = 14
+N_PARAMS = 15
 
 
 @njit(cache=True)
@@ -64,6 +68,9 @@ def transmitted_force(x: np.ndarray, dt: float, p: np.ndarray, out: np.ndarray, 
     fade = p[P_FADE]
     relax = p[P_RELAX]
     w_relax = p[P_W_RELAX]
+    taper = p[P_TAPER]
+    x_taper = p[P_X_TAPER]
+    kappa2 = p[P_KAPPA2]
     travel = 0.0  # travel of the actuator since the start [m]
     s = 0.0  # relative displacement across linkage and play [m]
     e = 0.0  # elastic deflection of the friction element [m]
@@ -105,6 +112,8 @@ def transmitted_force(x: np.ndarray, dt: float, p: np.ndarray, out: np.ndarray, 
         g = fc * (1.0 + asym * sv) + fs * math.exp(-((v / vs) ** 2))
         if fade != 0.0:
             g *= max(1.0 - fade * travel, 0.1)
+        if taper != 0.0:
+            g *= max(1.0 + taper * x[k] / x_taper, 0.1)
         if g < 1e-9 * fc:
             g = 1e-9 * fc
         if h == 0.0:  # no play: Dahl's law on the deflection, always in contact
@@ -112,6 +121,8 @@ def transmitted_force(x: np.ndarray, dt: float, p: np.ndarray, out: np.ndarray, 
                 e_ss = (g / sigma0) * (1.0 if dx > 0.0 else -1.0)
                 e = e_ss + (e - e_ss) * math.exp(-sigma0 * abs(dx) / g)
             f = (sigma0 * e + sigma2 * v) * (1.0 + kappa * abs(x[k] - x_rev))
+            if kappa2 != 0.0:
+                f *= 1.0 + kappa2 * (x[k] - x_rev) ** 2 / (1.0 + kappa * abs(x[k] - x_rev))
             if relax != 0.0:
                 f *= 1.0 + relax * math.exp(-abs(x[k] - x_rev) / w_relax)
             if not math.isfinite(f):
@@ -144,6 +155,8 @@ def transmitted_force(x: np.ndarray, dt: float, p: np.ndarray, out: np.ndarray, 
         s = side * h + e
         w = abs(x[k] - x_rev)
         f = (sigma0 * e + sigma2 * v) * (1.0 + kappa * w)
+        if kappa2 != 0.0:
+            f *= 1.0 + kappa2 * w * w / (1.0 + kappa * w)
         if relax != 0.0:
             f *= 1.0 + relax * math.exp(-w / w_relax)
         if not math.isfinite(f):

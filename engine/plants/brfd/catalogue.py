@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from engine.plants.base import CandidateEffect
 
-__all__ = ["CATALOGUE", "EFFECT_FIELDS", "HELD_BACK", "HELD_BACK_FIELDS", "LOCI"]
+__all__ = ["CATALOGUE", "EFFECT_FIELDS", "HELD_BACK", "HELD_BACK_FIELDS", "LOCI", "SEALED", "SEALED_FIELDS"]
 
 #: The parts of the BRFD where an effect may act (module docstring).
 LOCI: tuple[str, ...] = ("linkage", "brake", "band", "sensors")
@@ -168,6 +168,60 @@ HELD_BACK: dict[str, CandidateEffect] = {
             (40.0, 300.0),
             0.0,
             "N/s",
+            "sensors",
+        ),
+    )
+}
+
+
+#: name -> field of BrfdParameters the sealed effect's scalar sets.
+SEALED_FIELDS: dict[str, str] = {
+    "end_stop": "k_stop",
+    "tapered_drum": "taper",
+    "band_quadratic_wrap": "kappa2",
+    "load_cell_gain_drift": "gain_drift",
+}
+
+#: The sealed family (issue 52): a second family outside the catalogue and the held-back one, one
+#: effect per locus, defined before any diagnosis ran on it (bounds from the change of the raw
+#: simulation alone). Development never reads its scores: a blind run scores it once.
+SEALED: dict[str, CandidateEffect] = {
+    e.name: e
+    for e in (
+        CandidateEffect(
+            "end_stop",
+            "A rubber stop the linkage meets near the stroke's ends: an extra force k (|x| - x_s) sign(x) beyond "
+            "|x| > x_s (x_s fixed, see the model); scalar k [N/m].",
+            (5e4, 3e5),
+            0.0,
+            "N/m",
+            "linkage",
+        ),
+        CandidateEffect(
+            "tapered_drum",
+            "A drum whose lining thickness varies along the stroke: the friction level Fc (1 + e x / x_t) (x_t "
+            "fixed, see the model; at least 0.1 Fc); scalar e [-].",
+            (0.1, 0.4),
+            0.0,
+            "",
+            "brake",
+        ),
+        CandidateEffect(
+            "band_quadratic_wrap",
+            "The band's self-energizing grows with the square of the wind-up: the force times "
+            "(1 + kappa w + kappa2 w^2), w the wind-up since the last reversal; scalar kappa2 [1/m^2].",
+            (40.0, 160.0),
+            0.0,
+            "1/m^2",
+            "band",
+        ),
+        CandidateEffect(
+            "load_cell_gain_drift",
+            "The load cell's sensitivity drifts as it warms: the reading times (1 + g t), t from the record's "
+            "start; scalar g [1/s].",
+            (0.005, 0.03),
+            0.0,
+            "1/s",
             "sensors",
         ),
     )

@@ -29,7 +29,15 @@ import numpy as np
 
 from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, LocusSignal
 from engine.plants.brfd import _kernel as k
-from engine.plants.brfd.catalogue import CATALOGUE, EFFECT_FIELDS, HELD_BACK, HELD_BACK_FIELDS, LOCI
+from engine.plants.brfd.catalogue import (
+    CATALOGUE,
+    EFFECT_FIELDS,
+    HELD_BACK,
+    HELD_BACK_FIELDS,
+    LOCI,
+    SEALED,
+    SEALED_FIELDS,
+)
 from engine.plants.brfd.record import BrfdRecord, load_json, load_record
 from engine.plants.noise import NoiseLevel, white_noise_level
 from engine.records import RecordError
@@ -56,6 +64,10 @@ REVERSAL_TOLERANCE: float = 1e-4
 REGIME_TRAVEL: float = 0.008
 #: Wind-up scale of the held-back ``band_relaxation`` effect [m] (a fifth of the sine tests' 25 mm stroke).
 RELAXATION_WINDUP: float = 0.005
+#: Where the sealed ``end_stop`` engages [m] (|x| beyond it; the 1-inch sine tests reach 25 mm).
+STOP_ENGAGE: float = 0.015
+#: Stroke scale of the sealed ``tapered_drum`` [m] (the 1-inch sine tests' amplitude).
+TAPER_SCALE: float = 0.025
 #: Additive inputs :meth:`BrfdPlant.simulate` accepts, name -> unit: a displacement lost or gained in
 #: the linkage before the friction element, and a force on the load cell's reading.
 ENTRIES: dict[str, str] = {"displacement": "m", "force": "N"}
@@ -106,6 +118,10 @@ class BrfdParameters:
     fade: float = 0.0
     relax: float = 0.0
     drift: float = 0.0
+    k_stop: float = 0.0
+    taper: float = 0.0
+    kappa2: float = 0.0
+    gain_drift: float = 0.0
 
     def vector(self) -> np.ndarray:
         """The kernel's parameter vector (the linkage compliance folded into the element's stiffness)."""
@@ -122,6 +138,9 @@ class BrfdParameters:
         p[k.P_FADE] = self.fade
         p[k.P_RELAX] = self.relax
         p[k.P_W_RELAX] = RELAXATION_WINDUP
+        p[k.P_TAPER] = self.taper
+        p[k.P_X_TAPER] = TAPER_SCALE
+        p[k.P_KAPPA2] = self.kappa2
         return p
 
 
@@ -166,6 +185,7 @@ class BrfdPlant:
     calibrated: tuple[CalibratedParameter, ...] = CALIBRATED
     catalogue: Mapping[str, CandidateEffect] = MappingProxyType(CATALOGUE)
     held_back: Mapping[str, CandidateEffect] = MappingProxyType(HELD_BACK)
+    sealed: Mapping[str, CandidateEffect] = MappingProxyType(SEALED)
     entries: Mapping[str, str] = MappingProxyType(ENTRIES)
     diff_step: float = DIFF_STEP
 
@@ -230,6 +250,8 @@ class BrfdPlant:
                 fields[EFFECT_FIELDS[name]] = float(v)
             elif name in HELD_BACK_FIELDS:
                 fields[HELD_BACK_FIELDS[name]] = float(v)
+            elif name in SEALED_FIELDS:
+                fields[SEALED_FIELDS[name]] = float(v)
             elif name in {p.name for p in CALIBRATED}:
                 fields[name] = float(v)
             else:
@@ -269,6 +291,10 @@ class BrfdPlant:
             read = read + p.k_return * x
         if p.drift != 0.0:
             read = read + p.drift * (record.t - record.t[0])
+        if p.k_stop != 0.0:
+            read = read + p.k_stop * np.sign(x) * np.maximum(np.abs(x) - STOP_ENGAGE, 0.0)
+        if p.gain_drift != 0.0:
+            read = read * (1.0 + p.gain_drift * (record.t - record.t[0]))
         if "force" in d:
             read = read + d["force"]
         return read, contact.astype(bool)

@@ -5,7 +5,7 @@ EMPS" (ONERA / LS2N), a nonlinear system identification benchmark; the two recor
 ``engine/plants/emps/data/`` with that citation.
 """
 
-from engine.plants.emps.catalogue import CATALOGUE, HELD_BACK, LOCI
+from engine.plants.emps.catalogue import CATALOGUE, HELD_BACK, LOCI, SEALED
 from engine.plants.emps.model import CALIBRATED, CHANNELS, ENTRIES, PUBLISHED, EmpsParameters, EmpsPlant
 from engine.plants.emps.record import EmpsRecord, load_csv, load_mat, load_record
 
@@ -17,6 +17,7 @@ __all__ = [
     "HELD_BACK",
     "LOCI",
     "PUBLISHED",
+    "SEALED",
     "EmpsParameters",
     "EmpsPlant",
     "EmpsRecord",

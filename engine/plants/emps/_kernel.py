@@ -7,11 +7,12 @@ position q_k, filters it by ``[0.5 0.5]``, differences it over one sample, compu
 (a unit delay), saturated at +-10 V, plus the pulse signal [V]; the force ``g_tau v`` is held
 over the sample interval while the mechanics are integrated by fixed-step RK4 sub-steps.
 
-Mechanics (rigid axis of the published model, with every candidate effect of the catalogue and
-of the held-back family written in, each neutral at its neutral value)::
+Mechanics (rigid axis of the published model, with every candidate effect of the catalogue, of
+the held-back family and of the sealed family written in, each neutral at its neutral value)::
 
-    m1 q1'' = g_tau (1 + eps_g) dz(v(t - tau), v0) + f_ext - F_f(q1') - F_pos(q1) - F_h(q1, q1')
+    m1 q1'' = F_drive + f_ext - F_f(q1') - F_pos(q1) - F_h(q1, q1') - F_z(q1, q1', F_drive)
               - (offset + d_offset) - f_s
+    F_drive = g_tau (1 + eps_g) (1 + eps_a sign(v_d)) v_d,     v_d = dz(v(t - tau), v0)
 
 (the delay tau acts on the held command, linearly mixed within one RK4 sub-step)
     m2 q2'' = f_s,        f_s = k (q1 - q2) + d (q1' - q2')     (flexible transmission only)
@@ -20,12 +21,17 @@ of the held-back family written in, each neutral at its neutral value)::
     F_pos(q) = A_pos sin(2 pi q / p_pos) sign(q1')
     F_h(q, v) = c_q v |v| + A_rip sin(2 pi q / p_pos) + k_c q        (held-back family)
     dz(v, v0) = sign(v) max(|v| - v0, 0)      (amplifier dead band; dz(v, 0) = v)
+    F_z(q, v, F) = F_d exp(-((q - q_d) / w_d)^2) sign v + mu |F| sign v        (sealed family)
 
-with f_ext [N] the additive force of the plant's ``force`` entry, one value per sample held over
-the sample interval (none: the input array is empty). The held-back scalars (parameter entries
+with f_ext [N] the additive force of the plant's ``force`` entry and of the sealed floor vibration
+(added by the model), one value per sample held over the sample interval (none: the input array
+is empty). The held-back scalars (parameter entries
 ``P_DEAD_BAND`` v0 [V], ``P_QUAD_DRAG`` c_q [N s^2/m^2], ``P_RIPPLE`` A_rip [N], ``P_CABLE_K``
-k_c [N/m]) are outside the catalogue (:data:`engine.plants.emps.catalogue.HELD_BACK`); every term
-is skipped at 0, so the neutral model runs exactly the published one's operations.
+k_c [N/m]) are outside the catalogue (:data:`engine.plants.emps.catalogue.HELD_BACK`); so are the
+sealed family's in-loop scalars (:data:`engine.plants.emps.catalogue.SEALED`, kept for scoring a
+diagnosis once: ``P_GAIN_ASYM`` eps_a [-], ``P_CONTAM_F`` F_d [N] with its documented constants
+``P_CONTAM_Q`` q_d [m] and ``P_CONTAM_W`` w_d [m], ``P_SCREW_MU`` mu [-]). Every such term is
+skipped at 0, so the neutral model runs exactly the published one's operations.
 
 With the flexibility off (``f_flex <= 0``) m1 = M and m2 carries nothing: the published rigid
 model. The parameter vector layout is given by the ``P_*`` indices below; the module
@@ -47,7 +53,10 @@ P_GAIN_ERR, P_D_OFFSET, P_A_POS, P_PERIOD_POS, P_DELAY = 11, 12, 13, 14, 15
 P_KP, P_KV, P_GTAU, P_V_SAT, P_TS, P_NSUB = 16, 17, 18, 19, 20, 21
 # held-back family (outside the catalogue): v0 [V], c_q [N s^2/m^2], A_rip [N], k_c [N/m]
 P_DEAD_BAND, P_QUAD_DRAG, P_RIPPLE, P_CABLE_K = 22, 23, 24, 25
-N_P = 26
+# sealed family (scored once): gain asymmetry eps_a [-], contamination F_d [N] at q_d [m] over w_d [m],
+# the screw's load friction mu [-]
+P_GAIN_ASYM, P_CONTAM_F, P_CONTAM_Q, P_CONTAM_W, P_SCREW_MU = 26, 27, 28, 29, 30
+N_P = 31
 
 
 @njit(cache=True)
@@ -63,8 +72,10 @@ def _sign(x: float) -> float:
 def _motor_force(p: np.ndarray, q1: float, v1: float) -> float:
     """Friction, position-dependent forces and offset on the motor side [N], counted opposing the drive.
 
-    F_f(v) + F_pos(q) + F_h(q, v) + offset + d_offset of the module docstring: a positive value
-    pushes the motor backward (it is subtracted from the drive's force ``g_tau v``).
+    F_f(v) + F_pos(q) + F_h(q, v) + offset + d_offset of the module docstring and the sealed
+    contamination's term of F_z: a positive value pushes the motor backward (it is subtracted from
+    the drive's force ``g_tau v``). The screw's load friction, which needs the drive's force, is
+    added in :func:`_rhs`.
     """
     s = _sign(v1)
     f = (p[P_FC] + p[P_DFC] * s) * s + (p[P_FV] + p[P_DFV] * s) * v1
@@ -78,6 +89,8 @@ def _motor_force(p: np.ndarray, q1: float, v1: float) -> float:
         f += p[P_RIPPLE] * math.sin(2.0 * math.pi * q1 / p[P_PERIOD_POS])
     if p[P_CABLE_K] != 0.0:
         f += p[P_CABLE_K] * q1
+    if p[P_CONTAM_F] != 0.0:
+        f += p[P_CONTAM_F] * math.exp(-(((q1 - p[P_CONTAM_Q]) / p[P_CONTAM_W]) ** 2)) * s
     return f + p[P_OFFSET] + p[P_D_OFFSET]
 
 
@@ -89,13 +102,27 @@ def _dead_band(v: float, v0: float) -> float:
 
 
 @njit(cache=True)
-def _rhs(p: np.ndarray, x: np.ndarray, force: float, m1: float, m2: float, k: float, d: float, out: np.ndarray) -> None:
+def _rhs(
+    p: np.ndarray,
+    x: np.ndarray,
+    force: float,
+    drive: float,
+    m1: float,
+    m2: float,
+    k: float,
+    d: float,
+    out: np.ndarray,
+) -> None:
+    """Right-hand side: ``force`` the total force on the motor side [N], ``drive`` its drive's part F_drive."""
     q1, v1, q2, v2 = x[0], x[1], x[2], x[3]
     f_s = 0.0
     if k > 0.0:
         f_s = k * (q1 - q2) + d * (v1 - v2)
+    f_m = _motor_force(p, q1, v1)
+    if p[P_SCREW_MU] != 0.0:
+        f_m += p[P_SCREW_MU] * abs(drive) * _sign(v1)
     out[0] = v1
-    out[1] = (force - _motor_force(p, q1, v1) - f_s) / m1
+    out[1] = (force - f_m - f_s) / m1
     out[2] = v2
     out[3] = f_s / m2 if k > 0.0 else 0.0
 
@@ -114,7 +141,8 @@ def simulate_loop(p: np.ndarray, qg: np.ndarray, pulse: np.ndarray, f_ext: np.nd
         Pulse signal added to the saturated command at the samples [V] (zeros without pulses).
     f_ext : ndarray, shape (n,) or (0,)
         Additive force on the motor side per sample [N], held over the sample interval, positive
-        forward like the drive's force; empty for none (the loop then skips it).
+        forward like the drive's force; empty for none (the loop then skips it). The model adds the
+        sealed ``load_vibration`` here (and the ``force`` entry's schedule).
 
     Returns
     -------
@@ -141,6 +169,7 @@ def simulate_loop(p: np.ndarray, qg: np.ndarray, pulse: np.ndarray, f_ext: np.nd
         m1, m2, k, d = mass, 1.0, 0.0, 0.0
     gain = p[P_GTAU] * (1.0 + p[P_GAIN_ERR])
     v0 = p[P_DEAD_BAND]
+    eps_a = p[P_GAIN_ASYM]
     has_ext = f_ext.size > 0
     if has_ext and f_ext.size != n:
         raise ValueError("EMPS kernel: the force input needs one value per sample")
@@ -179,26 +208,29 @@ def simulate_loop(p: np.ndarray, qg: np.ndarray, pulse: np.ndarray, f_ext: np.nd
                 v_now = (1.0 - delay_frac) * v_now + delay_frac * v_before
             if v0 != 0.0:
                 v_now = _dead_band(v_now, v0)
-            force = gain * v_now
+            if eps_a != 0.0:
+                v_now *= 1.0 + eps_a * _sign(v_now)
+            drive = gain * v_now
+            force = drive
             if has_ext:
                 force += f_ext[i]
             if j == 0:
-                _rhs(p, x, force, m1, m2, k, d, k1)
+                _rhs(p, x, force, drive, m1, m2, k, d, k1)
                 out[i, 0] = x[0]
                 out[i, 1] = x[1]
                 out[i, 2] = k1[1]
                 out[i, 3] = v
             else:
-                _rhs(p, x, force, m1, m2, k, d, k1)
+                _rhs(p, x, force, drive, m1, m2, k, d, k1)
             for m in range(4):
                 tmp[m] = x[m] + 0.5 * h * k1[m]
-            _rhs(p, tmp, force, m1, m2, k, d, k2)
+            _rhs(p, tmp, force, drive, m1, m2, k, d, k2)
             for m in range(4):
                 tmp[m] = x[m] + 0.5 * h * k2[m]
-            _rhs(p, tmp, force, m1, m2, k, d, k3)
+            _rhs(p, tmp, force, drive, m1, m2, k, d, k3)
             for m in range(4):
                 tmp[m] = x[m] + h * k3[m]
-            _rhs(p, tmp, force, m1, m2, k, d, k4)
+            _rhs(p, tmp, force, drive, m1, m2, k, d, k4)
             for m in range(4):
                 x[m] += h * (k1[m] + 2.0 * k2[m] + 2.0 * k3[m] + k4[m]) / 6.0
             if not np.isfinite(x[0]) or not np.isfinite(x[1]):

@@ -14,13 +14,20 @@ The **held-back family** (:data:`HELD_BACK`, issue 52): one effect per locus out
 catalogue, for scoring the diagnosis of a gap the catalogue cannot explain. The plant simulates
 them (:data:`HELD_BACK_FIELDS`); the diagnosis never fits them. They were fixed before any locus
 estimate existed and are not tuned to one.
+
+The **sealed family** (:data:`SEALED`): one more effect per locus, outside the catalogue and the
+held-back family, kept for scoring a diagnosis **once**. Defined before any diagnosis ran on
+them; development never reads their scores; a blind run scores them once. The plant simulates
+them (:data:`SEALED_FIELDS`); nothing else here knows them. Their fixed parts are documented
+constants of :mod:`engine.plants.emps.model` (``CONTAMINATION_POSITION``,
+``CONTAMINATION_WIDTH``, ``VIBRATION_FREQUENCY``, ``SLIP_SHARE``).
 """
 
 from __future__ import annotations
 
 from engine.plants.base import CandidateEffect
 
-__all__ = ["CATALOGUE", "EFFECT_FIELDS", "HELD_BACK", "HELD_BACK_FIELDS", "LOCI"]
+__all__ = ["CATALOGUE", "EFFECT_FIELDS", "HELD_BACK", "HELD_BACK_FIELDS", "LOCI", "SEALED", "SEALED_FIELDS"]
 
 #: The parts of the EMPS axis where an effect may act (module docstring).
 LOCI: tuple[str, ...] = ("drive", "guide", "transmission", "load", "sensors")
@@ -186,6 +193,71 @@ HELD_BACK: dict[str, CandidateEffect] = {
             (0.0005, 0.003),
             0.0,
             "s",
+            "sensors",
+        ),
+    )
+}
+
+#: name -> field of EmpsParameters a sealed effect's scalar sets.
+SEALED_FIELDS: dict[str, str] = {
+    "drive_gain_asymmetry": "gain_asym",
+    "guide_contamination": "F_contam",
+    "screw_load_friction": "mu_screw",
+    "load_vibration": "A_vib",
+    "encoder_slip": "slip",
+}
+
+#: The sealed family: one effect per locus, scored once (module docstring).
+SEALED: dict[str, CandidateEffect] = {
+    e.name: e
+    for e in (
+        CandidateEffect(
+            "drive_gain_asymmetry",
+            "The amplifier's gain differs with the command's sign: the force is "
+            "g_tau (1 + eps sign(v)) v, v the command after delay, saturation, pulse and dead band, "
+            "while the force channel still reads g_tau v; scalar eps [-].",
+            (0.03, 0.15),
+            0.0,
+            "",
+            "drive",
+        ),
+        CandidateEffect(
+            "guide_contamination",
+            "A contaminated stretch of the guide: an extra friction F_d exp(-((q - q_d) / w_d)^2) sign(v) "
+            "on the motor side (q_d = 0.125 m, the middle of DATA_EMPS's travel, and w_d = 0.02 m, "
+            "see the model); scalar F_d [N].",
+            (3.0, 15.0),
+            0.0,
+            "N",
+            "guide",
+        ),
+        CandidateEffect(
+            "screw_load_friction",
+            "The ball screw's friction grows with the axial load it transmits: an extra friction "
+            "mu |F| sign(v) on the motor side, F the drive's force (after gain error, dead band and "
+            "gain asymmetry; without the external force); scalar mu [-].",
+            (0.02, 0.1),
+            0.0,
+            "",
+            "transmission",
+        ),
+        CandidateEffect(
+            "load_vibration",
+            "Floor vibration: an external force A sin(2 pi f_v t) on the carriage, positive forward "
+            "(f_v = 8 Hz, see the model; t from the record's first sample, held over each sample "
+            "interval); scalar A [N].",
+            (2.0, 10.0),
+            0.0,
+            "N",
+            "load",
+        ),
+        CandidateEffect(
+            "encoder_slip",
+            "The data logger's position count jumps once: the recorded position gains a permanent step "
+            "Delta at 40 % of the record's duration (the loop is unchanged); scalar Delta [m].",
+            (2e-6, 1e-5),
+            0.0,
+            "m",
             "sensors",
         ),
     )

@@ -21,6 +21,13 @@ Beyond the catalogue (issue 52): the held-back family (:data:`~engine.plants.emp
 four effects in the loop's kernel, the logger's skew after it), the plant's entries
 (:data:`ENTRIES`: an additive force on the motor side, an additive error of the recorded position)
 and per locus the signals a missing term there would follow (:meth:`EmpsPlant.locus_signals`).
+
+The sealed family (:data:`~engine.plants.emps.catalogue.SEALED`, kept for scoring a diagnosis
+once): gain asymmetry, guide contamination and the screw's load friction in the kernel, the floor
+vibration added to the kernel's external force here (:func:`vibration_force`), the encoder's slip
+after the loop (:func:`slipped_position`); their fixed parts are the constants
+:data:`CONTAMINATION_POSITION`, :data:`CONTAMINATION_WIDTH`, :data:`VIBRATION_FREQUENCY`,
+:data:`SLIP_SHARE`.
 """
 
 from __future__ import annotations
@@ -36,7 +43,15 @@ import numpy as np
 
 from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, LocusSignal, within_span
 from engine.plants.emps import _kernel as k
-from engine.plants.emps.catalogue import CATALOGUE, EFFECT_FIELDS, HELD_BACK, HELD_BACK_FIELDS, LOCI
+from engine.plants.emps.catalogue import (
+    CATALOGUE,
+    EFFECT_FIELDS,
+    HELD_BACK,
+    HELD_BACK_FIELDS,
+    LOCI,
+    SEALED,
+    SEALED_FIELDS,
+)
 from engine.plants.emps.channels import N_BORDER, measured_channels, process
 from engine.plants.emps.record import EmpsRecord, load_mat, load_record
 from engine.plants.noise import NoiseLevel, finest_level_sigma, integrated_time, white_noise_level
@@ -44,6 +59,8 @@ from engine.plants.noise import NoiseLevel, finest_level_sigma, integrated_time,
 __all__ = [
     "CALIBRATED",
     "CHANNELS",
+    "CONTAMINATION_POSITION",
+    "CONTAMINATION_WIDTH",
     "ENCODER_QUANTUM",
     "ENTRIES",
     "FLEX_DAMPING_RATIO",
@@ -51,11 +68,15 @@ __all__ = [
     "N_SUBSTEPS",
     "POSITION_FRICTION_PERIOD",
     "PUBLISHED",
+    "SLIP_SHARE",
     "STRIBECK_VELOCITY",
+    "VIBRATION_FREQUENCY",
     "V_SATURATION",
     "EmpsParameters",
     "EmpsPlant",
     "logged_position",
+    "slipped_position",
+    "vibration_force",
 ]
 
 #: The published rigid model (report, section 3): M [kg], Fv [N s/m], Fc [N], offset [N].
@@ -77,6 +98,18 @@ FLEX_DAMPING_RATIO: float = 0.05
 #: encoder's 50 000 counts per revolution (report, section 2.2) and the files' position quantum of
 #: 50 nm (the smallest step of qm): 50 000 x 50 nm = 2.5 mm.
 POSITION_FRICTION_PERIOD: float = 2.5e-3
+
+#: Centre q_d [m] of the contaminated stretch of the sealed ``guide_contamination``: the middle of
+#: the travel of the shipped record DATA_EMPS (its first 12 s, and the whole record, run from
+#: about 0 to 0.2464 m, middle 0.1232 m), rounded to 5 mm.
+CONTAMINATION_POSITION: float = 0.125
+#: Width w_d [m] of the contaminated stretch (the Gaussian's 1/e half-width): a documented choice.
+CONTAMINATION_WIDTH: float = 0.02
+#: Frequency f_v [Hz] of the floor vibration of the sealed ``load_vibration``: a documented choice.
+VIBRATION_FREQUENCY: float = 8.0
+#: Share of the record's duration at which the sealed ``encoder_slip`` steps the recorded position
+#: (from the first sample at or after it): a documented choice.
+SLIP_SHARE: float = 0.4
 
 #: Step of the diagnosis' finite differences, as a share of a parameter's interval. Coarse on
 #: purpose: the simulation with Coulomb friction chatters at standstill, so its cost is rough on
@@ -143,6 +176,11 @@ class EmpsParameters:
         Scalars of the held-back effects (:data:`~engine.plants.emps.catalogue.HELD_BACK`), neutral
         at 0: the amplifier's dead band v0 [V], the quadratic drag c_q [N s^2/m^2], the screw's
         force ripple A [N], the cable carrier's stiffness k_c [N/m], the logger's skew delta [s].
+    gain_asym, F_contam, mu_screw, A_vib, slip : float
+        Scalars of the sealed effects (:data:`~engine.plants.emps.catalogue.SEALED`), neutral at 0:
+        the drive's gain asymmetry eps [-], the guide contamination's friction F_d [N], the screw's
+        load-friction coefficient mu [-], the floor vibration's amplitude A [N], the encoder slip's
+        step Delta [m].
     v_sat : float
         Saturation of the controller's command [V] (effect ``command_limit``; published: 10 V).
     rho_flex, zeta_flex : float
@@ -170,6 +208,11 @@ class EmpsParameters:
     A_ripple: float = 0.0
     k_cable: float = 0.0
     log_skew: float = 0.0
+    gain_asym: float = 0.0
+    F_contam: float = 0.0
+    mu_screw: float = 0.0
+    A_vib: float = 0.0
+    slip: float = 0.0
 
     def vector(self, record: EmpsRecord, n_substeps: int = N_SUBSTEPS) -> np.ndarray:
         """The kernel's parameter vector for a record (its gains and sample interval)."""
@@ -183,6 +226,8 @@ class EmpsParameters:
         p[k.P_V_SAT], p[k.P_TS], p[k.P_NSUB] = self.v_sat, record.ts, n_substeps
         p[k.P_DEAD_BAND], p[k.P_QUAD_DRAG] = self.dead_band, self.c_quad
         p[k.P_RIPPLE], p[k.P_CABLE_K] = self.A_ripple, self.k_cable
+        p[k.P_GAIN_ASYM], p[k.P_CONTAM_F], p[k.P_SCREW_MU] = self.gain_asym, self.F_contam, self.mu_screw
+        p[k.P_CONTAM_Q], p[k.P_CONTAM_W] = CONTAMINATION_POSITION, CONTAMINATION_WIDTH
         return p
 
 
@@ -210,6 +255,50 @@ def logged_position(q: np.ndarray, delta: float, ts: float) -> np.ndarray:
     return np.interp(grid - delta / ts, grid, q)
 
 
+def vibration_force(t: np.ndarray, amplitude: float) -> np.ndarray:
+    """The floor vibration's force on the carriage per sample [N] (sealed ``load_vibration``).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        The record's sample instants [s].
+    amplitude : float
+        Its amplitude A [N].
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        ``A sin(2 pi f_v (t_i - t_0))`` with f_v = :data:`VIBRATION_FREQUENCY`, positive forward
+        like the drive's force (the kernel holds it over each sample interval).
+    """
+    t = np.asarray(t, dtype=float)
+    return amplitude * np.sin(2.0 * math.pi * VIBRATION_FREQUENCY * (t - t[0]))
+
+
+def slipped_position(q: np.ndarray, t: np.ndarray, delta: float) -> np.ndarray:
+    """The recorded position after the encoder's count slipped once by ``delta`` (sealed ``encoder_slip``).
+
+    Parameters
+    ----------
+    q : ndarray, shape (n,)
+        The recorded position without the slip [m].
+    t : ndarray, shape (n,)
+        The record's sample instants [s].
+    delta : float
+        The step Delta [m]; 0 returns ``q`` itself.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        ``q`` plus ``delta`` from the first sample at or after :data:`SLIP_SHARE` of the record's
+        duration (counted from its first sample) to the end.
+    """
+    if delta == 0.0:
+        return q
+    t = np.asarray(t, dtype=float)
+    return q + np.where(t - t[0] >= SLIP_SHARE * (t[-1] - t[0]), delta, 0.0)
+
+
 class EmpsPlant:
     """The EMPS positioning axis as a :class:`~engine.plants.base.Plant`.
 
@@ -228,6 +317,8 @@ class EmpsPlant:
     calibrated: tuple[CalibratedParameter, ...] = CALIBRATED
     catalogue: Mapping[str, CandidateEffect] = MappingProxyType(CATALOGUE)
     held_back: Mapping[str, CandidateEffect] = MappingProxyType(HELD_BACK)
+    #: The sealed family: effects kept for scoring a diagnosis once (:data:`~engine.plants.emps.catalogue.SEALED`).
+    sealed: Mapping[str, CandidateEffect] = MappingProxyType(SEALED)
     entries: Mapping[str, str] = MappingProxyType(ENTRIES)
     diff_step: float = DIFF_STEP
 
@@ -331,12 +422,12 @@ class EmpsPlant:
         return dataclasses.replace(record, qm=qm, vir=x["force"] / record.gtau, name=f"synthetic({record.name})")
 
     def parameters(self, values: Mapping[str, float]) -> EmpsParameters:
-        """The model's parameters with ``values`` (calibrated, effect and held-back names) applied.
+        """The model's parameters with ``values`` (calibrated, effect, held-back and sealed names) applied.
 
         Raises
         ------
         KeyError
-            For a name that is neither a calibrated parameter, an effect nor a held-back effect.
+            For a name that is neither a calibrated parameter, an effect, a held-back nor a sealed effect.
         """
         changes: dict[str, float] = {}
         calibrated = {p.name for p in CALIBRATED}
@@ -347,6 +438,8 @@ class EmpsPlant:
                 changes[EFFECT_FIELDS[name]] = float(value)
             elif name in HELD_BACK_FIELDS:
                 changes[HELD_BACK_FIELDS[name]] = float(value)
+            elif name in SEALED_FIELDS:
+                changes[SEALED_FIELDS[name]] = float(value)
             else:
                 raise KeyError(f"unknown EMPS parameter or effect {name!r}")
         return dataclasses.replace(EmpsParameters(), **{**self.fixed, **changes})
@@ -383,10 +476,22 @@ class EmpsPlant:
         return given.get("force", np.zeros(0)), given.get("position")
 
     def _loop(self, record: EmpsRecord, params: EmpsParameters, force: np.ndarray) -> np.ndarray:
-        """The kernel's closed-loop response (:func:`~engine.plants.emps._kernel.simulate_loop`)."""
+        """The kernel's closed-loop response (:func:`~engine.plants.emps._kernel.simulate_loop`).
+
+        ``force`` is the ``force`` entry's schedule (empty for none); the sealed floor vibration
+        (:func:`vibration_force`), when not neutral, is added to it as the kernel's external force.
+        """
         if not math.isfinite(params.M) or params.M <= 0.0:
             raise ValueError(f"EMPS mass must be positive, got {params.M}")
+        if params.A_vib != 0.0:
+            vibration = vibration_force(record.t, params.A_vib)
+            force = vibration if force.size == 0 else force + vibration
         return k.simulate_loop(params.vector(record, self.n_substeps), record.qg, record.pulses, force)
+
+    @staticmethod
+    def _recorded(record: EmpsRecord, params: EmpsParameters, q: np.ndarray) -> np.ndarray:
+        """The motor position ``q`` as the logger records it: skewed (held-back), then slipped (sealed)."""
+        return slipped_position(logged_position(q, params.log_skew, record.ts), record.t, params.slip)
 
     def states(
         self, record: EmpsRecord, values: Mapping[str, float], inputs: Mapping[str, np.ndarray] | None = None
@@ -394,7 +499,7 @@ class EmpsPlant:
         """The plant's states at the samples, as the authors' script compares them.
 
         Position [m] as the logger records it (qm: the motor position, delayed by the held-back
-        logger skew and plus the ``position`` input, when given), velocity [m/s] and acceleration
+        logger skew, plus the sealed encoder slip's step and the ``position`` input, when given), velocity [m/s] and acceleration
         [m/s^2] (the right-hand side at the sample) of the motor side, and the force ``g_tau v`` [N]
         with v the command after delay, saturation and pulse (``Force1_s = gtau*vir_s``).
         ``inputs`` adds schedules at the plant's :data:`ENTRIES` (:meth:`_schedules`).
@@ -411,7 +516,7 @@ class EmpsPlant:
         params = self.parameters(values)
         force, position_error = self._schedules(record, inputs)
         out = self._loop(record, params, force)
-        q = logged_position(out[:, 0], params.log_skew, record.ts)
+        q = self._recorded(record, params, out[:, 0])
         if position_error is not None:
             q = q + position_error
         return {
@@ -443,14 +548,15 @@ class EmpsPlant:
         (periodic); ``load``: the position [m] and the time [s]; all entering as a force at the
         ``force`` entry. ``sensors``: the position [m] and the velocity [m/s], entering as an error
         of the recorded position at the ``position`` entry. Raw states (before the measurement
-        chain), no inputs; the position is the motor's own (without a logger skew) except at
-        ``sensors``, where it is the recorded one. Every array has the record's n samples.
+        chain), no inputs (a sealed floor vibration in ``values`` is in the loop); the position is
+        the motor's own (without a logger skew or an encoder slip) except at ``sensors``, where it
+        is the recorded one. Every array has the record's n samples.
         """
         params = self.parameters(values)
         out = self._loop(record, params, np.zeros(0))
         q, v = out[:, 0].copy(), out[:, 1].copy()
         command = record.gtau * out[:, 3]
-        logged = logged_position(q, params.log_skew, record.ts).copy()
+        logged = self._recorded(record, params, q).copy()
         return (
             LocusSignal("drive", "force", "command force", "N", command),
             LocusSignal("guide", "force", "velocity", "m/s", v),
