@@ -881,6 +881,66 @@ def render_plant_checks(page: Page) -> str:
     return table(head, rows) + note + sources(page, paths)
 
 
+#: The synthetic checks of the open world through the plant interface (issue 52 item 2), in order:
+#: report stem -> what the family was to the code (developed on, or sealed and scored once).
+PLANT_LOCUS_RUNS: dict[str, str] = {
+    "brfd-seed28": "held-back four (developed on)",
+    "brfd-seed29": "held-back four (developed on)",
+    "emps-seed32": "held-back five (developed on)",
+    "brfd-seed30": "sealed four (scored once)",
+    "brfd-seed31": "sealed four (scored once)",
+    "emps-seed33": "sealed five (scored once)",
+}
+#: The open world's rates, in order.
+PLANT_LOCUS_MEASURES = (
+    "held_back_locus",
+    "held_back_abstained",
+    "held_back_unexplained",
+    "held_back_weak_ok",
+    "clean_false_alarm",
+    "strong_top1",
+)
+
+
+def render_plant_locus_checks(page: Page) -> str:
+    """The open world on EMPS and BRFD: effects outside the catalogue, their locus, per run."""
+    paths = [
+        f"docs/real-data/check/{name}.json"
+        for name in PLANT_LOCUS_RUNS
+        if (ROOT / f"docs/real-data/check/{name}.json").exists()
+    ]
+    if not paths:
+        return "(no run committed yet)" + sources(page, paths)
+    runs = [read_json(p) for p in paths]
+    head = ["run", "family", "code", *PLANT_LOCUS_MEASURES]
+    labels: dict[str, str] = {}
+    rows = []
+    for p, r in zip(paths, runs, strict=True):
+        by_key = {m["key"]: m for m in r["measures"]}
+        for key in PLANT_LOCUS_MEASURES:
+            if key in by_key:
+                labels.setdefault(key, by_key[key]["label"])
+        run = r["run"]
+        rows.append(
+            [
+                f"{run['plant']}, {run['record']}, seed {run['seed']}",
+                PLANT_LOCUS_RUNS[Path(p).stem],
+                (run.get("code") or {}).get("describe") or "-",
+                *(
+                    rate(by_key[k]["k"], by_key[k]["n"], by_key[k]["low"], by_key[k]["high"]) if k in by_key else "-"
+                    for k in PLANT_LOCUS_MEASURES
+                ),
+            ]
+        )
+    head = ["run", "family", "code", *(labels.get(k, k) for k in PLANT_LOCUS_MEASURES)]
+    note = (
+        f"\n\nStrong: the true effect moves the record by more than {runs[0]['min_strength_noise_rms']:g} noise RMS "
+        "(from the truth, after the diagnosis). The answer's locus is the first named effect's, or the locus "
+        "estimate's when nothing is named. Wilson 95 % intervals."
+    )
+    return table(head, rows) + note + sources(page, paths)
+
+
 def render_plant_checks_summary(page: Page) -> str:
     """One line for the README: the gate's checks pooled over every plant's runs of the current code."""
     paths = [
@@ -1268,6 +1328,7 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "emps-diagnosis": render_emps_diagnosis,
     "plant-checks": render_plant_checks,
     "plant-checks-summary": render_plant_checks_summary,
+    "plant-locus-checks": render_plant_locus_checks,
     "test-run-times": render_test_run_times,
     "slow-suite-times": render_slow_suite_times,
     "service-load": render_service_load,

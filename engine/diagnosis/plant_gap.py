@@ -50,6 +50,13 @@ from typing import Any
 import numpy as np
 
 from engine.constants import Z95
+from engine.diagnosis.plant_locus import (
+    EXPLAINED_SHARE,
+    TIE_BIC,
+    PlantLocusReport,
+    estimate_plant_locus,
+    whitened_chi2,
+)
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.plants.base import CalibratedParameter, Plant, free_parameters
 from engine.plants.noise import NoiseLevel, integrated_time
@@ -77,6 +84,7 @@ __all__ = [
     "localise",
     "noise_gate",
     "noise_limits",
+    "open_world",
     "rank_effects",
     "relative_errors",
     "solve_unit_box",
@@ -86,8 +94,6 @@ logger = logging.getLogger(__name__)
 
 #: Share of the residual's squared norm an effect must remove to be named (and an addition to a set).
 MIN_SHARE: float = 0.05
-#: Share of the gap a named set must remove for the status ``explained`` (else ``partly_explained``).
-EXPLAINED_SHARE: float = 0.9
 #: Values of an effect's scalar scanned across its range before its least-squares fit (a lightly
 #: damped mode's basin is narrow: with 9 values a 65 Hz flexibility fell between two of them).
 N_SCAN: int = 25
@@ -287,6 +293,10 @@ class PlantGapReport:
         fitted: no record can name them beside a refitted calibration.
     gate : NoiseGate or None
         The residuals against the plant's noise (None: not computed, the share rule alone decides).
+    locus : PlantLocusReport or None
+        Where the gap the answer's model leaves lies and what the missing term looks like
+        (:mod:`engine.diagnosis.plant_locus`), for a gap the catalogue does not take to the noise;
+        None when not estimated (no gap, a fit to the noise, a plant with no locus signals).
     """
 
     plant: str
@@ -302,6 +312,7 @@ class PlantGapReport:
     budget: dict[str, float] = field(default_factory=dict)
     absorbed: dict[str, float] = field(default_factory=dict)
     gate: NoiseGate | None = None
+    locus: PlantLocusReport | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -368,11 +379,15 @@ class PlantGapReport:
                 "effects": effects,
                 "effect": effects[0]["effect"] if effects else None,
                 "value": effects[0]["value"] if effects else None,
-                "locus": effects[0]["locus"] if effects else None,
+                "locus": effects[0]["locus"] if effects else (self.locus.locus if self.locus is not None else None),
+                "locus_confidence": (
+                    None if effects or self.locus is None or self.locus.locus is None else self.locus.confidence
+                ),
                 "share": self.named.share if self.named else 0.0,
                 "left": 1.0 - self.named.share if self.named else 1.0,
-                "reason": self.gate.reason if self.gate is not None else None,
+                "reason": self.extra.get("reason") or (self.gate.reason if self.gate is not None else None),
             },
+            "locus": self.locus.to_dict() if self.locus is not None else None,
             "calibration": {
                 "values": {k: self.calibration.values[k] for k in units if k in self.calibration.values},
                 "uncertainty": {k: _finite(v) for k, v in self.calibration.uncertainty.items()},
@@ -531,7 +546,11 @@ def fit(
 
 
 def solve_unit_box(
-    residual: Callable[[np.ndarray], np.ndarray], u0: np.ndarray, diff_step: float, names: Sequence[str]
+    residual: Callable[[np.ndarray], np.ndarray],
+    u0: np.ndarray,
+    diff_step: float,
+    names: Sequence[str],
+    max_nfev: int = MAX_NFEV,
 ) -> Any:
     """Bounded least squares (scipy's trf) on z = 1 + u in [1, 2]^n, from the unit-box point ``u0``.
 
@@ -552,7 +571,7 @@ def solve_unit_box(
         method="trf",
         diff_step=diff_step,
         x_scale=1.0,
-        max_nfev=MAX_NFEV,
+        max_nfev=max_nfev,
     )
     if res.status < 0 or not np.all(np.isfinite(res.fun)):
         raise RuntimeError(f"least squares failed on {list(names)}: {res.message}")
@@ -886,6 +905,42 @@ def noise_gate(
     return NoiseGate(levels, before, dict(after), limits, strength, status, reason)
 
 
+def open_world(
+    plant: Plant, record: Any, calibration: Fit, named: EffectFit | None, gate: NoiseGate
+) -> tuple[PlantLocusReport | None, str | None]:
+    """The locus of a gap the catalogue does not take to the noise, and whether the named set is a stand-in.
+
+    The locus estimate (:func:`~engine.diagnosis.plant_locus.estimate_plant_locus`) reads the
+    calibrated model's residual. When its term reproduces the record
+    (:attr:`~engine.diagnosis.plant_locus.PlantLocusReport.reproduces`) and fits it better than the named
+    set by :data:`~engine.diagnosis.plant_locus.TIE_BIC` (BIC with the term's effective dof against
+    the set's one per effect, on the plant's noise), the record holds evidence against the
+    catalogue's answer: the set is a stand-in for something the catalogue lacks, and the answer is
+    ``unexplained`` with that locus. Otherwise the set stays named, and the locus reported is that
+    of the gap the set leaves (a second estimate from the set's fit). A real record's residual is
+    mostly model error, which no one term reproduces: there the catalogue's answer stands.
+
+    Returns the report (None when the estimate fails) and the reason to set the named set aside
+    (None to keep it).
+    """
+    try:
+        locus = estimate_plant_locus(plant, record, calibration.values, gate.levels)
+        if named is None:
+            return locus, None
+        chi2_named = whitened_chi2(plant, record, named.fit.values, gate.levels)
+        advantage = locus.advantage(chi2_named, len(named.effects))
+        if locus.locus is not None and locus.reproduces and advantage >= TIE_BIC:
+            return locus, (
+                f"{'+'.join(named.effects)} removes {100 * named.share:.0f} % of the gap, but a term at the "
+                f"{locus.locus} ({locus.term.get('description', '')}) fits the record better by {advantage:.3g} "
+                "(scaled BIC): the catalogue's set is a stand-in for something it lacks"
+            )
+        return estimate_plant_locus(plant, record, named.fit.values, gate.levels), None
+    except (RuntimeError, ValueError, FloatingPointError) as exc:
+        logger.warning("locus estimate failed on %s: %s", getattr(record, "name", ""), exc)
+        return None, None
+
+
 def diagnose_plant(
     plant: Plant,
     record: Any,
@@ -926,6 +981,12 @@ def diagnose_plant(
     set_aside = None
     if gate.status in ("no_gap", "weak_gap") and named is not None:
         set_aside, named = named, None  # too weak to attribute: the answer ends with the calibrated model
+    locus, reason = None, None
+    if refit and plant.entries and gate.status == "gap" and not NoiseGate.fits(gate.after, gate.limits):
+        locus, stand_in = open_world(plant, record, calibration, named, gate)
+        if stand_in is not None:
+            set_aside, named, reason = named, None, stand_in
+            gate = noise_gate(plant, record, calibration, None, obj)
     after_values = named.fit.values if named else calibration.values
     budget = gap_budget(named) if named else {}
     before_share, samples = event_shares(plant, record, calibration.values, objective=obj)
@@ -951,8 +1012,10 @@ def diagnose_plant(
         budget=budget,
         absorbed=absorbed,
         gate=gate,
+        locus=locus,
         extra={
-            "n_eval": obj.n_eval,
+            "n_eval": obj.n_eval + (locus.n_simulations if locus is not None else 0),
+            **({"reason": reason} if reason else {}),
             **({"calibrated_on": calibrated_on} if calibrated_on else {}),
             **({"set_aside": set_aside} if set_aside is not None else {}),
         },

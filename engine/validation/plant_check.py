@@ -11,7 +11,10 @@ truths are kept apart and compared after every diagnosis is done.
 A drawn effect counts only when it matters on this excitation: when it changes the simulated
 channels by at least :data:`MIN_EFFECT` relative error [%] summed in quadrature over the
 channels (an effect the record cannot show is redrawn, up to :data:`MAX_REDRAWS` times).
-Clean cases (``--clean``) draw the calibrated parameters alone: the answer should be ``no_gap``
+Held-back cases (``--held-back``) draw an effect of the plant's held-back family
+(:attr:`~engine.plants.base.Plant.held_back`: outside the catalogue, one per locus): the answer
+should name no catalogue set as the explanation and say where the gap lies (the verdict's locus,
+from :mod:`engine.diagnosis.plant_locus`). Clean cases (``--clean``) draw the calibrated parameters alone: the answer should be ``no_gap``
 (``weak_gap`` is no false alarm either); a named effect or ``unexplained`` is a false alarm. After
 the diagnosis, each effect's strength against the plant's noise (:meth:`~engine.plants.base.Plant.noise`)
 says whether the record shows it beyond the noise: a weak effect (at most ``min_strength`` noise
@@ -46,6 +49,7 @@ from engine.diagnosis.plant_gap import change_over_noise, diagnose_plant
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.plants.base import Plant, free_parameters, relative_errors
 from engine.plants.noise import NoiseLevel
+from engine.validation.provenance import code_version
 from engine.validation.stats import wilson_interval
 
 __all__ = [
@@ -57,6 +61,7 @@ __all__ = [
     "Measure",
     "draw_cases",
     "draw_clean",
+    "draw_held_back",
     "measures",
     "report",
     "run_check",
@@ -95,6 +100,10 @@ class CheckCase:
         The true calibrated parameters.
     strength : float
         What the effect changes, relative error [%] in quadrature over the channels.
+    held_back : bool
+        The effect is of the plant's held-back family (outside the catalogue).
+    locus : str or None
+        The effect's locus.
     """
 
     index: int
@@ -102,6 +111,8 @@ class CheckCase:
     value: float
     calibration: dict[str, float]
     strength: float
+    held_back: bool = False
+    locus: str | None = None
 
 
 @dataclass(frozen=True)
@@ -116,6 +127,18 @@ class CheckRow:
     seconds: float
     absorbed: tuple[str, ...] = ()
     noise_strength: float = 0.0
+    locus: str | None = None
+    locus_confidence: float | None = None
+
+    @property
+    def catalogue(self) -> bool:
+        """A case with one of the catalogue's effects."""
+        return self.case.effect is not None and not self.case.held_back
+
+    @property
+    def locus_right(self) -> bool:
+        """The answer's locus (the first named effect's, or the locus estimate's) is the true effect's."""
+        return self.locus is not None and self.locus == self.case.locus
 
     @property
     def clean(self) -> bool:
@@ -186,7 +209,34 @@ def draw_cases(plant: Plant, record: Any, n: int, seed: int) -> list[CheckCase]:
             value = float(effect.value(float(rng.uniform(0.0, 1.0))))
             strength = _strength(plant, record, cal, name, value)
             if strength >= MIN_EFFECT:
-                cases.append(CheckCase(i, name, value, cal, strength))
+                cases.append(CheckCase(i, name, value, cal, strength, False, plant.catalogue[name].locus))
+                break
+        else:
+            logger.warning("effect %s never reached %.1f %% on this record; case %d skipped", name, MIN_EFFECT, i)
+    return cases
+
+
+def draw_held_back(
+    plant: Plant, record: Any, n: int, seed: int, first: int = 0, family: str = "held_back"
+) -> list[CheckCase]:
+    """Draw ``n`` cases of one of the plant's families outside the catalogue (``held_back`` or
+    ``sealed``), in turn, as :func:`draw_cases` draws the catalogue's; ``first`` is the first case's index."""
+    effects: Mapping[str, Any] = getattr(plant, family)
+    rng = np.random.default_rng([seed, 2])  # a stream of its own: the other cases of a seed stay as they were
+    names = list(effects)
+    if n and not names:
+        raise ValueError(f"plant {plant.name!r} declares no {family} family")
+    order = [names[i % len(names)] for i in rng.permutation(max(n, len(names)))][:n]
+    cases = []
+    for i, name in enumerate(order):
+        e = effects[name]
+        effect = e.as_parameter()
+        for _ in range(MAX_REDRAWS):
+            cal = _perturbed(plant, record, rng)
+            value = float(effect.value(float(rng.uniform(0.0, 1.0))))
+            strength = _strength(plant, record, cal, name, value)
+            if strength >= MIN_EFFECT:
+                cases.append(CheckCase(first + i, name, value, cal, strength, True, e.locus))
                 break
         else:
             logger.warning("effect %s never reached %.1f %% on this record; case %d skipped", name, MIN_EFFECT, i)
@@ -229,9 +279,30 @@ def run_check(plant: Plant, record: Any, cases: Sequence[CheckCase], seed: int) 
         share = report.named.share if report.named else 0.0
         levels = report.gate.levels if report.gate is not None else plant.noise(synthetic)
         strength = _noise_strength(plant, synthetic, case, levels)
-        rows.append(CheckRow(case, named, value, report.status, share, dt, tuple(sorted(report.absorbed)), strength))
+        verdict = report.to_dict(plant)["verdict"]
+        rows.append(
+            CheckRow(
+                case,
+                named,
+                value,
+                report.status,
+                share,
+                dt,
+                tuple(sorted(report.absorbed)),
+                strength,
+                verdict["locus"],
+                verdict["locus_confidence"],
+            )
+        )
         logger.info(
-            "case %d %s=%.4g: %s, named %s (%.0f s)", case.index, case.effect, case.value, report.status, named, dt
+            "case %d %s=%.4g: %s, named %s, locus %s (%.0f s)",
+            case.index,
+            case.effect,
+            case.value,
+            report.status,
+            named,
+            verdict["locus"],
+            dt,
         )
     return rows
 
@@ -262,9 +333,11 @@ class Measure:
 def measures(rows: Sequence[CheckRow]) -> list[Measure]:
     """The check's rates, each over its group of cases (groups without a case are left out)."""
     clean = [r for r in rows if r.clean]
-    effects = [r for r in rows if not r.clean]
+    effects = [r for r in rows if r.catalogue]
     open_ = [r for r in effects if not r.truth_absorbed]
     strong = [r for r in open_ if not r.weak]
+    held = [r for r in rows if r.case.held_back]
+    held_strong = [r for r in held if not r.weak]
     specs: tuple[tuple[str, str, str, list[CheckRow], Callable[[CheckRow], object]], ...] = (
         ("clean_no_gap", "clean: answered `no_gap`", "clean", clean, lambda r: r.status == "no_gap"),
         (
@@ -309,6 +382,34 @@ def measures(rows: Sequence[CheckRow]) -> list[Measure]:
             lambda r: r.top1,
         ),
         (
+            "held_back_locus",
+            "held-back, strong: the answer's locus is the effect's",
+            "held-back, strong",
+            held_strong,
+            lambda r: r.locus_right,
+        ),
+        (
+            "held_back_abstained",
+            "held-back, strong: not answered `explained` (no catalogue set claims it)",
+            "held-back, strong",
+            held_strong,
+            lambda r: r.status != "explained",
+        ),
+        (
+            "held_back_unexplained",
+            "held-back, strong: answered `unexplained`",
+            "held-back, strong",
+            held_strong,
+            lambda r: r.status == "unexplained",
+        ),
+        (
+            "held_back_weak_ok",
+            "held-back, weak: answered `no_gap`/`weak_gap` or the right locus",
+            "held-back, weak",
+            [r for r in held if r.weak],
+            lambda r: r.status in QUIET or r.locus_right,
+        ),
+        (
             "top1_large",
             f"first named effect true, strength > {STRONG:g} %",
             "not absorbed",
@@ -346,16 +447,17 @@ def summary(rows: Sequence[CheckRow]) -> str:
     times = sorted(r.seconds for r in rows)
     out.append(f"\nseconds per diagnosis: median {times[n // 2]:.0f}, max {times[-1]:.0f}\n")
     out += [
-        "| case | true effect | true value | strength [%] | strength [noise RMS] | answer | named | value | share "
-        "| absorbed by the calibration |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| case | true effect | true value | true locus | strength [%] | strength [noise RMS] | answer | named "
+        "| value | share | locus | absorbed by the calibration |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for r in rows:
         v = "" if r.value is None else f"{r.value:.4g}"
+        held = " (held back)" if r.case.held_back else ""
         out.append(
-            f"| {r.case.index} | {r.case.effect or '(clean)'} | {r.case.value:.4g} | {r.case.strength:.2f} | "
-            f"{r.noise_strength:.3g} | {r.status} | {', '.join(r.named) or '-'} | {v} | {r.share:.3f} | "
-            f"{', '.join(r.absorbed) or '-'} |"
+            f"| {r.case.index} | {r.case.effect or '(clean)'}{held} | {r.case.value:.4g} | {r.case.locus or '-'} | "
+            f"{r.case.strength:.2f} | {r.noise_strength:.3g} | {r.status} | {', '.join(r.named) or '-'} | {v} | "
+            f"{r.share:.3f} | {r.locus or '-'} | {', '.join(r.absorbed) or '-'} |"
         )
     return "\n".join(out) + "\n"
 
@@ -373,6 +475,8 @@ def report(rows: Sequence[CheckRow], run: dict[str, Any]) -> dict[str, Any]:
             {
                 "index": r.case.index,
                 "effect": r.case.effect,
+                "held_back": r.case.held_back,
+                "true_locus": r.case.locus,
                 "value": None if r.case.effect is None else r.case.value,
                 "calibration": r.case.calibration,
                 "strength_percent": r.case.strength,
@@ -382,6 +486,8 @@ def report(rows: Sequence[CheckRow], run: dict[str, Any]) -> dict[str, Any]:
                 "named_value": r.value,
                 "share": r.share,
                 "absorbed": list(r.absorbed),
+                "locus": r.locus,
+                "locus_confidence": r.locus_confidence,
                 "seconds": r.seconds,
             }
             for r in rows
@@ -398,6 +504,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--cases", type=int, default=20)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--clean", type=int, default=0, help="clean cases (no effect) after the effect cases")
+    p.add_argument("--held-back", type=int, default=0, help="cases of a family outside the catalogue (--family), last")
+    p.add_argument(
+        "--family",
+        choices=("held_back", "sealed"),
+        default="held_back",
+        help="the family --held-back draws from: the held-back one, or the sealed one (scored once, blind)",
+    )
     p.add_argument(
         "--seconds",
         type=float,
@@ -415,6 +528,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     record = plant.example(args.record, args.seconds)
     cases = draw_cases(plant, record, args.cases, args.seed)
     cases += draw_clean(plant, record, args.clean, args.seed, first=len(cases))
+    cases += draw_held_back(plant, record, args.held_back, args.seed, first=len(cases), family=args.family)
     rows = run_check(plant, record, cases, args.seed)
     sys.stdout.write(summary(rows))
     if args.json is not None:
@@ -425,6 +539,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             "seed": args.seed,
             "cases": args.cases,
             "clean": args.clean,
+            "held_back": args.held_back,
+            "family": args.family,
+            "code": code_version(),
             "command": "python -m engine.validation.plant_check " + " ".join(sys.argv[1:] if argv is None else argv),
         }
         write_json_atomic(args.json, report(rows, run), indent=1)
