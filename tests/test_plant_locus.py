@@ -105,3 +105,20 @@ def test_the_brfd_takes_inputs_at_its_entries_and_refuses_others(brfd) -> None: 
         mid = plant.simulate(record, {**TRUTH, name: 0.5 * sum(e.bounds)})["force"]
         assert float(np.sqrt(np.mean((mid - base)[sl] ** 2))) > 2.0 * noise, name
     assert {e.locus for e in plant.held_back.values()} == {e.locus for e in plant.sealed.values()} == set(plant.loci)
+
+
+def test_the_synthetic_check_scores_a_held_back_effect_by_the_answers_locus_apart_from_the_catalogues() -> None:
+    from engine.validation.plant_check import CheckCase, CheckRow, measures
+
+    spring = CheckCase(0, "linkage_return_spring", 1e5, {}, 20.0, True, "linkage")
+    drift = CheckCase(1, "load_cell_drift", 50.0, {}, 2.0, True, "sensors")
+    rows = [
+        CheckRow(spring, (), None, "unexplained", 0.0, 0.1, noise_strength=8.0, locus="linkage"),
+        CheckRow(spring, ("self_energizing",), None, "explained", 0.95, 0.1, noise_strength=8.0, locus="band"),
+        CheckRow(drift, (), None, "weak_gap", 0.0, 0.1, noise_strength=1.0),
+    ]
+    by_key = {m.key: (m.k, m.n) for m in measures(rows)}
+    assert by_key["held_back_locus"] == (1, 2)
+    assert by_key["held_back_abstained"] == (1, 2)
+    assert by_key["held_back_weak_ok"] == (1, 1)
+    assert "top1" not in by_key  # held-back cases are not catalogue cases: no catalogue rate is drawn from them
