@@ -37,8 +37,9 @@ def summary_lines(answer: dict[str, Any], plots: Sequence[str] = ()) -> list[str
     """The lines of a diagnosis answer a person reads first.
 
     The verdict with its probability, the width with its 95 % interval, where the gap lies (the
-    largest cells of the residual map), how far it shrinks once the named effects are added, every
-    warning, and the plot files written.
+    largest cells of the residual map), how far it shrinks once the named effects are added, the
+    missing term of a gap the catalogue does not close (the locus estimate's), every warning, and
+    the plot files written.
     """
     lines = []
     verdict = answer.get("verdict") or {}
@@ -76,6 +77,16 @@ def summary_lines(answer: dict[str, Any], plots: Sequence[str] = ()) -> list[str
         )
     elif isinstance(before, int | float):
         lines.append(f"gap: residual {before:.3g} x noise RMS (nothing added)")
+    locus = answer.get("locus")
+    if isinstance(locus, dict) and locus.get("locus"):
+        term = (locus.get("term") or {}).get("description")
+        conf = locus.get("confidence")
+        text = f"missing term: at the {locus['locus']}"
+        text += f" ({100 * conf:.0f} %)" if isinstance(conf, int | float) else ""
+        text += f", {term}" if term else ""
+        note = locus.get("note") or "; ".join(str(n) for n in locus.get("notes") or ())  # plant or drive answer
+        text += f" [{note}]" if note else ""
+        lines.append(text)
     for w in answer.get("warnings") or ():
         if isinstance(w, dict):
             lines.append(f"warning: {w.get('message')}")

@@ -941,6 +941,38 @@ def render_plant_locus_checks(page: Page) -> str:
     return table(head, rows) + note + sources(page, paths)
 
 
+def render_plant_locus_real(page: Page) -> str:
+    """The real records re-diagnosed with the open world (``docs/real-data/locus_real.py``)."""
+    path = "docs/real-data/runs/locus-real.json"
+    if not (ROOT / path).exists():
+        return "(not run yet)"
+    data = read_json(path)
+    rows = []
+    for r in data["records"]:
+        loc = r["locus"]
+        named = " + ".join(f"{e} ({100 * share:.0f} %)" for e, share in r["named"]) or "-"
+        if loc is None:
+            where, explained, term = "-", "-", "-"
+        else:
+            where = f"{loc['locus'] or 'none'}" + (f" ({loc['confidence']:.2f})" if loc["locus"] else "")
+            explained = ", ".join(f"{k} {100 * v:.0f} %" for k, v in loc["explained"].items())
+            term = (loc["term"] or "-") + (" (first guess)" if "first guess" in (loc["note"] or "") else "")
+        rows.append([f"{r['plant']} {r['record']}", r["status"], named, where, explained, term, f"{r['seconds']:.0f}"])
+    head = [
+        "record",
+        "answer",
+        "named (share of the gap)",
+        "locus of what is left (confidence)",
+        "gap explained by each locus's term",
+        "term",
+        "s",
+    ]
+    code = (data.get("code") or {}).get("describe") or "-"
+    return (
+        table(head, rows) + f"\n\nCode {code}; `.venv/bin/python docs/real-data/locus_real.py`." + sources(page, [path])
+    )
+
+
 def render_plant_locus_summary(page: Page) -> str:
     """One line for the README: the open world on EMPS and BRFD, the held-back and the sealed families pooled apart."""
     pooled: dict[str, dict[str, list[int]]] = {"held-back": {}, "sealed": {}}
@@ -1361,6 +1393,7 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "plant-checks-summary": render_plant_checks_summary,
     "plant-locus-checks": render_plant_locus_checks,
     "plant-locus-summary": render_plant_locus_summary,
+    "plant-locus-real": render_plant_locus_real,
     "test-run-times": render_test_run_times,
     "slow-suite-times": render_slow_suite_times,
     "service-load": render_service_load,

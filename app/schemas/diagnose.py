@@ -166,6 +166,12 @@ class DiagnosisAnswer(BaseModel):
         description="What makes the record doubtful for the plant ({code, message, channel}): check these "
         "before acting on the answer.",
     )
+    locus: dict[str, Any] | None = Field(
+        default=None,
+        description="Where a gap the catalogue does not close lies and what the missing term looks like: locus "
+        "(the part of the machine, or null), confidence, ties, scores per locus, term (entry or kind, unit, size, "
+        "the signal it follows, description), note. Null when not estimated (no gap, a fit to the noise).",
+    )
 
 
 class DiagnosisAccepted(BaseModel):

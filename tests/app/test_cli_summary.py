@@ -77,3 +77,26 @@ def test_help_pages_show_examples_and_choices(capsys: pytest.CaptureFixture[str]
     with pytest.raises(SystemExit):
         main(["identify", "--help"])
     assert "--kind {paper,template}" in capsys.readouterr().out
+
+
+def test_the_summary_states_the_missing_term_of_a_gap_the_catalogue_does_not_close() -> None:
+    from app.output import summary_lines
+
+    answer = {
+        "status": "unexplained",
+        "verdict": {"effects": [], "locus": "linkage", "locus_confidence": 0.97},
+        "gap": {"before": {"rms_over_noise": 6.2}},
+        "locus": {
+            "locus": "linkage",
+            "confidence": 0.97,
+            "term": {"description": "a force input of about 900 N RMS at the linkage, following the displacement"},
+            "note": "",
+        },
+    }
+    lines = summary_lines(answer)
+    assert lines[0] == "verdict: unexplained, locus linkage (locus 97 %)"
+    assert lines[-1] == (
+        "missing term: at the linkage (97 %), a force input of about 900 N RMS at the linkage, following the displacement"
+    )
+    answer["locus"] = {"locus": None, "confidence": 0.0, "term": {}, "note": "no part's term beats the model"}
+    assert not any(line.startswith("missing term") for line in summary_lines(answer))
