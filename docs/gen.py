@@ -902,6 +902,35 @@ PLANT_LOCUS_MEASURES = (
 )
 
 
+def _answered_locus_counts(report: Mapping[str, Any]) -> tuple[int, int]:
+    """Of a check's strong held-back cases answered with a gap (not quiet), how many at the true locus."""
+    strong = [
+        c
+        for c in report["cases"]
+        if c.get("held_back")
+        and c["strength_noise_rms"] > report["min_strength_noise_rms"]
+        and c["status"] not in ("no_gap", "weak_gap")
+    ]
+    return sum(c["locus"] == c["true_locus"] for c in strong), len(strong)
+
+
+def _quiet_misses(report: Mapping[str, Any]) -> tuple[int, int]:
+    """Of a check's strong held-back cases whose answer's locus is wrong or missing, how many were quiet."""
+    misses = [
+        c
+        for c in report["cases"]
+        if c.get("held_back")
+        and c["strength_noise_rms"] > report["min_strength_noise_rms"]
+        and c["locus"] != c["true_locus"]
+    ]
+    return sum(c["status"] in ("no_gap", "weak_gap") for c in misses), len(misses)
+
+
+def _answered_locus(report: Mapping[str, Any]) -> str:
+    k, n = _answered_locus_counts(report)
+    return rate(k, n) if n else "-"
+
+
 def render_plant_locus_checks(page: Page) -> str:
     """The open world on EMPS and BRFD: effects outside the catalogue, their locus, per run."""
     paths = [
@@ -932,7 +961,15 @@ def render_plant_locus_checks(page: Page) -> str:
                 ),
             ]
         )
-    head = ["run", "family", "code", *(labels.get(k, k) for k in PLANT_LOCUS_MEASURES)]
+    for row, r in zip(rows, runs, strict=True):
+        row.append(_answered_locus(r))
+    head = [
+        "run",
+        "family",
+        "code",
+        *(labels.get(k, k) for k in PLANT_LOCUS_MEASURES),
+        "held-back, strong, answered with a gap (not `no_gap`/`weak_gap`): locus right",
+    ]
     note = (
         f"\n\nStrong: the true effect moves the record by more than {runs[0]['min_strength_noise_rms']:g} noise RMS "
         "(from the truth, after the diagnosis). The answer's locus is the first named effect's, or the locus "
@@ -973,9 +1010,63 @@ def render_plant_locus_real(page: Page) -> str:
     )
 
 
+def render_plant_locus_effects(page: Page) -> str:
+    """Per effect outside the catalogue: how its strong cases were answered, over the open-world runs."""
+    paths = [
+        f"docs/real-data/check/{name}.json"
+        for name in PLANT_LOCUS_RUNS
+        if (ROOT / f"docs/real-data/check/{name}.json").exists()
+    ]
+    if not paths:
+        return "(no run committed yet)"
+    tally: dict[tuple[str, str, str, str], dict[str, Any]] = {}
+    for path in paths:
+        report = read_json(path)
+        family = "sealed" if PLANT_LOCUS_RUNS[Path(path).stem].startswith("sealed") else "held-back"
+        for c in report["cases"]:
+            if not c.get("held_back") or c["strength_noise_rms"] <= report["min_strength_noise_rms"]:
+                continue
+            key = (report["run"]["plant"], family, c["effect"], c["true_locus"])
+            t = tally.setdefault(key, {"n": 0, "right": 0, "quiet": 0, "explained": 0, "wrong": {}})
+            t["n"] += 1
+            t["right"] += c["locus"] == c["true_locus"]
+            t["quiet"] += c["status"] in ("no_gap", "weak_gap")
+            t["explained"] += c["status"] == "explained"
+            if c["locus"] not in (None, c["true_locus"]):
+                t["wrong"][c["locus"]] = t["wrong"].get(c["locus"], 0) + 1
+    rows = [
+        [
+            plant,
+            family,
+            f"`{effect}`",
+            locus,
+            str(t["n"]),
+            str(t["right"]),
+            str(t["quiet"]),
+            str(t["explained"]),
+            ", ".join(f"{k} {v}" for k, v in sorted(t["wrong"].items())) or "-",
+        ]
+        for (plant, family, effect, locus), t in sorted(tally.items())
+    ]
+    head = [
+        "plant",
+        "family",
+        "effect",
+        "its locus",
+        "strong cases",
+        "locus right",
+        "answered `no_gap`/`weak_gap`",
+        "claimed `explained` by a catalogue set",
+        "placed instead at",
+    ]
+    return table(head, rows) + sources(page, paths)
+
+
 def render_plant_locus_summary(page: Page) -> str:
     """One line for the README: the open world on EMPS and BRFD, the held-back and the sealed families pooled apart."""
     pooled: dict[str, dict[str, list[int]]] = {"held-back": {}, "sealed": {}}
+    answered = {"held-back": [0, 0], "sealed": [0, 0]}
+    quiet = {"held-back": [0, 0], "sealed": [0, 0]}
     paths = []
     for name, what in PLANT_LOCUS_RUNS.items():
         path = f"docs/real-data/check/{name}.json"
@@ -983,6 +1074,10 @@ def render_plant_locus_summary(page: Page) -> str:
             continue
         paths.append(path)
         family = "sealed" if what.startswith("sealed") else "held-back"
+        k_ans, n_ans = _answered_locus_counts(read_json(path))
+        answered[family] = [answered[family][0] + k_ans, answered[family][1] + n_ans]
+        k_q, n_q = _quiet_misses(read_json(path))
+        quiet[family] = [quiet[family][0] + k_q, quiet[family][1] + n_q]
         for m in read_json(path)["measures"]:
             k, n = pooled[family].get(m["key"], [0, 0])
             pooled[family][m["key"]] = [k + m["k"], n + m["n"]]
@@ -993,12 +1088,20 @@ def render_plant_locus_summary(page: Page) -> str:
         k, n = pooled[family].get(key, [0, 0])
         return rate(k, n) if n else "none drawn"
 
+    def answered_rate(family: str) -> str:
+        k, n = answered[family]
+        return rate(k, n) if n else "none"
+
     text = (
         "- **Gaps no catalogue effect explains, on EMPS and BRFD** (blind synthetic checks through the plant "
         "interface): an effect of the held-back families (developed on) beyond 3 noise RMS is answered at its "
-        f"own part of the machine in {pooled_rate('held-back', 'held_back_locus')} and claimed by no catalogue set "
-        f"in {pooled_rate('held-back', 'held_back_abstained')}; of the sealed families (never developed on, scored "
-        f"once) in {pooled_rate('sealed', 'held_back_locus')} and {pooled_rate('sealed', 'held_back_abstained')} "
+        f"own part of the machine in {pooled_rate('held-back', 'held_back_locus')} (of the answers that report a "
+        f"gap: {answered_rate('held-back')}) and claimed by no catalogue set in "
+        f"{pooled_rate('held-back', 'held_back_abstained')}; of the sealed families (never developed on, scored "
+        f"once) in {pooled_rate('sealed', 'held_back_locus')} (of those reporting a gap: {answered_rate('sealed')}) "
+        f"and {pooled_rate('sealed', 'held_back_abstained')}. Of the misses, {quiet['held-back'][0]} of "
+        f"{quiet['held-back'][1]} and {quiet['sealed'][0]} of {quiet['sealed'][1]} were answered `weak_gap`/`no_gap`: "
+        "effects the calibration absorbs down to a misfit of at most 3 noise RMS, which the answer does not attribute "
         f"({page.link('docs/real-data.md', 'real data, section 7')})."
     )
     return text + sources(page, paths)
@@ -1394,6 +1497,7 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "plant-locus-checks": render_plant_locus_checks,
     "plant-locus-summary": render_plant_locus_summary,
     "plant-locus-real": render_plant_locus_real,
+    "plant-locus-effects": render_plant_locus_effects,
     "test-run-times": render_test_run_times,
     "slow-suite-times": render_slow_suite_times,
     "service-load": render_service_load,
