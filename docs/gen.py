@@ -1101,8 +1101,9 @@ def render_plant_locus_summary(page: Page) -> str:
         f"once) in {pooled_rate('sealed', 'held_back_locus')} (of those reporting a gap: {answered_rate('sealed')}) "
         f"and {pooled_rate('sealed', 'held_back_abstained')}. Of the misses, {quiet['held-back'][0]} of "
         f"{quiet['held-back'][1]} and {quiet['sealed'][0]} of {quiet['sealed'][1]} were answered `weak_gap`/`no_gap`: "
-        "effects the calibration absorbs down to a misfit of at most 3 noise RMS, which the answer does not attribute "
-        f"({page.link('docs/real-data.md', 'real data, section 7')})."
+        "effects the calibration absorbs down to a misfit of at most 3 noise RMS, which the answer does not attribute; "
+        "the other misses are placed at the wrong part, out of sample mostly effects that follow a signal no part of "
+        f"the plant declares ({page.link('docs/real-data.md', 'real data, section 7')}, per effect)."
     )
     return text + sources(page, paths)
 
