@@ -902,54 +902,54 @@ PLANT_LOCUS_MEASURES = (
 )
 
 
+#: The answers that attribute nothing (:data:`engine.validation.plant_check.QUIET`).
+_QUIET = ("no_gap", "weak_gap")
+
+
+def _locus_runs() -> list[tuple[str, str, dict[str, Any]]]:
+    """The committed open-world runs, in :data:`PLANT_LOCUS_RUNS`'s order: (path, family, report)."""
+    out = []
+    for name, what in PLANT_LOCUS_RUNS.items():
+        path = f"docs/real-data/check/{name}.json"
+        if (ROOT / path).exists():
+            out.append((path, "sealed" if what.startswith("sealed") else "held-back", read_json(path)))
+    return out
+
+
+def _strong_held_back(report: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """A check's cases of an effect outside the catalogue that moves the record beyond ``min_strength``."""
+    return [
+        c for c in report["cases"] if c.get("held_back") and c["strength_noise_rms"] > report["min_strength_noise_rms"]
+    ]
+
+
 def _answered_locus_counts(report: Mapping[str, Any]) -> tuple[int, int]:
     """Of a check's strong held-back cases answered with a gap (not quiet), how many at the true locus."""
-    strong = [
-        c
-        for c in report["cases"]
-        if c.get("held_back")
-        and c["strength_noise_rms"] > report["min_strength_noise_rms"]
-        and c["status"] not in ("no_gap", "weak_gap")
-    ]
-    return sum(c["locus"] == c["true_locus"] for c in strong), len(strong)
+    answered = [c for c in _strong_held_back(report) if c["status"] not in _QUIET]
+    return sum(c["locus"] == c["true_locus"] for c in answered), len(answered)
 
 
 def _quiet_misses(report: Mapping[str, Any]) -> tuple[int, int]:
     """Of a check's strong held-back cases whose answer's locus is wrong or missing, how many were quiet."""
-    misses = [
-        c
-        for c in report["cases"]
-        if c.get("held_back")
-        and c["strength_noise_rms"] > report["min_strength_noise_rms"]
-        and c["locus"] != c["true_locus"]
-    ]
-    return sum(c["status"] in ("no_gap", "weak_gap") for c in misses), len(misses)
-
-
-def _answered_locus(report: Mapping[str, Any]) -> str:
-    k, n = _answered_locus_counts(report)
-    return rate(k, n) if n else "-"
+    misses = [c for c in _strong_held_back(report) if c["locus"] != c["true_locus"]]
+    return sum(c["status"] in _QUIET for c in misses), len(misses)
 
 
 def render_plant_locus_checks(page: Page) -> str:
     """The open world on EMPS and BRFD: effects outside the catalogue, their locus, per run."""
-    paths = [
-        f"docs/real-data/check/{name}.json"
-        for name in PLANT_LOCUS_RUNS
-        if (ROOT / f"docs/real-data/check/{name}.json").exists()
-    ]
-    if not paths:
-        return "(no run committed yet)" + sources(page, paths)
-    runs = [read_json(p) for p in paths]
-    head = ["run", "family", "code", *PLANT_LOCUS_MEASURES]
+    runs = _locus_runs()
+    paths = [p for p, _, _ in runs]
+    if not runs:
+        return "(no run committed yet)"
     labels: dict[str, str] = {}
     rows = []
-    for p, r in zip(paths, runs, strict=True):
+    for p, _, r in runs:
         by_key = {m["key"]: m for m in r["measures"]}
         for key in PLANT_LOCUS_MEASURES:
             if key in by_key:
                 labels.setdefault(key, by_key[key]["label"])
         run = r["run"]
+        k, n = _answered_locus_counts(r)
         rows.append(
             [
                 f"{run['plant']}, {run['record']}, seed {run['seed']}",
@@ -959,10 +959,9 @@ def render_plant_locus_checks(page: Page) -> str:
                     rate(by_key[k]["k"], by_key[k]["n"], by_key[k]["low"], by_key[k]["high"]) if k in by_key else "-"
                     for k in PLANT_LOCUS_MEASURES
                 ),
+                rate(k, n) if n else "-",
             ]
         )
-    for row, r in zip(rows, runs, strict=True):
-        row.append(_answered_locus(r))
     head = [
         "run",
         "family",
@@ -971,8 +970,8 @@ def render_plant_locus_checks(page: Page) -> str:
         "held-back, strong, answered with a gap (not `no_gap`/`weak_gap`): locus right",
     ]
     note = (
-        f"\n\nStrong: the true effect moves the record by more than {runs[0]['min_strength_noise_rms']:g} noise RMS "
-        "(from the truth, after the diagnosis). The answer's locus is the first named effect's, or the locus "
+        f"\n\nStrong: the true effect moves the record by more than {runs[0][2]['min_strength_noise_rms']:g} noise "
+        "RMS (from the truth, after the diagnosis). The answer's locus is the first named effect's, or the locus "
         "estimate's when nothing is named. Wilson 95 % intervals."
     )
     return table(head, rows) + note + sources(page, paths)
@@ -1012,25 +1011,18 @@ def render_plant_locus_real(page: Page) -> str:
 
 def render_plant_locus_effects(page: Page) -> str:
     """Per effect outside the catalogue: how its strong cases were answered, over the open-world runs."""
-    paths = [
-        f"docs/real-data/check/{name}.json"
-        for name in PLANT_LOCUS_RUNS
-        if (ROOT / f"docs/real-data/check/{name}.json").exists()
-    ]
-    if not paths:
+    runs = _locus_runs()
+    paths = [p for p, _, _ in runs]
+    if not runs:
         return "(no run committed yet)"
     tally: dict[tuple[str, str, str, str], dict[str, Any]] = {}
-    for path in paths:
-        report = read_json(path)
-        family = "sealed" if PLANT_LOCUS_RUNS[Path(path).stem].startswith("sealed") else "held-back"
-        for c in report["cases"]:
-            if not c.get("held_back") or c["strength_noise_rms"] <= report["min_strength_noise_rms"]:
-                continue
+    for _, family, report in runs:
+        for c in _strong_held_back(report):
             key = (report["run"]["plant"], family, c["effect"], c["true_locus"])
             t = tally.setdefault(key, {"n": 0, "right": 0, "quiet": 0, "explained": 0, "wrong": {}})
             t["n"] += 1
             t["right"] += c["locus"] == c["true_locus"]
-            t["quiet"] += c["status"] in ("no_gap", "weak_gap")
+            t["quiet"] += c["status"] in _QUIET
             t["explained"] += c["status"] == "explained"
             if c["locus"] not in (None, c["true_locus"]):
                 t["wrong"][c["locus"]] = t["wrong"].get(c["locus"], 0) + 1
@@ -1067,22 +1059,19 @@ def render_plant_locus_summary(page: Page) -> str:
     pooled: dict[str, dict[str, list[int]]] = {"held-back": {}, "sealed": {}}
     answered = {"held-back": [0, 0], "sealed": [0, 0]}
     quiet = {"held-back": [0, 0], "sealed": [0, 0]}
-    paths = []
-    for name, what in PLANT_LOCUS_RUNS.items():
-        path = f"docs/real-data/check/{name}.json"
-        if not (ROOT / path).exists():
-            continue
-        paths.append(path)
-        family = "sealed" if what.startswith("sealed") else "held-back"
-        k_ans, n_ans = _answered_locus_counts(read_json(path))
+    runs = _locus_runs()
+    paths = [p for p, _, _ in runs]
+    for _, family, report in runs:
+        k_ans, n_ans = _answered_locus_counts(report)
         answered[family] = [answered[family][0] + k_ans, answered[family][1] + n_ans]
-        k_q, n_q = _quiet_misses(read_json(path))
+        k_q, n_q = _quiet_misses(report)
         quiet[family] = [quiet[family][0] + k_q, quiet[family][1] + n_q]
-        for m in read_json(path)["measures"]:
+        for m in report["measures"]:
             k, n = pooled[family].get(m["key"], [0, 0])
             pooled[family][m["key"]] = [k + m["k"], n + m["n"]]
-    if not paths:
+    if not runs:
         return "(no run committed yet)"
+    strong = f"{runs[0][2]['min_strength_noise_rms']:g} noise RMS"
 
     def pooled_rate(family: str, key: str) -> str:
         k, n = pooled[family].get(key, [0, 0])
@@ -1094,14 +1083,14 @@ def render_plant_locus_summary(page: Page) -> str:
 
     text = (
         "- **Gaps no catalogue effect explains, on EMPS and BRFD** (blind synthetic checks through the plant "
-        "interface): an effect of the held-back families (developed on) beyond 3 noise RMS is answered at its "
+        f"interface): an effect of the held-back families (developed on) beyond {strong} is answered at its "
         f"own part of the machine in {pooled_rate('held-back', 'held_back_locus')} (of the answers that report a "
         f"gap: {answered_rate('held-back')}) and claimed by no catalogue set in "
         f"{pooled_rate('held-back', 'held_back_abstained')}; of the sealed families (never developed on, scored "
         f"once) in {pooled_rate('sealed', 'held_back_locus')} (of those reporting a gap: {answered_rate('sealed')}) "
         f"and {pooled_rate('sealed', 'held_back_abstained')}. Of the misses, {quiet['held-back'][0]} of "
         f"{quiet['held-back'][1]} and {quiet['sealed'][0]} of {quiet['sealed'][1]} were answered `weak_gap`/`no_gap`: "
-        "effects the calibration absorbs down to a misfit of at most 3 noise RMS, which the answer does not attribute; "
+        f"effects the calibration absorbs down to a misfit of at most {strong}, which the answer does not attribute; "
         "the other misses are placed at the wrong part, out of sample mostly effects that follow a signal no part of "
         f"the plant declares ({page.link('docs/real-data.md', 'real data, section 7')}, per effect)."
     )

@@ -55,10 +55,9 @@ from engine.diagnosis.plant_locus import (
     TIE_BIC,
     PlantLocusReport,
     estimate_plant_locus,
-    whitened_chi2,
 )
 from engine.diagnosis.settings import DiagnosisSettings
-from engine.plants.base import CalibratedParameter, Plant, free_parameters
+from engine.plants.base import CalibratedParameter, Plant, difference_step, free_parameters
 from engine.plants.noise import NoiseLevel, integrated_time
 
 __all__ = [
@@ -659,8 +658,7 @@ def absorbed_effects(plant: Plant, calibration: Fit, objective: PlantObjective) 
     r0 = objective.vector(base)
     cols = []
     for p in free_parameters(plant, objective.record):
-        u = p.unit_coord(base[p.name])
-        step = h if u + h <= 1.0 else -h
+        u, step = difference_step(p, base[p.name], h)
         cols.append((objective.vector({**base, p.name: float(p.value(u + step))}) - r0) / step)
     if not cols:
         return {}  # the record fixes every calibrated parameter: nothing can absorb an effect
@@ -672,8 +670,7 @@ def absorbed_effects(plant: Plant, calibration: Fit, objective: PlantObjective) 
         if not lo <= e.neutral <= hi:
             continue
         q = e.as_parameter()
-        u = q.unit_coord(e.neutral)
-        step = h if u + h <= 1.0 else -h
+        u, step = difference_step(q, e.neutral, h)
         j = objective.vector({**base, name: float(q.value(u + step))}) - r0
         norm = float(np.linalg.norm(j))
         if norm == 0.0:
@@ -906,8 +903,8 @@ def noise_gate(
 
 
 def open_world(
-    plant: Plant, record: Any, calibration: Fit, named: EffectFit | None, gate: NoiseGate
-) -> tuple[PlantLocusReport | None, str | None]:
+    plant: Plant, record: Any, calibration: Fit, named: EffectFit | None, gate: NoiseGate, objective: PlantObjective
+) -> tuple[PlantLocusReport | None, str | None, dict[str, float | str | None]]:
     """The locus of a gap the catalogue does not take to the noise, and whether the named set is a stand-in.
 
     The locus estimate (:func:`~engine.diagnosis.plant_locus.estimate_plant_locus`) reads the
@@ -920,25 +917,35 @@ def open_world(
     of the gap the set leaves (a second estimate from the set's fit). A real record's residual is
     mostly model error, which no one term reproduces: there the catalogue's answer stands.
 
-    Returns the report (None when the estimate fails) and the reason to set the named set aside
-    (None to keep it).
+    Returns the report (None when the estimate fails), the reason to set the named set aside (None to
+    keep it), and the stand-in test's figures (the calibrated residual's locus, the share of the gap
+    its term explains, its dispersion and its advantage over the named set; empty without a set).
     """
     try:
         locus = estimate_plant_locus(plant, record, calibration.values, gate.levels)
         if named is None:
-            return locus, None
-        chi2_named = whitened_chi2(plant, record, named.fit.values, gate.levels)
+            return locus, None, {}
+        # the named set's whitened chi2: the gate's chi2/n per channel at the set's fit, times n
+        chi2_named = sum(gate.after[c] * objective.y[c].size for c in objective.channels)
         advantage = locus.advantage(chi2_named, len(named.effects))
+        test: dict[str, float | str | None] = {
+            "locus": locus.locus,
+            "explained": locus.scores[locus.locus].explained if locus.locus is not None else None,
+            "dispersion": locus.dispersion,
+            "advantage": advantage,
+        }
         if locus.locus is not None and locus.reproduces and advantage >= TIE_BIC:
-            return locus, (
+            return (
+                locus,
                 f"{'+'.join(named.effects)} removes {100 * named.share:.0f} % of the gap, but a term at the "
                 f"{locus.locus} ({locus.term.get('description', '')}) fits the record better by {advantage:.3g} "
-                "(scaled BIC): the catalogue's set is a stand-in for something it lacks"
+                "(scaled BIC): the catalogue's set is a stand-in for something it lacks",
+                test,
             )
-        return estimate_plant_locus(plant, record, named.fit.values, gate.levels), None
+        return estimate_plant_locus(plant, record, named.fit.values, gate.levels), None, test
     except (RuntimeError, ValueError, FloatingPointError) as exc:
         logger.warning("locus estimate failed on %s: %s", getattr(record, "name", ""), exc)
-        return None, None
+        return None, None, {}
 
 
 def diagnose_plant(
@@ -981,9 +988,11 @@ def diagnose_plant(
     set_aside = None
     if gate.status in ("no_gap", "weak_gap") and named is not None:
         set_aside, named = named, None  # too weak to attribute: the answer ends with the calibrated model
-    locus, reason = None, None
+    locus: PlantLocusReport | None = None
+    reason: str | None = None
+    stand_in_test: dict[str, float | str | None] = {}
     if refit and plant.entries and gate.status == "gap" and not NoiseGate.fits(gate.after, gate.limits):
-        locus, stand_in = open_world(plant, record, calibration, named, gate)
+        locus, stand_in, stand_in_test = open_world(plant, record, calibration, named, gate, obj)
         if stand_in is not None:
             set_aside, named, reason = named, None, stand_in
             gate = noise_gate(plant, record, calibration, None, obj)
@@ -1016,6 +1025,7 @@ def diagnose_plant(
         extra={
             "n_eval": obj.n_eval + (locus.n_simulations if locus is not None else 0),
             **({"reason": reason} if reason else {}),
+            **({"stand_in_test": stand_in_test} if stand_in_test else {}),
             **({"calibrated_on": calibrated_on} if calibrated_on else {}),
             **({"set_aside": set_aside} if set_aside is not None else {}),
         },

@@ -54,12 +54,12 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from engine.plants.base import LocusSignal, Plant, free_parameters
+from engine.plants.base import LocusSignal, Plant, difference_step, free_parameters
 from engine.plants.noise import NoiseLevel
 
 __all__ = [
@@ -72,7 +72,6 @@ __all__ = [
     "PlantLocusReport",
     "estimate_plant_locus",
     "signal_basis",
-    "whitened_chi2",
 ]
 
 logger = logging.getLogger(__name__)
@@ -164,8 +163,6 @@ class PlantLocusReport:
     tau, n_eff, dispersion : float
         The noise's correlation time [samples], the record's independent samples and the best fit's
         dispersion the evidence was weighed with (:meth:`advantage`).
-    series : dict of str to ndarray
-        The best locus's input per entry, on the record's grid.
     """
 
     locus: str | None
@@ -179,7 +176,6 @@ class PlantLocusReport:
     tau: float = 1.0
     n_eff: float = 1.0
     dispersion: float = 1.0
-    series: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def reproduces(self) -> bool:
@@ -296,8 +292,7 @@ class _Responses:
         cols, info = [], []
         h = self.plant.diff_step
         for p in free_parameters(self.plant, self.record):
-            u = p.unit_coord(self.values[p.name]) if p.name in self.values else p.unit_coord(p.nominal)
-            step = h if u + h <= 1.0 else -h
+            u, step = difference_step(p, self.values.get(p.name, p.nominal), h)
             yp = self.sim({**self.values, p.name: float(p.value(u + step))}, None)
             cols.append((yp - self.y0) / step)
             info.append((p.name, u, step))
@@ -348,11 +343,11 @@ class _Responses:
             a *= PROBE_TARGET / rho
         return a
 
-    def columns(self, entry: str, basis: np.ndarray) -> tuple[np.ndarray, float]:
-        """Whitened responses to each basis column at ``entry``, per unit coefficient, and the probe scale."""
+    def columns(self, entry: str, basis: np.ndarray) -> np.ndarray:
+        """Whitened responses to each basis column at ``entry``, per unit coefficient (probed at :meth:`probe_scale`)."""
         a = self.probe_scale(entry, basis.sum(axis=1))
         cols = [(self.sim(self.values, {entry: a * basis[:, j]}) - self.y0) / a for j in range(basis.shape[1])]
-        return np.column_stack(cols), a
+        return np.column_stack(cols)
 
 
 def _penalised_fit(
@@ -451,19 +446,17 @@ def estimate_plant_locus(
     n_free = cal[0].shape[1]
     window = resp.window
 
-    per_signal: list[_PerSignal] = []
+    per_signal: list[_Basis] = []
     for sig in signals:
         if sig.entry not in plant.entries:
             raise ValueError(f"locus signal {sig.signal!r} enters by unknown entry {sig.entry!r}")
-        basis, knots, pen = signal_basis(sig, window)
-        cols, _ = resp.columns(sig.entry, basis)
-        per_signal.append((sig, basis, knots, pen, cols))
-    columns = [p[4] for p in per_signal]
+        per_signal.append(_Basis(sig, *signal_basis(sig, window)))
+    columns = {i: resp.columns(b.sig.entry, b.basis) for i, b in enumerate(per_signal)}
 
     loci = list(dict.fromkeys(sig.locus for sig in signals))
     fits: dict[str, _GroupFit] = {}
     for locus in loci:
-        members = [i for i, p in enumerate(per_signal) if p[0].locus == locus]
+        members = [i for i, b in enumerate(per_signal) if b.sig.locus == locus]
         # the locus's signals together, and each alone (one signal's input may leave the linear range
         # where another's holds): the locus scores its best simulated fit
         variants = [members] + ([[i] for i in members] if len(members) > 1 else [])
@@ -523,21 +516,17 @@ def estimate_plant_locus(
         tau,
         n_eff,
         dispersion,
-        dict(inputs),
     )
 
 
-def whitened_chi2(plant: Plant, record: Any, values: Mapping[str, float], levels: Mapping[str, NoiseLevel]) -> float:
-    """Sum over the scored samples of every channel of (simulated - measured)^2 / sigma^2 at ``values``."""
-    window = plant.scored(record)
-    meas = plant.measured(record)
-    sim = plant.simulate(record, values)
-    return float(
-        sum(np.sum(((sim[c.name] - meas[c.name])[window] / levels[c.name].sigma) ** 2) for c in plant.channels)
-    )
+@dataclass(frozen=True, eq=False)
+class _Basis:
+    """One locus signal's basis (:func:`signal_basis`): columns on the record's grid, hat knots, penalty."""
 
-
-_PerSignal = tuple[LocusSignal, np.ndarray, np.ndarray | None, np.ndarray, np.ndarray]
+    sig: LocusSignal
+    basis: np.ndarray
+    knots: np.ndarray | None
+    penalty: np.ndarray
 
 
 @dataclass
@@ -553,8 +542,8 @@ class _GroupFit:
 
 def _fit_group(
     resp: _Responses,
-    per_signal: Sequence[_PerSignal],
-    cols: Sequence[np.ndarray],
+    per_signal: Sequence[_Basis],
+    cols: Mapping[int, np.ndarray],
     group: Sequence[int],
     cal: tuple[np.ndarray, list[tuple[str, float, float]]],
     tau: float,
@@ -567,13 +556,13 @@ def _fit_group(
     point (its base input: ``previous``'s, whose coefficients the step adds to); ``cal``: the
     calibrated parameters' columns and (name, unit coordinate, step) at that point. ``dof``: the
     term's effective dof when already known (a refinement keeps the first fit's)."""
-    locus = per_signal[group[0]][0].locus
+    locus = per_signal[group[0]].sig.locus
     Jc, info = cal
     Q = np.linalg.qr(Jc)[0] if Jc.shape[1] else np.zeros((Jc.shape[0], 0))
     r = resp.residual()
     r_p = r - Q @ (Q.T @ r)
     A = np.column_stack([cols[i] for i in group])
-    pen = _block_diag([per_signal[i][3] for i in group])
+    pen = _block_diag([per_signal[i].penalty for i in group])
     _, dof_fit, P = _penalised_fit(A - Q @ (Q.T @ A), r_p, pen, tau, n_eff)
     dof = dof_fit if dof is None else dof
     u0 = np.array([u for _, u, _ in info])
@@ -583,10 +572,10 @@ def _fit_group(
     steps: list[tuple[int, np.ndarray]] = []
     k = 0
     for i in group:
-        basis = per_signal[i][1]
+        basis = per_signal[i].basis
         coef = theta[k : k + basis.shape[1]]
         k += basis.shape[1]
-        entry = per_signal[i][0].entry
+        entry = per_signal[i].sig.entry
         step[entry] = step.get(entry, 0.0) + basis @ coef
         steps.append((i, coef))
     chi2, frac, values = math.inf, 0.0, dict(resp.values)
@@ -618,7 +607,7 @@ def _refine(
     plant: Plant,
     record: Any,
     levels: Mapping[str, NoiseLevel],
-    per_signal: Sequence[_PerSignal],
+    per_signal: Sequence[_Basis],
     fit: _GroupFit,
     tau: float,
     n_eff: float,
@@ -630,8 +619,8 @@ def _refine(
     for _ in range(REFINE_ITERATIONS):
         resp = _Responses(plant, record, fit.values, levels, base=fit.inputs)
         cal = resp.calibrated_columns()
-        cols: dict[int, np.ndarray] = {i: resp.columns(per_signal[i][0].entry, per_signal[i][1])[0] for i in fit.group}
-        new = _fit_group(resp, per_signal, cols, fit.group, cal, tau, n_eff, chi2_0, fit.score.dof, fit)  # type: ignore[arg-type]
+        cols = {i: resp.columns(per_signal[i].sig.entry, per_signal[i].basis) for i in fit.group}
+        new = _fit_group(resp, per_signal, cols, fit.group, cal, tau, n_eff, chi2_0, fit.score.dof, fit)
         n_sim += resp.n_sim
         if not new.score.chi2 < fit.score.chi2 * (1.0 - 1e-3):
             break
@@ -651,7 +640,7 @@ def _block_diag(blocks: Sequence[np.ndarray]) -> np.ndarray:
 
 def _term(
     plant: Plant,
-    per_signal: Sequence[_PerSignal],
+    per_signal: Sequence[_Basis],
     parts: Sequence[tuple[int, np.ndarray]],
     inputs: Mapping[str, np.ndarray],
     window: slice,
@@ -659,16 +648,15 @@ def _term(
     """The best locus's input described (see :class:`PlantLocusReport`, ``term``)."""
     contrib = {}
     for i, coef in parts:
-        sig, basis = per_signal[i][0], per_signal[i][1]
-        part = (basis @ coef)[window]
+        part = (per_signal[i].basis @ coef)[window]
         contrib[i] = float(np.sqrt(np.mean(part**2)))
     total = sum(contrib.values()) or 1.0
     main = max(contrib, key=lambda i: contrib[i])
-    sig = per_signal[main][0]
+    sig = per_signal[main].sig
     coef = next(c for i, c in parts if i == main)
     unit = plant.entries[sig.entry]
     d = inputs[sig.entry][window]
-    law = _describe(sig, per_signal[main][2], coef, unit)
+    law = _describe(sig, per_signal[main].knots, coef, unit)
     by = f" times the {sig.factor_name}" if sig.factor is not None and sig.factor_name else ""
     rms = float(np.sqrt(np.mean(d**2)))
     description = (
@@ -683,6 +671,6 @@ def _term(
         "signal_unit": sig.unit,
         "factor": sig.factor_name or None,
         "curve": law,
-        "shares": {per_signal[i][0].signal: contrib[i] / total for i in contrib},
+        "shares": {per_signal[i].sig.signal: contrib[i] / total for i in contrib},
         "description": description,
     }

@@ -43,6 +43,8 @@ __all__ = [
     "FreeParameter",
     "LocusSignal",
     "Plant",
+    "checked_inputs",
+    "difference_step",
     "free_parameters",
     "relative_error",
     "relative_errors",
@@ -362,6 +364,43 @@ def free_parameters(plant: Plant, record: Any) -> tuple[CalibratedParameter, ...
     """The plant's calibrated parameters the record leaves free (not in :meth:`Plant.fixed_by`)."""
     fixed = plant.fixed_by(record)
     return tuple(p for p in plant.calibrated if p.name not in fixed)
+
+
+def difference_step(p: FreeParameter, value: float, h: float) -> tuple[float, float]:
+    """A finite-difference step of ``p`` at ``value`` in its unit box: ``(u, step)``.
+
+    ``u`` is the value's unit coordinate; ``step`` is ``h``, or ``-h`` where a forward step would leave
+    the box. The value stepped is ``p.value(u + step)``.
+    """
+    u = p.unit_coord(value)
+    return u, (h if u + h <= 1.0 else -h)
+
+
+def checked_inputs(
+    plant: str, entries: Mapping[str, str], n: int, inputs: Mapping[str, np.ndarray] | None
+) -> dict[str, np.ndarray]:
+    """Additive input schedules checked against a plant's entries and a record of ``n`` samples.
+
+    Raises
+    ------
+    KeyError
+        For a name not in ``entries``.
+    ValueError
+        For a schedule that is not ``n`` finite values.
+    """
+    out: dict[str, np.ndarray] = {}
+    for name, schedule in (inputs or {}).items():
+        if name not in entries:
+            raise KeyError(f"unknown {plant} entry {name!r}; entries: {', '.join(entries)}")
+        x = np.asarray(schedule, dtype=float)
+        if x.shape != (n,):
+            raise ValueError(
+                f"{plant} input {name!r} needs {n} finite samples, one per sample of the record; got shape {x.shape}"
+            )
+        if not np.all(np.isfinite(x)):
+            raise ValueError(f"{plant} input {name!r} has non-finite values; it needs {n} finite samples")
+        out[name] = x
+    return out
 
 
 def relative_error(measured: np.ndarray, simulated: np.ndarray) -> float:

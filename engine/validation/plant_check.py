@@ -47,7 +47,7 @@ import numpy as np
 from engine.atomic import write_json_atomic
 from engine.diagnosis.plant_gap import change_over_noise, diagnose_plant
 from engine.diagnosis.settings import DiagnosisSettings
-from engine.plants.base import Plant, free_parameters, relative_errors
+from engine.plants.base import CandidateEffect, Plant, free_parameters, relative_errors
 from engine.plants.noise import NoiseLevel
 from engine.validation.provenance import code_version
 from engine.validation.stats import wilson_interval
@@ -196,24 +196,36 @@ def _perturbed(plant: Plant, record: Any, rng: np.random.Generator) -> dict[str,
     }
 
 
-def draw_cases(plant: Plant, record: Any, n: int, seed: int) -> list[CheckCase]:
-    """Draw ``n`` cases, the effects in turn through the catalogue (module docstring)."""
-    rng = np.random.default_rng(seed)
-    names = list(plant.catalogue)
+def _draw_effects(
+    plant: Plant,
+    record: Any,
+    effects: Mapping[str, CandidateEffect],
+    n: int,
+    rng: np.random.Generator,
+    first: int,
+    held_back: bool,
+) -> list[CheckCase]:
+    """``n`` cases, ``effects`` in turn in a random order, each value redrawn until the record shows it."""
+    names = list(effects)
     order = [names[i % len(names)] for i in rng.permutation(max(n, len(names)))][:n]
     cases = []
     for i, name in enumerate(order):
-        effect = plant.catalogue[name].as_parameter()
+        effect = effects[name].as_parameter()
         for _ in range(MAX_REDRAWS):
             cal = _perturbed(plant, record, rng)
             value = float(effect.value(float(rng.uniform(0.0, 1.0))))
             strength = _strength(plant, record, cal, name, value)
             if strength >= MIN_EFFECT:
-                cases.append(CheckCase(i, name, value, cal, strength, False, plant.catalogue[name].locus))
+                cases.append(CheckCase(first + i, name, value, cal, strength, held_back, effects[name].locus))
                 break
         else:
             logger.warning("effect %s never reached %.1f %% on this record; case %d skipped", name, MIN_EFFECT, i)
     return cases
+
+
+def draw_cases(plant: Plant, record: Any, n: int, seed: int) -> list[CheckCase]:
+    """Draw ``n`` cases, the effects in turn through the catalogue (module docstring)."""
+    return _draw_effects(plant, record, plant.catalogue, n, np.random.default_rng(seed), 0, False)
 
 
 def draw_held_back(
@@ -221,26 +233,11 @@ def draw_held_back(
 ) -> list[CheckCase]:
     """Draw ``n`` cases of one of the plant's families outside the catalogue (``held_back`` or
     ``sealed``), in turn, as :func:`draw_cases` draws the catalogue's; ``first`` is the first case's index."""
-    effects: Mapping[str, Any] = getattr(plant, family)
-    rng = np.random.default_rng([seed, 2])  # a stream of its own: the other cases of a seed stay as they were
-    names = list(effects)
-    if n and not names:
+    effects: Mapping[str, CandidateEffect] = getattr(plant, family)
+    if n and not effects:
         raise ValueError(f"plant {plant.name!r} declares no {family} family")
-    order = [names[i % len(names)] for i in rng.permutation(max(n, len(names)))][:n]
-    cases = []
-    for i, name in enumerate(order):
-        e = effects[name]
-        effect = e.as_parameter()
-        for _ in range(MAX_REDRAWS):
-            cal = _perturbed(plant, record, rng)
-            value = float(effect.value(float(rng.uniform(0.0, 1.0))))
-            strength = _strength(plant, record, cal, name, value)
-            if strength >= MIN_EFFECT:
-                cases.append(CheckCase(first + i, name, value, cal, strength, True, e.locus))
-                break
-        else:
-            logger.warning("effect %s never reached %.1f %% on this record; case %d skipped", name, MIN_EFFECT, i)
-    return cases
+    rng = np.random.default_rng([seed, 2])  # a stream of its own: the other cases of a seed stay as they were
+    return _draw_effects(plant, record, effects, n, rng, first, True)
 
 
 def draw_clean(plant: Plant, record: Any, n: int, seed: int, first: int = 0) -> list[CheckCase]:

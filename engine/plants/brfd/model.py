@@ -27,7 +27,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, LocusSignal
+from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, LocusSignal, checked_inputs
 from engine.plants.brfd import _kernel as k
 from engine.plants.brfd.catalogue import (
     CATALOGUE,
@@ -97,6 +97,15 @@ CALIBRATED: tuple[CalibratedParameter, ...] = (
     CalibratedParameter("Fc", 200.0, 40_000.0, "N", True, nominal=8000.0),
     CalibratedParameter("sigma0", 1e5, 1e9, "N/m", True, nominal=1e7),
 )
+
+#: Every name ``simulate`` accepts -> the parameters' field it sets: the calibrated parameters, then
+#: the catalogue's, the held-back and the sealed effects.
+_FIELDS: dict[str, str] = {
+    **{p.name: p.name for p in CALIBRATED},
+    **EFFECT_FIELDS,
+    **HELD_BACK_FIELDS,
+    **SEALED_FIELDS,
+}
 
 
 @dataclass(frozen=True)
@@ -246,36 +255,17 @@ class BrfdPlant:
         """
         fields: dict[str, float] = {}
         for name, v in values.items():
-            if name in EFFECT_FIELDS:
-                fields[EFFECT_FIELDS[name]] = float(v)
-            elif name in HELD_BACK_FIELDS:
-                fields[HELD_BACK_FIELDS[name]] = float(v)
-            elif name in SEALED_FIELDS:
-                fields[SEALED_FIELDS[name]] = float(v)
-            elif name in {p.name for p in CALIBRATED}:
-                fields[name] = float(v)
-            else:
+            if name not in _FIELDS:
                 raise KeyError(f"unknown BRFD parameter or effect {name!r}")
+            fields[_FIELDS[name]] = float(v)
         return BrfdParameters(**fields)
-
-    def _inputs(self, record: BrfdRecord, inputs: Mapping[str, np.ndarray] | None) -> dict[str, np.ndarray]:
-        """The additive inputs by entry, checked (KeyError for an unknown entry, ValueError for a bad schedule)."""
-        out: dict[str, np.ndarray] = {}
-        for name, d in (inputs or {}).items():
-            if name not in ENTRIES:
-                raise KeyError(f"unknown BRFD input {name!r}; entries: {', '.join(ENTRIES)}")
-            d = np.asarray(d, dtype=float)
-            if d.shape != (record.n,) or not np.all(np.isfinite(d)):
-                raise ValueError(f"input {name!r} must be {record.n} finite samples, got shape {d.shape}")
-            out[name] = d
-        return out
 
     def _run(
         self, record: BrfdRecord, values: Mapping[str, float], inputs: Mapping[str, np.ndarray] | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
         """The load cell's force [N] and the contact flags, per sample."""
         p = self.parameters(values)
-        d = self._inputs(record, inputs)
+        d = checked_inputs("BRFD", ENTRIES, record.n, inputs)
         x = input_displacement(record)
         if "displacement" in d:
             x = x + d["displacement"]

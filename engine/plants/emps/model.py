@@ -41,7 +41,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, LocusSignal, within_span
+from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, LocusSignal, checked_inputs, within_span
 from engine.plants.emps import _kernel as k
 from engine.plants.emps.catalogue import (
     CATALOGUE,
@@ -156,6 +156,15 @@ CALIBRATED: tuple[CalibratedParameter, ...] = (
     CalibratedParameter("Fc", 5.0, 40.0, "N", nominal=PUBLISHED["Fc"]),
     CalibratedParameter("offset", -20.0, 20.0, "N", nominal=PUBLISHED["offset"]),
 )
+
+#: Every name ``simulate`` accepts -> the parameters' field it sets: the calibrated parameters, then
+#: the catalogue's, the held-back and the sealed effects.
+_FIELDS: dict[str, str] = {
+    **{p.name: p.name for p in CALIBRATED},
+    **EFFECT_FIELDS,
+    **HELD_BACK_FIELDS,
+    **SEALED_FIELDS,
+}
 
 
 @dataclass(frozen=True)
@@ -430,18 +439,10 @@ class EmpsPlant:
             For a name that is neither a calibrated parameter, an effect, a held-back nor a sealed effect.
         """
         changes: dict[str, float] = {}
-        calibrated = {p.name for p in CALIBRATED}
         for name, value in values.items():
-            if name in calibrated:
-                changes[name] = float(value)
-            elif name in EFFECT_FIELDS:
-                changes[EFFECT_FIELDS[name]] = float(value)
-            elif name in HELD_BACK_FIELDS:
-                changes[HELD_BACK_FIELDS[name]] = float(value)
-            elif name in SEALED_FIELDS:
-                changes[SEALED_FIELDS[name]] = float(value)
-            else:
+            if name not in _FIELDS:
                 raise KeyError(f"unknown EMPS parameter or effect {name!r}")
+            changes[_FIELDS[name]] = float(value)
         return dataclasses.replace(EmpsParameters(), **{**self.fixed, **changes})
 
     def _schedules(
@@ -463,16 +464,7 @@ class EmpsPlant:
         ValueError
             For a schedule that is not one finite value per sample of the record.
         """
-        given: dict[str, np.ndarray] = {}
-        for name, schedule in (inputs or {}).items():
-            if name not in ENTRIES:
-                raise KeyError(f"unknown EMPS entry {name!r}; entries: {', '.join(ENTRIES)}")
-            x = np.asarray(schedule, dtype=float)
-            if x.shape != (record.n,):
-                raise ValueError(f"EMPS input {name!r} needs one value per sample ({record.n}), got shape {x.shape}")
-            if not np.all(np.isfinite(x)):
-                raise ValueError(f"EMPS input {name!r} has non-finite values")
-            given[name] = x
+        given = checked_inputs("EMPS", ENTRIES, record.n, inputs)
         return given.get("force", np.zeros(0)), given.get("position")
 
     def _loop(self, record: EmpsRecord, params: EmpsParameters, force: np.ndarray) -> np.ndarray:
