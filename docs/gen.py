@@ -1009,6 +1009,47 @@ def render_plant_locus_real(page: Page) -> str:
     )
 
 
+def render_plant_diagnosis_cost(page: Page) -> str:
+    """A plant's diagnosis on threads against one thread (``bench/bench_plant_diagnosis.py``, issue 54)."""
+    path = "docs/real-data/runs/plant-cost.json"
+    if not (ROOT / path).exists():
+        return "(not run yet)"
+    data = read_json(path)
+    rows = [
+        [
+            f"{r['plant']} {r['record']}",
+            f"{1e3 * r['sim_s']:.1f}",
+            f"{r['baseline_seconds']:.1f} ({r['baseline_sims']:.0f})",
+            f"{r['threads_seconds']:.1f} ({r['threads_sims']:.0f})",
+            f"{r['ratio']:.2f}x",
+            str(r["baseline_n_eval"]),
+            "yes" if r["identical"] else "**no**",
+        ]
+        for r in data["rows"]
+    ]
+    head = [
+        "record",
+        "one simulation [ms]",
+        "one thread: s (sims)",
+        f"{data['rows'][0]['jobs']} threads: s (sims)" if data["rows"] else "threads: s (sims)",
+        "threads / one",
+        "simulations",
+        "same answer",
+    ]
+    code = (data.get("code") or {}).get("describe") or "-"
+    lines = "".join(f"\n- {line}" for line in data.get("summary", []))
+    return (
+        table(head, rows)
+        + f"\n{lines}\n\nCode {code}; one diagnosis at a time, the two settings alternating record by record; "
+        "`NUMBA_NUM_THREADS=2 .venv/bin/python bench/bench_plant_diagnosis.py --plants "
+        + " ".join(dict.fromkeys(r["plant"] for r in data["rows"]))
+        + " --json "
+        + path
+        + "`."
+        + sources(page, [path])
+    )
+
+
 def render_plant_locus_effects(page: Page) -> str:
     """Per effect outside the catalogue: how its strong cases were answered, over the open-world runs."""
     runs = _locus_runs()
@@ -1488,6 +1529,7 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "plant-locus-summary": render_plant_locus_summary,
     "plant-locus-real": render_plant_locus_real,
     "plant-locus-effects": render_plant_locus_effects,
+    "plant-diagnosis-cost": render_plant_diagnosis_cost,
     "test-run-times": render_test_run_times,
     "slow-suite-times": render_slow_suite_times,
     "service-load": render_service_load,

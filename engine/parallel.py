@@ -19,12 +19,20 @@ handles whose ``cancel()`` stops a call even once it has started. With one
 job it runs nothing on threads: each call runs inline, when its result is
 first asked for (:class:`Deferred`), so that cancelling a call before then
 costs nothing.
+
+:func:`thread_map` gives a map-like callable on a pool of threads for
+independent evaluations (a finite-difference Jacobian's columns, a scan, the
+fits of several candidates), in the form
+``scipy.optimize.least_squares(workers=...)`` takes: results in the order of
+the inputs, so the arithmetic is the same on one thread as on several. A map
+called from one of the pool's own threads (a candidate's fit asking for its
+Jacobian) runs on that thread: nested maps never wait on each other.
 """
 
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
 from contextlib import AbstractContextManager, contextmanager, nullcontext
 from types import TracebackType
@@ -41,7 +49,11 @@ __all__ = [
     "raise_if_cancelled",
     "run_in_scope",
     "single_threaded_blas",
+    "thread_map",
 ]
+
+#: A map-like callable: ``workers(fn, iterable)`` returns ``fn``'s results in the iterable's order.
+MapLike = Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]]
 
 _T = TypeVar("_T")
 _P = ParamSpec("_P")
@@ -50,6 +62,8 @@ ThreadContext = Callable[[], AbstractContextManager[object]]
 
 _LOCK = threading.Lock()
 _SCOPE = threading.local()
+#: Marks the threads of a :func:`thread_map` pool (``inside``): a map they call runs in place.
+_MAP_THREAD = threading.local()
 _depth = 0
 _limiter: threadpool_limits | None = None
 
@@ -255,3 +269,32 @@ class Runner:
             for task in self._tasks:  # whatever is still running is no longer wanted (e.g. after an error)
                 task.cancel()
             self._ex.shutdown(wait=True, cancel_futures=True)
+
+
+@contextmanager
+def thread_map(n_jobs: int, thread_name_prefix: str = "map") -> Iterator[MapLike | None]:
+    """A map-like callable on ``n_jobs`` threads for as long as the context lasts; None for one job.
+
+    For work that releases the GIL (a ``nogil`` numba kernel): ``workers(fn, items)`` runs
+    ``fn`` on each item on the pool and returns the results as a list in the items' order (the
+    form ``scipy.optimize.least_squares(workers=...)`` and :func:`scipy.optimize.approx_derivative`
+    take). An exception raised by any call is raised by the map. Called from one of the pool's
+    threads, the map runs on that thread (an outer map over candidates keeps the pool busy; their
+    inner maps would otherwise wait for threads the outer one holds). Callers treat None as the
+    builtin ``map`` (the same results, on the calling thread).
+    """
+    if n_jobs <= 1:
+        yield None
+        return
+
+    def mark() -> None:
+        _MAP_THREAD.inside = True
+
+    with ThreadPoolExecutor(n_jobs, thread_name_prefix=thread_name_prefix, initializer=mark) as ex:
+
+        def workers(fn: Callable[[Any], Any], items: Iterable[Any]) -> list[Any]:
+            if getattr(_MAP_THREAD, "inside", False):
+                return list(map(fn, items))
+            return list(ex.map(fn, items))
+
+        yield workers

@@ -10,7 +10,7 @@ from contextlib import contextmanager
 import pytest
 from threadpoolctl import threadpool_info
 
-from engine.parallel import Cancelled, Runner, cancel_scope, raise_if_cancelled, single_threaded_blas
+from engine.parallel import Cancelled, Runner, cancel_scope, raise_if_cancelled, single_threaded_blas, thread_map
 
 
 def blas_threads() -> list[int]:
@@ -147,3 +147,29 @@ def test_leaving_the_runner_stops_tasks_still_running():
         runner.submit(work)
         assert started.wait(10)
     assert stopped.is_set()  # the exit cancelled it and waited for it
+
+
+def test_thread_map_keeps_the_order_runs_nested_maps_in_place_and_raises():
+    with thread_map(1) as none:
+        assert none is None  # one job: the caller uses the builtin map
+    with thread_map(2) as workers:
+        assert workers is not None
+        names: set[str] = set()
+
+        def inner(i: int) -> list[str]:
+            names.add(threading.current_thread().name)
+            # a map asked for on a pool thread runs there: the outer map holds every thread
+            return list(workers(lambda j: f"{i}.{j}:{threading.current_thread().name}", range(3)))
+
+        out = workers(inner, range(6))
+        assert [[x.split(":")[0] for x in row] for row in out] == [[f"{i}.{j}" for j in range(3)] for i in range(6)]
+        assert all(len({x.split(":")[1] for x in row}) == 1 for row in out)
+        assert all(n.startswith("map") for n in names)
+
+        def boom(i: int) -> int:
+            if i == 3:
+                raise FloatingPointError("diverged")
+            return i
+
+        with pytest.raises(FloatingPointError, match="diverged"):
+            workers(boom, range(5))

@@ -66,6 +66,25 @@ def test_the_real_sine_test_keeps_the_catalogues_answer_and_its_remaining_locus_
     assert report.locus.confidence <= 0.5 and "first guess" in report.locus.note
 
 
+def test_threads_change_no_answer(brfd) -> None:  # type: ignore[no-untyped-def]
+    """The simulation pool (issue 54) runs the fits' independent simulations, the candidates' fits and
+    the locus's stages on threads: the answer must be the one a single thread gives, field by field."""
+    plant, record = brfd
+    threaded = type(plant)()
+    threaded.concurrent = True  # the BRFD runs on one thread by default (its simulations are short)
+    synthetic = plant.synthesize(record, {**TRUTH, "band_relaxation": 0.45}, np.random.default_rng(5))
+
+    def answer(jobs: int) -> dict:  # type: ignore[type-arg]
+        out = diagnose_plant(threaded, synthetic, jobs=jobs).to_dict(threaded)
+        out.pop("n_simulations")  # evaluations a thread's cache misses are counted, not the answer
+        out["locus"].pop("n_simulations")
+        return out
+
+    one = answer(1)
+    assert one["status"] == "unexplained" and one["locus"] is not None
+    assert answer(2) == one
+
+
 def test_a_plant_without_locus_signals_is_refused() -> None:
     plant = get_plant("backlash_drive")
     record = plant.example()

@@ -41,12 +41,16 @@ one record, score the other) is the better measure of what holds.
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
-from collections.abc import Callable, Mapping, Sequence
+import threading
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
+import numba
 import numpy as np
 
 from engine.constants import Z95
@@ -57,6 +61,7 @@ from engine.diagnosis.plant_locus import (
     estimate_plant_locus,
 )
 from engine.diagnosis.settings import DiagnosisSettings
+from engine.parallel import MapLike, thread_map
 from engine.plants.base import CalibratedParameter, Plant, difference_step, free_parameters
 from engine.plants.noise import NoiseLevel, integrated_time
 
@@ -430,6 +435,9 @@ class PlantObjective:
     plant : Plant
     record
         One of the plant's records; its measured channels are computed once.
+    workers : map-like, optional
+        Runs independent simulations (a Jacobian's columns, a scan) on threads
+        (:func:`simulation_pool`); default one after another.
 
     Attributes
     ----------
@@ -437,9 +445,11 @@ class PlantObjective:
         Simulations run so far.
     """
 
-    def __init__(self, plant: Plant, record: Any) -> None:
+    def __init__(self, plant: Plant, record: Any, workers: MapLike | None = None) -> None:
         self.plant = plant
         self.record = record
+        self.workers = workers
+        self._lock = threading.Lock()
         self.window = plant.scored(record)
         meas = plant.measured(record)
         self.channels = [c.name for c in plant.channels]
@@ -455,14 +465,17 @@ class PlantObjective:
         residuals several times (localisation, event shares, relative errors).
         """
         key = tuple(sorted(values.items()))
-        if key in self._recent:
-            return self._recent[key]
-        self.n_eval += 1
+        with self._lock:  # the workers' threads share the count and the cache
+            hit = self._recent.get(key)
+            if hit is not None:
+                return hit
+            self.n_eval += 1
         sim = self.plant.simulate(self.record, values)
         out = {c: sim[c][self.window] - self.y[c] for c in self.channels}
-        self._recent[key] = out
-        if len(self._recent) > 4:
-            del self._recent[next(iter(self._recent))]
+        with self._lock:
+            self._recent[key] = out
+            while len(self._recent) > 4:
+                del self._recent[next(iter(self._recent))]
         return out
 
     def relative_errors(self, values: Mapping[str, float]) -> dict[str, float]:
@@ -471,8 +484,26 @@ class PlantObjective:
         return {c: 100.0 * float(np.linalg.norm(res[c])) * self.scale[c] for c in self.channels}
 
     def vector(self, values: Mapping[str, float]) -> np.ndarray:
+        """The scaled residuals of every channel at ``values``, end to end (the least squares' vector)."""
         r = self.residuals(values)
         return np.concatenate([r[c] * self.scale[c] for c in self.channels])
+
+    def vectors(self, points: Sequence[Mapping[str, float]]) -> list[np.ndarray]:
+        """:meth:`vector` at each of ``points``, in their order (on the workers' threads when given)."""
+        return list((self.workers or map)(self.vector, points))
+
+
+@contextmanager
+def simulation_pool(plant: Plant, jobs: int | None = None) -> Iterator[MapLike | None]:
+    """Threads for a diagnosis's independent simulations, when the plant's may run on them.
+
+    ``jobs`` threads (default numba's thread count, as the backlash drive's candidate fits) when the
+    plant is :attr:`~engine.plants.base.Plant.concurrent`; None (one after another) otherwise or for
+    one job. The threads change no result: every evaluation is the same, in the same order.
+    """
+    n = int(numba.get_num_threads()) if jobs is None else int(jobs)
+    with thread_map(n if plant.concurrent else 1, thread_name_prefix=f"{plant.name}-sim") as workers:
+        yield workers
 
 
 def relative_errors(
@@ -522,7 +553,9 @@ def fit(
     if not free:
         r = obj.vector(held)
         return Fit(dict(held), (), float(r @ r), {}, obj.n_eval - n0)
-    res = solve_unit_box(lambda z: obj.vector(values(z)), u0, plant.diff_step, [p.name for p in free])
+    res = solve_unit_box(
+        lambda z: obj.vector(values(z)), u0, plant.diff_step, [p.name for p in free], workers=obj.workers
+    )
     cost = float(res.fun @ res.fun)
     dof = max(res.fun.size - len(free), 1)
     # correlated residuals carry fewer independent samples than they have: inflate by tau
@@ -550,11 +583,14 @@ def solve_unit_box(
     diff_step: float,
     names: Sequence[str],
     max_nfev: int = MAX_NFEV,
+    workers: MapLike | None = None,
 ) -> Any:
     """Bounded least squares (scipy's trf) on z = 1 + u in [1, 2]^n, from the unit-box point ``u0``.
 
     Working on z rather than u makes the solver's relative difference step the same share
-    (``diff_step``) of every interval wherever the point lies. Returns scipy's result.
+    (``diff_step``) of every interval wherever the point lies. ``workers`` evaluates the
+    finite-difference Jacobian's columns (scipy's ``workers``; default one after another, the same
+    result). Returns scipy's result.
 
     Raises
     ------
@@ -571,6 +607,7 @@ def solve_unit_box(
         diff_step=diff_step,
         x_scale=1.0,
         max_nfev=max_nfev,
+        workers=workers,
     )
     if res.status < 0 or not np.all(np.isfinite(res.fun)):
         raise RuntimeError(f"least squares failed on {list(names)}: {res.message}")
@@ -624,13 +661,11 @@ def _fit_effects(
     if refit:
         bases.append({**{p.name: p.nominal for p in calibrated}, **start})
     best_v, best_c, best_base = last.nominal, math.inf, bases[0]
-    for base in bases:
-        for u in np.linspace(0.0, 1.0, N_SCAN):
-            v = float(last.value(float(u)))
-            r = obj.vector({**base, last.name: v})
-            c = float(r @ r)
-            if c < best_c:
-                best_v, best_c, best_base = v, c, base
+    scan = [(base, float(last.value(float(u)))) for base in bases for u in np.linspace(0.0, 1.0, N_SCAN)]
+    for (base, v), r in zip(scan, obj.vectors([{**base, last.name: v} for base, v in scan]), strict=True):
+        c = float(r @ r)
+        if c < best_c:
+            best_v, best_c, best_base = v, c, base
     free = [*effects, *(calibrated if refit else ())]
     held = {} if refit else dict(calibration.values)
     return fit(plant, record, free, held=held, start={**best_base, last.name: best_v}, objective=obj)
@@ -656,22 +691,25 @@ def absorbed_effects(plant: Plant, calibration: Fit, objective: PlantObjective) 
     base = dict(calibration.values)
     h = plant.diff_step
     r0 = objective.vector(base)
-    cols = []
-    for p in free_parameters(plant, objective.record):
-        u, step = difference_step(p, base[p.name], h)
-        cols.append((objective.vector({**base, p.name: float(p.value(u + step))}) - r0) / step)
-    if not cols:
+    free = free_parameters(plant, objective.record)
+    if not free:
         return {}  # the record fixes every calibrated parameter: nothing can absorb an effect
-    J = np.column_stack(cols)
-    Q, _ = np.linalg.qr(J)
-    out = {}
-    for name, e in plant.catalogue.items():
-        lo, hi = e.bounds
-        if not lo <= e.neutral <= hi:
-            continue
+    points, steps = [], []
+    for p in free:
+        u, step = difference_step(p, base[p.name], h)
+        points.append({**base, p.name: float(p.value(u + step))})
+        steps.append(step)
+    tested = [(name, e) for name, e in plant.catalogue.items() if e.bounds[0] <= e.neutral <= e.bounds[1]]
+    for name, e in tested:
         q = e.as_parameter()
         u, step = difference_step(q, e.neutral, h)
-        j = objective.vector({**base, name: float(q.value(u + step))}) - r0
+        points.append({**base, name: float(q.value(u + step))})
+    moved = objective.vectors(points)  # the calibration's columns and every effect's step, on the workers
+    J = np.column_stack([(r - r0) / step for r, step in zip(moved, steps, strict=False)])
+    Q, _ = np.linalg.qr(J)
+    out = {}
+    for (name, _), r in zip(tested, moved[len(free) :], strict=True):
+        j = r - r0
         norm = float(np.linalg.norm(j))
         if norm == 0.0:
             continue
@@ -705,10 +743,13 @@ def rank_effects(
     c0 = calibration.cost
     skip = set(absorbed or ()) if refit else set()
     singles = []
-    for name in plant.catalogue:
-        if name in skip:
-            continue
-        f = _fit_effects(plant, record, [name], calibration, refit, obj)
+    run = obj.workers or map  # the candidates' fits are independent: on the workers when given
+
+    def fit_set(effects: tuple[str, ...], start: Mapping[str, float] | None, name: str) -> Fit:
+        return _fit_effects(plant, record, [*effects, name], calibration, refit, obj, start=start)
+
+    names = [name for name in plant.catalogue if name not in skip]
+    for name, f in zip(names, run(functools.partial(fit_set, (), None), names), strict=True):
         share = max(0.0, 1.0 - f.cost / c0)
         singles.append(EffectFit((name,), f, share, (plant.catalogue[name].locus,), (share,)))
         logger.info("effect %s: share %.3f, value %.4g", name, singles[-1].share, f.values[name])
@@ -718,12 +759,9 @@ def rank_effects(
     named = singles[0]
     for _ in range(MAX_SET - 1):
         best: EffectFit | None = None
-        for cand in singles:
-            (name,) = cand.effects
-            if name in named.effects or cand.share < MIN_SHARE:
-                continue
-            start = {n: named.fit.values[n] for n in named.effects}
-            f = _fit_effects(plant, record, [*named.effects, name], calibration, refit, obj, start=start)
+        start = {n: named.fit.values[n] for n in named.effects}
+        added = [c.effects[0] for c in singles if c.effects[0] not in named.effects and c.share >= MIN_SHARE]
+        for name, f in zip(added, run(functools.partial(fit_set, named.effects, start), added), strict=True):
             if best is None or f.cost < best.fit.cost:
                 loci = tuple(plant.catalogue[n].locus for n in (*named.effects, name))
                 share = max(0.0, 1.0 - f.cost / c0)
@@ -922,7 +960,7 @@ def open_world(
     its term explains, its dispersion and its advantage over the named set; empty without a set).
     """
     try:
-        locus = estimate_plant_locus(plant, record, calibration.values, gate.levels)
+        locus = estimate_plant_locus(plant, record, calibration.values, gate.levels, objective.workers)
         if named is None:
             return locus, None, {}
         # the named set's whitened chi2: the gate's chi2/n per channel at the set's fit, times n
@@ -942,7 +980,9 @@ def open_world(
                 "(scaled BIC): the catalogue's set is a stand-in for something it lacks",
                 test,
             )
-        return estimate_plant_locus(plant, record, named.fit.values, gate.levels), None, test
+        left = estimate_plant_locus(plant, record, named.fit.values, gate.levels, objective.workers)
+        left.n_simulations += locus.n_simulations  # the stand-in test's estimate is part of this answer's cost
+        return left, None, test
     except (RuntimeError, ValueError, FloatingPointError) as exc:
         logger.warning("locus estimate failed on %s: %s", getattr(record, "name", ""), exc)
         return None, None, {}
@@ -954,6 +994,7 @@ def diagnose_plant(
     calibration: Fit | None = None,
     refit: bool = True,
     calibrated_on: str | None = None,
+    jobs: int | None = None,
 ) -> PlantGapReport:
     """Diagnose one record: calibrate (unless given), localise, rank effects, errors before and after.
 
@@ -968,8 +1009,18 @@ def diagnose_plant(
         check).
     calibrated_on : str, optional
         Name of the record ``calibration`` came from (reported).
+    jobs : int, optional
+        Threads for the independent simulations of the fits (:func:`simulation_pool`; default numba's
+        thread count). The answer is the same for any number.
     """
-    obj = PlantObjective(plant, record)
+    with simulation_pool(plant, jobs) as workers:
+        return _diagnose(plant, record, PlantObjective(plant, record, workers), calibration, refit, calibrated_on)
+
+
+def _diagnose(
+    plant: Plant, record: Any, obj: PlantObjective, calibration: Fit | None, refit: bool, calibrated_on: str | None
+) -> PlantGapReport:
+    """:func:`diagnose_plant` on the objective ``obj`` (whose workers run the simulations)."""
     if calibration is None:
         calibration = calibrate(plant, record, objective=obj)
     else:

@@ -53,12 +53,14 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from engine.parallel import MapLike
 from engine.plants.base import LocusSignal, Plant, difference_step, free_parameters
 from engine.plants.noise import NoiseLevel
 
@@ -159,6 +161,8 @@ class PlantLocusReport:
     chi2_before : float
         Whitened RSS of the calibrated model.
     n_simulations : int
+        Simulations the estimate ran (in a diagnosis, with those of the stand-in test's estimate
+        from the calibration, :func:`engine.diagnosis.plant_gap.open_world`).
     note : str
     tau, n_eff, dispersion : float
         The noise's correlation time [samples], the record's independent samples and the best fit's
@@ -264,9 +268,12 @@ class _Responses:
         values: Mapping[str, float],
         levels: Mapping[str, NoiseLevel],
         base: Mapping[str, np.ndarray] | None = None,
+        workers: MapLike | None = None,
     ):
         self.plant, self.record, self.values = plant, record, dict(values)
         self.base = dict(base or {})
+        self.workers = workers
+        self._lock = threading.Lock()  # the workers' threads share the count
         self.window = plant.scored(record)
         self.channels = [c.name for c in plant.channels]
         self.sigma = {c: levels[c].sigma for c in self.channels}
@@ -277,7 +284,21 @@ class _Responses:
 
     def sim(self, values: Mapping[str, float], inputs: Mapping[str, np.ndarray] | None) -> np.ndarray:
         """Whitened channels at ``values`` with ``inputs`` added to the base input."""
-        self.n_sim += 1
+        with self._lock:
+            self.n_sim += 1
+        return self._sim(values, inputs)
+
+    def sims(self, points: Sequence[tuple[Mapping[str, float], Mapping[str, np.ndarray] | None]]) -> list[np.ndarray]:
+        """:meth:`sim` at each ``(values, inputs)`` of ``points``, in their order (on the workers' threads when given)."""
+        with self._lock:
+            self.n_sim += len(points)
+        return list(self.map(lambda point: self._sim(*point), points))
+
+    def map(self, fn: Any, items: Sequence[Any]) -> list[Any]:
+        """``fn`` on each of ``items``, in their order, on the workers' threads when given."""
+        return list((self.workers or map)(fn, items))
+
+    def _sim(self, values: Mapping[str, float], inputs: Mapping[str, np.ndarray] | None) -> np.ndarray:
         total = dict(self.base)
         for e, d in (inputs or {}).items():
             total[e] = total[e] + d if e in total else d
@@ -289,13 +310,13 @@ class _Responses:
 
     def calibrated_columns(self) -> tuple[np.ndarray, list[tuple[str, float, float]]]:
         """Columns of the calibrated parameters (per unit-box step) and their (name, u0, step)."""
-        cols, info = [], []
+        points, info = [], []
         h = self.plant.diff_step
         for p in free_parameters(self.plant, self.record):
             u, step = difference_step(p, self.values.get(p.name, p.nominal), h)
-            yp = self.sim({**self.values, p.name: float(p.value(u + step))}, None)
-            cols.append((yp - self.y0) / step)
+            points.append(({**self.values, p.name: float(p.value(u + step))}, None))
             info.append((p.name, u, step))
+        cols = [(yp - self.y0) / step for yp, (_, _, step) in zip(self.sims(points), info, strict=True)]
         n = self.y0.size
         return (np.column_stack(cols) if cols else np.zeros((n, 0))), info
 
@@ -320,7 +341,9 @@ class _Responses:
 
         begin = {**self.values, **(start or {})}
         u0 = np.array([p.unit_coord(begin.get(p.name, p.nominal)) for p in free])
-        res = solve_unit_box(residual, u0, self.plant.diff_step, [p.name for p in free], max_nfev=REFIT_NFEV)
+        res = solve_unit_box(
+            residual, u0, self.plant.diff_step, [p.name for p in free], max_nfev=REFIT_NFEV, workers=self.workers
+        )
         return float(res.fun @ res.fun), values(res.x)
 
     def probe_scale(self, entry: str, shape: np.ndarray) -> float:
@@ -346,8 +369,8 @@ class _Responses:
     def columns(self, entry: str, basis: np.ndarray) -> np.ndarray:
         """Whitened responses to each basis column at ``entry``, per unit coefficient (probed at :meth:`probe_scale`)."""
         a = self.probe_scale(entry, basis.sum(axis=1))
-        cols = [(self.sim(self.values, {entry: a * basis[:, j]}) - self.y0) / a for j in range(basis.shape[1])]
-        return np.column_stack(cols)
+        moved = self.sims([(self.values, {entry: a * basis[:, j]}) for j in range(basis.shape[1])])
+        return np.column_stack([(y - self.y0) / a for y in moved])
 
 
 def _penalised_fit(
@@ -413,7 +436,11 @@ def _describe(sig: LocusSignal, knots: np.ndarray | None, coef: np.ndarray, unit
 
 
 def estimate_plant_locus(
-    plant: Plant, record: Any, values: Mapping[str, float], levels: Mapping[str, NoiseLevel] | None = None
+    plant: Plant,
+    record: Any,
+    values: Mapping[str, float],
+    levels: Mapping[str, NoiseLevel] | None = None,
+    workers: MapLike | None = None,
 ) -> PlantLocusReport:
     """The locus and missing term of the gap left by the model at ``values`` on ``record`` (module docstring).
 
@@ -426,6 +453,9 @@ def estimate_plant_locus(
         read is the one it leaves.
     levels : mapping of str to NoiseLevel, optional
         The plant's noise per channel (default :meth:`~engine.plants.base.Plant.noise`).
+    workers : map-like, optional
+        Runs the independent simulations (the responses' columns, the refits' Jacobians) on threads
+        (:func:`engine.diagnosis.plant_gap.simulation_pool`); the same result as without.
 
     Raises
     ------
@@ -436,7 +466,7 @@ def estimate_plant_locus(
     if not signals:
         raise ValueError(f"plant {plant.name!r} declares no locus signals")
     levels = dict(levels or plant.noise(record))
-    resp = _Responses(plant, record, values, levels)
+    resp = _Responses(plant, record, values, levels, workers=workers)
     r = resp.residual()
     taus = [levels[c].tau for c in resp.channels]
     tau = float(np.mean(taus))
@@ -451,22 +481,29 @@ def estimate_plant_locus(
         if sig.entry not in plant.entries:
             raise ValueError(f"locus signal {sig.signal!r} enters by unknown entry {sig.entry!r}")
         per_signal.append(_Basis(sig, *signal_basis(sig, window)))
-    columns = {i: resp.columns(b.sig.entry, b.basis) for i, b in enumerate(per_signal)}
+    # every signal's columns, every locus's fit and the refinements are independent: each stage's
+    # items run on the workers (their own simulations then one after another on each thread)
+    columns = dict(enumerate(resp.map(lambda b: resp.columns(b.sig.entry, b.basis), per_signal)))
 
     loci = list(dict.fromkeys(sig.locus for sig in signals))
-    fits: dict[str, _GroupFit] = {}
+    groups: list[list[int]] = []
     for locus in loci:
         members = [i for i, b in enumerate(per_signal) if b.sig.locus == locus]
         # the locus's signals together, and each alone (one signal's input may leave the linear range
         # where another's holds): the locus scores its best simulated fit
-        variants = [members] + ([[i] for i in members] if len(members) > 1 else [])
-        for group in variants:
-            fitted = _fit_group(resp, per_signal, columns, group, cal, tau, n_eff, chi2_0)
-            if locus not in fits or fitted.score.bic < fits[locus].score.bic:
-                fits[locus] = fitted
+        groups += [members] + ([[i] for i in members] if len(members) > 1 else [])
+    fits: dict[str, _GroupFit] = {}
+    for fitted in resp.map(lambda g: _fit_group(resp, per_signal, columns, g, cal, tau, n_eff, chi2_0), groups):
+        locus = fitted.score.locus
+        if locus not in fits or fitted.score.bic < fits[locus].score.bic:
+            fits[locus] = fitted
     n_sim = resp.n_sim
-    for locus in sorted(fits, key=lambda k: fits[k].score.bic)[:REFINE_LOCI]:
-        fits[locus], n = _refine(plant, record, levels, per_signal, fits[locus], tau, n_eff, chi2_0)
+    best_loci = sorted(fits, key=lambda k: fits[k].score.bic)[:REFINE_LOCI]
+    refined = resp.map(
+        lambda k: _refine(plant, record, levels, per_signal, fits[k], tau, n_eff, chi2_0, workers), best_loci
+    )
+    for locus, (fitted, n) in zip(best_loci, refined, strict=True):
+        fits[locus] = fitted
         n_sim += n
     scores = {k: f.score for k, f in fits.items()}
 
@@ -612,12 +649,13 @@ def _refine(
     tau: float,
     n_eff: float,
     chi2_0: float,
+    workers: MapLike | None = None,
 ) -> tuple[_GroupFit, int]:
     """Gauss-Newton steps re-linearised around a locus's fitted term (module docstring, step 4), each
     kept only if its simulated fit improves; returns the fit and the simulations run."""
     n_sim = 0
     for _ in range(REFINE_ITERATIONS):
-        resp = _Responses(plant, record, fit.values, levels, base=fit.inputs)
+        resp = _Responses(plant, record, fit.values, levels, base=fit.inputs, workers=workers)
         cal = resp.calibrated_columns()
         cols = {i: resp.columns(per_signal[i].sig.entry, per_signal[i].basis) for i in fit.group}
         new = _fit_group(resp, per_signal, cols, fit.group, cal, tau, n_eff, chi2_0, fit.score.dof, fit)

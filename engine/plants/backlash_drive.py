@@ -76,6 +76,8 @@ class BacklashDrivePlant:
     #: estimate (:mod:`engine.diagnosis.locus`): none through the interface.
     entries: Mapping[str, str] = MappingProxyType({})
     diff_step: float = DIFF_STEP
+    #: The drive's simulator parallelises its own batches (numba's threads): none on the diagnosis's threads.
+    concurrent: bool = False
 
     def __init__(self, solver: SolverSettings | None = None) -> None:
         self.solver = solver or SolverSettings()

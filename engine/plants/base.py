@@ -240,6 +240,12 @@ class Plant(Protocol):
         Step of the diagnosis' finite differences, as a share of each parameter's search interval:
         the smallest step at which the plant's simulated channels change smoothly (a simulation
         with stick-slip friction is rough on fine scales; a smooth one wants a fine step).
+    concurrent : bool
+        Whether :meth:`simulate` may run on several threads at once and spends its time with the GIL
+        released (a ``nogil`` kernel, no shared mutable state): the diagnosis then runs its
+        independent simulations (finite-difference columns, scans, the locus's responses) on a pool of
+        threads (:func:`engine.diagnosis.plant_gap.simulation_pool`). False for a plant whose
+        simulation parallelises itself (the backlash drive's batched kernel) or holds the GIL.
     """
 
     name: str
@@ -251,6 +257,7 @@ class Plant(Protocol):
     sealed: Mapping[str, CandidateEffect]
     entries: Mapping[str, str]
     diff_step: float
+    concurrent: bool
 
     def measured(self, record: Any) -> dict[str, np.ndarray]:
         """The record's measured channels, ``name -> samples`` in channel order and unit."""

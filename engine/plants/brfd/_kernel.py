@@ -49,7 +49,7 @@ P_KAPPA2 = 14
 N_PARAMS = 15
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def transmitted_force(x: np.ndarray, dt: float, p: np.ndarray, out: np.ndarray, contact: np.ndarray) -> int:
     """Fill ``out`` [N] and ``contact`` (1 in contact, 0 in the play) for displacement ``x`` [m]; 0 on success.
 
@@ -166,7 +166,7 @@ def transmitted_force(x: np.ndarray, dt: float, p: np.ndarray, out: np.ndarray, 
     return 0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def reversals(x: np.ndarray, rev_tol: float) -> np.ndarray:
     """Indices of the reversals of ``x``: the running extremes from which x then retreats by more than ``rev_tol``."""
     out = np.empty(x.shape[0], dtype=np.int64)

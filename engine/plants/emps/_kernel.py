@@ -127,7 +127,7 @@ def _rhs(
     out[3] = f_s / m2 if k > 0.0 else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def simulate_loop(p: np.ndarray, qg: np.ndarray, pulse: np.ndarray, f_ext: np.ndarray) -> np.ndarray:
     """Closed-loop response on the record's grid.
 

@@ -330,6 +330,8 @@ class EmpsPlant:
     sealed: Mapping[str, CandidateEffect] = MappingProxyType(SEALED)
     entries: Mapping[str, str] = MappingProxyType(ENTRIES)
     diff_step: float = DIFF_STEP
+    #: The kernel (:func:`~engine.plants.emps._kernel.simulate_loop`) releases the GIL: simulations run on threads.
+    concurrent: bool = True
 
     def __init__(self, n_substeps: int = N_SUBSTEPS, fixed: Mapping[str, float] | None = None) -> None:
         self.n_substeps = n_substeps
