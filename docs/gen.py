@@ -1050,6 +1050,35 @@ def render_plant_diagnosis_cost(page: Page) -> str:
     )
 
 
+def render_plant_locus_reliability(page: Page) -> str:
+    """Whether the plants' stated locus confidence is a probability, per family, over the open-world runs."""
+    from engine.validation.reliability import TARGET_MIN_N, reliability_table, table_markdown
+
+    runs = _locus_runs()
+    if not runs:
+        return "(no run committed yet)"
+    out: list[str] = []
+    for family in ("held-back", "sealed"):
+        cases = [
+            c
+            for _, f, report in runs
+            if f == family
+            for c in _strong_held_back(report)
+            if c["locus"] is not None and c.get("locus_confidence") is not None
+        ]
+        t = reliability_table(
+            [float(c["locus_confidence"]) for c in cases], [c["locus"] == c["true_locus"] for c in cases]
+        )
+        out += table_markdown(f"{family} family, strong cases answered with a locus", t.to_dict(), TARGET_MIN_N)
+    note = (
+        "Right: the answer's locus is the part the effect acts at. The stated confidence is the locus's "
+        "dispersion-scaled BIC weight (capped at 0.5 for a first guess); groups of at least "
+        f"{TARGET_MIN_N} cases are judged against issue 50's 10 points. Brier score with a bootstrap 95 % "
+        "interval, rates with Wilson's."
+    )
+    return "\n".join(out) + "\n" + note + sources(page, [p for p, _, _ in runs])
+
+
 def render_plant_locus_effects(page: Page) -> str:
     """Per effect outside the catalogue: how its strong cases were answered, over the open-world runs."""
     runs = _locus_runs()
@@ -1529,6 +1558,7 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "plant-locus-summary": render_plant_locus_summary,
     "plant-locus-real": render_plant_locus_real,
     "plant-locus-effects": render_plant_locus_effects,
+    "plant-locus-reliability": render_plant_locus_reliability,
     "plant-diagnosis-cost": render_plant_diagnosis_cost,
     "test-run-times": render_test_run_times,
     "slow-suite-times": render_slow_suite_times,

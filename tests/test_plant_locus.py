@@ -45,6 +45,18 @@ def test_a_held_back_effect_is_unexplained_at_its_own_locus(brfd, effect: str, v
     json.dumps(answer)  # the answer is JSON as it stands
 
 
+def test_an_effect_the_calibration_absorbs_to_a_weak_gap_still_gets_its_locus(brfd) -> None:  # type: ignore[no-untyped-def]
+    """A friction fade: the refitted friction level takes most of it, the misfit left is a few noise
+    RMS (``weak_gap``, nothing attributed), and the answer says where it acts, as the drive's weak gaps do."""
+    plant, record = brfd
+    report = diagnose_plant(plant, plant.synthesize(record, {**TRUTH, "friction_fade": 0.25}, np.random.default_rng(7)))
+    answer = report.to_dict(plant)
+    assert answer["status"] == "weak_gap", answer["verdict"]
+    assert answer["verdict"]["effects"] == []
+    assert answer["verdict"]["locus"] == plant.held_back["friction_fade"].locus
+    assert answer["locus"] is not None and answer["verdict"]["locus_confidence"] is not None
+
+
 def test_a_catalogue_effect_is_still_named_and_a_clean_record_runs_no_locus(brfd) -> None:  # type: ignore[no-untyped-def]
     plant, record = brfd
     rng = np.random.default_rng(6)

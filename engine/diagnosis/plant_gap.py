@@ -299,8 +299,9 @@ class PlantGapReport:
         The residuals against the plant's noise (None: not computed, the share rule alone decides).
     locus : PlantLocusReport or None
         Where the gap the answer's model leaves lies and what the missing term looks like
-        (:mod:`engine.diagnosis.plant_locus`), for a gap the catalogue does not take to the noise;
-        None when not estimated (no gap, a fit to the noise, a plant with no locus signals).
+        (:mod:`engine.diagnosis.plant_locus`), for a gap the catalogue does not take to the noise
+        and for a weak gap (the locus of the weak misfit the calibrated model leaves); None when not
+        estimated (no gap, a fit to the noise, a plant with no locus signals).
     """
 
     plant: str
@@ -1042,7 +1043,11 @@ def _diagnose(
     locus: PlantLocusReport | None = None
     reason: str | None = None
     stand_in_test: dict[str, float | str | None] = {}
-    if refit and plant.entries and gate.status == "gap" and not NoiseGate.fits(gate.after, gate.limits):
+    # the open world: a gap the answer's model leaves beyond the noise, and a weak gap too (its locus,
+    # as the backlash drive's weak gaps carry one: an effect the calibration absorbs down to a weak
+    # misfit still says where it acts)
+    misfit = gate.status == "weak_gap" or (gate.status == "gap" and not NoiseGate.fits(gate.after, gate.limits))
+    if refit and plant.entries and misfit:
         locus, stand_in, stand_in_test = open_world(plant, record, calibration, named, gate, obj)
         if stand_in is not None:
             set_aside, named, reason = named, None, stand_in

@@ -62,6 +62,7 @@ __all__ = [
     "reliability_section",
     "reliability_table",
     "run_outcomes",
+    "table_markdown",
 ]
 
 #: Edges of the groups of stated confidence: [0, 0.5), [0.5, 0.7), [0.7, 0.8), [0.8, 0.9),
@@ -687,7 +688,8 @@ def _pct(x: float | None) -> str:
     return "" if x is None else f"{100 * x:.1f}"
 
 
-def _table_markdown(title: str, t: Mapping[str, Any], min_n: int) -> list[str]:
+def table_markdown(title: str, t: Mapping[str, Any], min_n: int = TARGET_MIN_N) -> list[str]:
+    """One reliability table (:meth:`ReliabilityTable.to_dict`) as Markdown lines under a bold ``title``."""
     acc, brier = t["accuracy"], t["brier"]
     met = t["target_met"]
     verdict = "no group large enough" if met is None else "met" if met else "**not met**"
@@ -727,12 +729,12 @@ def reliability_markdown(section: Mapping[str, Any]) -> list[str]:
         f"bootstrap 95 % interval. Target (issue 50): observed within {100 * tol:g} points of stated in every "
         f"group of >= {min_n} cases.",
         "",
-        *_table_markdown("Every verdict", section["verdict"], min_n),
+        *table_markdown("Every verdict", section["verdict"], min_n),
     ]
     for status, t in section["by_status"].items():
-        lines += _table_markdown(f"Verdicts {status}", t, min_n)
+        lines += table_markdown(f"Verdicts {status}", t, min_n)
     if section.get("locus") is not None:
-        lines += _table_markdown(
+        lines += table_markdown(
             "Locus of unexplained and weak-gap verdicts (right: an effect of the record acts there)",
             section["locus"],
             min_n,

@@ -198,8 +198,9 @@ class BrfdPlant:
     entries: Mapping[str, str] = MappingProxyType(ENTRIES)
     diff_step: float = DIFF_STEP
     #: The kernel releases the GIL, but a simulation of a shipped record takes 0.1-1.3 ms and its Python
-    #: share is the larger one: on threads the diagnosis ran 0.96-1.57x as long as on one
-    #: (``bench/bench_plant_diagnosis.py``, 2026-11-29), so its simulations run one after another.
+    #: share is the larger one: on threads its diagnoses ran 0.96-1.57x as long as on one, no gain beyond
+    #: the 0.95-1.21x spread of two runs of the same code (``bench/bench_plant_diagnosis.py``,
+    #: 2026-11-29), so its simulations run one after another.
     concurrent: bool = False
 
     @property
