@@ -10,7 +10,11 @@ Found with it (2026-11-29, seeds 121-122, DATA_EMPS_PULSES' first 12 s): the pla
 effects stop short of their basin. An actuator delay of 3.5-3.8 ms was answered ``unexplained`` with no
 effect named (chi2/n 7e7-7e8 on the position); a command limit of 7.5 V was named at 7.558 V
 (``explained``, chi2/n 2.4e7 left), 7.9 V not at all, 8.3 V at 8.85 V. The stand-in rule played no part
-in these: the catalogue's own fit is what fails (seed 33's three set-asides were such unconverged fits).
+in these: the catalogue's own fit is what fails (seed 33's three set-asides were such fits). Continuing
+the 7.5 V case's joint fit from where it stopped (four more least-squares runs) moved nothing: a local
+minimum with M 106.8 kg and Fv 231 N s/m against the truth's 101.3 and 190, not a fit cut short by its
+evaluation cap. What it needs is a global start for a strong effect's fit (the backlash drive's
+escalated search), which the plants' path does not have.
 """
 
 from __future__ import annotations
