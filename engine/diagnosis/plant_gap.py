@@ -706,7 +706,7 @@ def absorbed_effects(plant: Plant, calibration: Fit, objective: PlantObjective) 
         u, step = difference_step(q, e.neutral, h)
         points.append({**base, name: float(q.value(u + step))})
     moved = objective.vectors(points)  # the calibration's columns and every effect's step, on the workers
-    J = np.column_stack([(r - r0) / step for r, step in zip(moved, steps, strict=False)])
+    J = np.column_stack([(r - r0) / step for r, step in zip(moved[: len(free)], steps, strict=True)])
     Q, _ = np.linalg.qr(J)
     out = {}
     for (name, _), r in zip(tested, moved[len(free) :], strict=True):

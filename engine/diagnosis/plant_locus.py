@@ -54,7 +54,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -294,7 +294,7 @@ class _Responses:
             self.n_sim += len(points)
         return list(self.map(lambda point: self._sim(*point), points))
 
-    def map(self, fn: Any, items: Sequence[Any]) -> list[Any]:
+    def map(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
         """``fn`` on each of ``items``, in their order, on the workers' threads when given."""
         return list((self.workers or map)(fn, items))
 

@@ -14,7 +14,10 @@ in these: the catalogue's own fit is what fails (seed 33's three set-asides were
 the 7.5 V case's joint fit from where it stopped (four more least-squares runs) moved nothing: a local
 minimum with M 106.8 kg and Fv 231 N s/m against the truth's 101.3 and 190, not a fit cut short by its
 evaluation cap. What it needs is a global start for a strong effect's fit (the backlash drive's
-escalated search), which the plants' path does not have.
+escalated search), which the plants' path does not have. A start at the nominal calibration with the
+true 7.5 V does not move at all (the solver stops where it starts, cost 1.235, position chi2/n 7e8),
+and a start at the truth stays at the noise: the basin is narrow on this record, where a limited
+command in the PD loop with the pulses added after it makes the trajectory very sensitive.
 """
 
 from __future__ import annotations
