@@ -68,30 +68,62 @@ def _sign(x: float) -> float:
     return 0.0
 
 
+#: The motor-side force law's parameters as a tuple of scalars (:func:`_forces`), read once per
+#: simulation: the right-hand side then keeps them in registers instead of reading the parameter
+#: vector at every stage (1.7-2x the kernel's speed, the same operations in the same order).
+ForceParameters = tuple[
+    float, float, float, float, float, float, float, float, float, float, float, float, float, float, float, float
+]
+
+
 @njit(cache=True)
-def _motor_force(p: np.ndarray, q1: float, v1: float) -> float:
+def _forces(p: np.ndarray) -> ForceParameters:
+    """Fc, dFc, Fv, dFv, Fs, v_s, A_pos, p_pos, c_q, A_rip, k_c, F_d, q_d, w_d, offset, d_offset of ``p``."""
+    return (
+        p[P_FC],
+        p[P_DFC],
+        p[P_FV],
+        p[P_DFV],
+        p[P_FS],
+        p[P_VS],
+        p[P_A_POS],
+        p[P_PERIOD_POS],
+        p[P_QUAD_DRAG],
+        p[P_RIPPLE],
+        p[P_CABLE_K],
+        p[P_CONTAM_F],
+        p[P_CONTAM_Q],
+        p[P_CONTAM_W],
+        p[P_OFFSET],
+        p[P_D_OFFSET],
+    )
+
+
+@njit(cache=True, inline="always")
+def _motor_force(c: ForceParameters, q1: float, v1: float) -> float:
     """Friction, position-dependent forces and offset on the motor side [N], counted opposing the drive.
 
     F_f(v) + F_pos(q) + F_h(q, v) + offset + d_offset of the module docstring and the sealed
-    contamination's term of F_z: a positive value pushes the motor backward (it is subtracted from
-    the drive's force ``g_tau v``). The screw's load friction, which needs the drive's force, is
-    added in :func:`_rhs`.
+    contamination's term of F_z, with ``c`` from :func:`_forces`: a positive value pushes the motor
+    backward (it is subtracted from the drive's force ``g_tau v``). The screw's load friction, which
+    needs the drive's force, is added in :func:`_rhs`.
     """
+    fc, dfc, fv, dfv, fs, vs, a_pos, period, quad, ripple, cable, cf, cq, cw, offset, d_offset = c
     s = _sign(v1)
-    f = (p[P_FC] + p[P_DFC] * s) * s + (p[P_FV] + p[P_DFV] * s) * v1
-    if p[P_FS] != 0.0:
-        f += p[P_FS] * math.exp(-((v1 / p[P_VS]) ** 2)) * s
-    if p[P_A_POS] != 0.0:
-        f += p[P_A_POS] * math.sin(2.0 * math.pi * q1 / p[P_PERIOD_POS]) * s
-    if p[P_QUAD_DRAG] != 0.0:
-        f += p[P_QUAD_DRAG] * v1 * abs(v1)
-    if p[P_RIPPLE] != 0.0:
-        f += p[P_RIPPLE] * math.sin(2.0 * math.pi * q1 / p[P_PERIOD_POS])
-    if p[P_CABLE_K] != 0.0:
-        f += p[P_CABLE_K] * q1
-    if p[P_CONTAM_F] != 0.0:
-        f += p[P_CONTAM_F] * math.exp(-(((q1 - p[P_CONTAM_Q]) / p[P_CONTAM_W]) ** 2)) * s
-    return f + p[P_OFFSET] + p[P_D_OFFSET]
+    f = (fc + dfc * s) * s + (fv + dfv * s) * v1
+    if fs != 0.0:
+        f += fs * math.exp(-((v1 / vs) ** 2)) * s
+    if a_pos != 0.0:
+        f += a_pos * math.sin(2.0 * math.pi * q1 / period) * s
+    if quad != 0.0:
+        f += quad * v1 * abs(v1)
+    if ripple != 0.0:
+        f += ripple * math.sin(2.0 * math.pi * q1 / period)
+    if cable != 0.0:
+        f += cable * q1
+    if cf != 0.0:
+        f += cf * math.exp(-(((q1 - cq) / cw) ** 2)) * s
+    return f + offset + d_offset
 
 
 @njit(cache=True)
@@ -101,30 +133,30 @@ def _dead_band(v: float, v0: float) -> float:
     return _sign(v) * a if a > 0.0 else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _rhs(
-    p: np.ndarray,
-    x: np.ndarray,
+    c: ForceParameters,
+    mu: float,
+    q1: float,
+    v1: float,
+    q2: float,
+    v2: float,
     force: float,
     drive: float,
     m1: float,
     m2: float,
     k: float,
     d: float,
-    out: np.ndarray,
-) -> None:
-    """Right-hand side: ``force`` the total force on the motor side [N], ``drive`` its drive's part F_drive."""
-    q1, v1, q2, v2 = x[0], x[1], x[2], x[3]
+) -> tuple[float, float, float, float]:
+    """Right-hand side at the state (q1, v1, q2, v2): ``force`` the total force on the motor side [N],
+    ``drive`` its drive's part F_drive, ``mu`` the screw's load friction; returns the four derivatives."""
     f_s = 0.0
     if k > 0.0:
         f_s = k * (q1 - q2) + d * (v1 - v2)
-    f_m = _motor_force(p, q1, v1)
-    if p[P_SCREW_MU] != 0.0:
-        f_m += p[P_SCREW_MU] * abs(drive) * _sign(v1)
-    out[0] = v1
-    out[1] = (force - f_m - f_s) / m1
-    out[2] = v2
-    out[3] = f_s / m2 if k > 0.0 else 0.0
+    f_m = _motor_force(c, q1, v1)
+    if mu != 0.0:
+        f_m += mu * abs(drive) * _sign(v1)
+    return v1, (force - f_m - f_s) / m1, v2, (f_s / m2 if k > 0.0 else 0.0)
 
 
 @njit(cache=True, nogil=True)
@@ -171,6 +203,8 @@ def simulate_loop(p: np.ndarray, qg: np.ndarray, pulse: np.ndarray, f_ext: np.nd
     v0 = p[P_DEAD_BAND]
     eps_a = p[P_GAIN_ASYM]
     has_ext = f_ext.size > 0
+    c = _forces(p)
+    mu = p[P_SCREW_MU]
     if has_ext and f_ext.size != n:
         raise ValueError("EMPS kernel: the force input needs one value per sample")
     # extra actuator delay in sub-steps: whole part and fraction (the force over a sub-step is the
@@ -178,19 +212,14 @@ def simulate_loop(p: np.ndarray, qg: np.ndarray, pulse: np.ndarray, f_ext: np.nd
     delay_sub = max(p[P_DELAY], 0.0) / h
     delay_steps = int(delay_sub)  # floor: delay_sub >= 0
     delay_frac = delay_sub - delay_steps
-    x = np.zeros(4)
-    k1 = np.zeros(4)
-    k2 = np.zeros(4)
-    k3 = np.zeros(4)
-    k4 = np.zeros(4)
-    tmp = np.zeros(4)
+    x0 = x1 = x2 = x3 = 0.0  # q1, v1, q2, v2
     v_applied = np.zeros(n)  # drive command per sample interval [V] (after unit delay, saturation, pulse)
     q_prev = 0.0
     qf_prev = 0.0
     u_prev = 0.0
     vsat = p[P_V_SAT]
     for i in range(n):
-        q = x[0]
+        q = x0
         qf = 0.5 * q + 0.5 * q_prev
         dqf = (qf - qf_prev) / ts if i > 0 else 0.0
         u_cmd = p[P_KV] * (p[P_KP] * (qg[i] - q) - dqf)
@@ -214,25 +243,46 @@ def simulate_loop(p: np.ndarray, qg: np.ndarray, pulse: np.ndarray, f_ext: np.nd
             force = drive
             if has_ext:
                 force += f_ext[i]
+            # RK4 on the state held in scalars (the same operations, in the same order, as on arrays)
+            a0, a1, a2, a3 = _rhs(c, mu, x0, x1, x2, x3, force, drive, m1, m2, k, d)
             if j == 0:
-                _rhs(p, x, force, drive, m1, m2, k, d, k1)
-                out[i, 0] = x[0]
-                out[i, 1] = x[1]
-                out[i, 2] = k1[1]
+                out[i, 0] = x0
+                out[i, 1] = x1
+                out[i, 2] = a1
                 out[i, 3] = v
-            else:
-                _rhs(p, x, force, drive, m1, m2, k, d, k1)
-            for m in range(4):
-                tmp[m] = x[m] + 0.5 * h * k1[m]
-            _rhs(p, tmp, force, drive, m1, m2, k, d, k2)
-            for m in range(4):
-                tmp[m] = x[m] + 0.5 * h * k2[m]
-            _rhs(p, tmp, force, drive, m1, m2, k, d, k3)
-            for m in range(4):
-                tmp[m] = x[m] + h * k3[m]
-            _rhs(p, tmp, force, drive, m1, m2, k, d, k4)
-            for m in range(4):
-                x[m] += h * (k1[m] + 2.0 * k2[m] + 2.0 * k3[m] + k4[m]) / 6.0
-            if not np.isfinite(x[0]) or not np.isfinite(x[1]):
+            b0, b1, b2, b3 = _rhs(
+                c,
+                mu,
+                x0 + 0.5 * h * a0,
+                x1 + 0.5 * h * a1,
+                x2 + 0.5 * h * a2,
+                x3 + 0.5 * h * a3,
+                force,
+                drive,
+                m1,
+                m2,
+                k,
+                d,
+            )
+            e0, e1, e2, e3 = _rhs(
+                c,
+                mu,
+                x0 + 0.5 * h * b0,
+                x1 + 0.5 * h * b1,
+                x2 + 0.5 * h * b2,
+                x3 + 0.5 * h * b3,
+                force,
+                drive,
+                m1,
+                m2,
+                k,
+                d,
+            )
+            g0, g1, g2, g3 = _rhs(c, mu, x0 + h * e0, x1 + h * e1, x2 + h * e2, x3 + h * e3, force, drive, m1, m2, k, d)
+            x0 += h * (a0 + 2.0 * b0 + 2.0 * e0 + g0) / 6.0
+            x1 += h * (a1 + 2.0 * b1 + 2.0 * e1 + g1) / 6.0
+            x2 += h * (a2 + 2.0 * b2 + 2.0 * e2 + g2) / 6.0
+            x3 += h * (a3 + 2.0 * b3 + 2.0 * e3 + g3) / 6.0
+            if not np.isfinite(x0) or not np.isfinite(x1):
                 raise FloatingPointError("EMPS integration diverged")
     return out
