@@ -1016,42 +1016,80 @@ def render_plant_locus_real(page: Page) -> str:
 
 
 def render_plant_diagnosis_cost(page: Page) -> str:
-    """A plant's diagnosis on threads against one thread (``bench/bench_plant_diagnosis.py``, issue 54)."""
-    path = "docs/real-data/runs/plant-cost.json"
+    """A plant's diagnosis on threads against one thread (``bench/bench_plant_diagnosis.py``, issue 54), per run."""
+    paths = [
+        p
+        for p in ("docs/real-data/runs/plant-cost.json", "docs/real-data/runs/plant-cost-5873047.json")
+        if (ROOT / p).exists()
+    ]
+    if not paths:
+        return "(not run yet)"
+    parts = []
+    for path in paths:
+        data = read_json(path)
+        rows = [
+            [
+                f"{r['plant']} {r['record']}",
+                f"{1e3 * r['sim_s']:.1f}",
+                f"{r['baseline_seconds']:.1f} ({r['baseline_sims']:.0f})",
+                f"{r['threads_seconds']:.1f} ({r['threads_sims']:.0f})",
+                f"{r['ratio']:.2f}x",
+                str(r["baseline_n_eval"]),
+                "yes" if r["identical"] else "**no**",
+            ]
+            for r in data["rows"]
+        ]
+        head = [
+            "record",
+            "one simulation [ms]",
+            "one thread: s (sims)",
+            f"{data['rows'][0]['jobs']} threads: s (sims)" if data["rows"] else "threads: s (sims)",
+            "threads / one",
+            "simulations",
+            "same answer",
+        ]
+        code = (data.get("code") or {}).get("describe") or "-"
+        lines = "".join(f"\n- {line}" for line in data.get("summary", []))
+        plants = " ".join(dict.fromkeys(r["plant"] for r in data["rows"]))
+        parts.append(
+            f"**Code {code}**\n\n"
+            + table(head, rows)
+            + f"\n{lines}\n\nOne diagnosis at a time, the two settings alternating record by record; "
+            f"`NUMBA_NUM_THREADS=2 .venv/bin/python bench/bench_plant_diagnosis.py --plants {plants} --json {path}`."
+        )
+    return "\n\n".join(parts) + sources(page, paths)
+
+
+def render_emps_kernel(page: Page) -> str:
+    """The EMPS kernel against an earlier commit's (``bench/bench_emps_kernel.py``, issue 54)."""
+    path = "docs/real-data/runs/emps-kernel.json"
     if not (ROOT / path).exists():
         return "(not run yet)"
     data = read_json(path)
     rows = [
         [
-            f"{r['plant']} {r['record']}",
-            f"{1e3 * r['sim_s']:.1f}",
-            f"{r['baseline_seconds']:.1f} ({r['baseline_sims']:.0f})",
-            f"{r['threads_seconds']:.1f} ({r['threads_sims']:.0f})",
+            r["record"],
+            str(r["samples"]),
+            f"{r['identical']}/{r['draws']}",
+            f"{1e3 * r['baseline_s']:.1f}",
+            f"{1e3 * r['current_s']:.1f}",
             f"{r['ratio']:.2f}x",
-            str(r["baseline_n_eval"]),
-            "yes" if r["identical"] else "**no**",
         ]
         for r in data["rows"]
     ]
     head = [
         "record",
-        "one simulation [ms]",
-        "one thread: s (sims)",
-        f"{data['rows'][0]['jobs']} threads: s (sims)" if data["rows"] else "threads: s (sims)",
-        "threads / one",
-        "simulations",
-        "same answer",
+        "samples",
+        "draws bit for bit",
+        f"one simulation, {data['baseline']} [ms]",
+        "current [ms]",
+        "current / baseline",
     ]
     code = (data.get("code") or {}).get("describe") or "-"
-    lines = "".join(f"\n- {line}" for line in data.get("summary", []))
     return (
         table(head, rows)
-        + f"\n{lines}\n\nCode {code}; one diagnosis at a time, the two settings alternating record by record; "
-        "`NUMBA_NUM_THREADS=2 .venv/bin/python bench/bench_plant_diagnosis.py --plants "
-        + " ".join(dict.fromkeys(r["plant"] for r in data["rows"]))
-        + " --json "
-        + path
-        + "`."
+        + f"\n\nCode {code}, one core; `NUMBA_NUM_THREADS=1 .venv/bin/python bench/bench_emps_kernel.py "
+        + f"--baseline {data['baseline']} --json {path}`."
         + sources(page, [path])
     )
 
@@ -1573,6 +1611,7 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "plant-locus-real": render_plant_locus_real,
     "plant-locus-effects": render_plant_locus_effects,
     "plant-locus-reliability": render_plant_locus_reliability,
+    "emps-kernel": render_emps_kernel,
     "plant-diagnosis-cost": render_plant_diagnosis_cost,
     "test-run-times": render_test_run_times,
     "slow-suite-times": render_slow_suite_times,
