@@ -133,23 +133,19 @@ def _dead_band(v: float, v0: float) -> float:
     return _sign(v) * a if a > 0.0 else 0.0
 
 
+#: The state (q1, v1, q2, v2) [m, m/s, m, m/s], or its derivatives.
+State = tuple[float, float, float, float]
+#: What a sub-step holds fixed: the total force on the motor side and its drive's part F_drive [N],
+#: the two masses m1, m2 [kg], the transmission's stiffness k [N/m] and damping d [N s/m].
+SubStep = tuple[float, float, float, float, float, float]
+
+
 @njit(cache=True, inline="always")
-def _rhs(
-    c: ForceParameters,
-    mu: float,
-    q1: float,
-    v1: float,
-    q2: float,
-    v2: float,
-    force: float,
-    drive: float,
-    m1: float,
-    m2: float,
-    k: float,
-    d: float,
-) -> tuple[float, float, float, float]:
-    """Right-hand side at the state (q1, v1, q2, v2): ``force`` the total force on the motor side [N],
-    ``drive`` its drive's part F_drive, ``mu`` the screw's load friction; returns the four derivatives."""
+def _rhs(c: ForceParameters, mu: float, x: State, sub: SubStep) -> State:
+    """Right-hand side at the state ``x``, with ``sub`` the sub-step's forces and masses and ``mu`` the
+    screw's load friction; returns the four derivatives."""
+    q1, v1, q2, v2 = x
+    force, drive, m1, m2, k, d = sub
     f_s = 0.0
     if k > 0.0:
         f_s = k * (q1 - q2) + d * (v1 - v2)
@@ -157,6 +153,13 @@ def _rhs(
     if mu != 0.0:
         f_m += mu * abs(drive) * _sign(v1)
     return v1, (force - f_m - f_s) / m1, v2, (f_s / m2 if k > 0.0 else 0.0)
+
+
+@njit(cache=True, inline="always")
+def _stage(c: ForceParameters, mu: float, x: State, dx: State, step: float, sub: SubStep) -> State:
+    """:func:`_rhs` at ``x + step * dx``, an RK4 stage (``step`` = ``0.5 * h`` gives what
+    ``x + 0.5 * h * dx`` computes, to the last bit)."""
+    return _rhs(c, mu, (x[0] + step * dx[0], x[1] + step * dx[1], x[2] + step * dx[2], x[3] + step * dx[3]), sub)
 
 
 @njit(cache=True, nogil=True)
@@ -244,41 +247,17 @@ def simulate_loop(p: np.ndarray, qg: np.ndarray, pulse: np.ndarray, f_ext: np.nd
             if has_ext:
                 force += f_ext[i]
             # RK4 on the state held in scalars (the same operations, in the same order, as on arrays)
-            a0, a1, a2, a3 = _rhs(c, mu, x0, x1, x2, x3, force, drive, m1, m2, k, d)
+            x = (x0, x1, x2, x3)
+            sub = (force, drive, m1, m2, k, d)
+            a0, a1, a2, a3 = _rhs(c, mu, x, sub)
             if j == 0:
                 out[i, 0] = x0
                 out[i, 1] = x1
                 out[i, 2] = a1
                 out[i, 3] = v
-            b0, b1, b2, b3 = _rhs(
-                c,
-                mu,
-                x0 + 0.5 * h * a0,
-                x1 + 0.5 * h * a1,
-                x2 + 0.5 * h * a2,
-                x3 + 0.5 * h * a3,
-                force,
-                drive,
-                m1,
-                m2,
-                k,
-                d,
-            )
-            e0, e1, e2, e3 = _rhs(
-                c,
-                mu,
-                x0 + 0.5 * h * b0,
-                x1 + 0.5 * h * b1,
-                x2 + 0.5 * h * b2,
-                x3 + 0.5 * h * b3,
-                force,
-                drive,
-                m1,
-                m2,
-                k,
-                d,
-            )
-            g0, g1, g2, g3 = _rhs(c, mu, x0 + h * e0, x1 + h * e1, x2 + h * e2, x3 + h * e3, force, drive, m1, m2, k, d)
+            b0, b1, b2, b3 = _stage(c, mu, x, (a0, a1, a2, a3), 0.5 * h, sub)
+            e0, e1, e2, e3 = _stage(c, mu, x, (b0, b1, b2, b3), 0.5 * h, sub)
+            g0, g1, g2, g3 = _stage(c, mu, x, (e0, e1, e2, e3), h, sub)
             x0 += h * (a0 + 2.0 * b0 + 2.0 * e0 + g0) / 6.0
             x1 += h * (a1 + 2.0 * b1 + 2.0 * e1 + g1) / 6.0
             x2 += h * (a2 + 2.0 * b2 + 2.0 * e2 + g2) / 6.0
