@@ -173,3 +173,13 @@ def test_thread_map_keeps_the_order_runs_nested_maps_in_place_and_raises():
 
         with pytest.raises(FloatingPointError, match="diverged"):
             workers(boom, range(5))
+
+
+def test_a_plant_diagnosis_refuses_fewer_than_one_thread():
+    from engine.diagnosis.plant_gap import simulation_pool
+    from engine.plants import get_plant
+
+    with pytest.raises(ValueError, match="jobs must be at least 1"), simulation_pool(get_plant("emps"), 0):
+        pass
+    with simulation_pool(get_plant("brfd"), 2) as workers:
+        assert workers is None  # a plant whose simulations stay on one thread

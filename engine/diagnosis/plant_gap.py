@@ -501,8 +501,15 @@ def simulation_pool(plant: Plant, jobs: int | None = None) -> Iterator[MapLike |
     ``jobs`` threads (default numba's thread count, as the backlash drive's candidate fits) when the
     plant is :attr:`~engine.plants.base.Plant.concurrent`; None (one after another) otherwise or for
     one job. The threads change no result: every evaluation is the same, in the same order.
+
+    Raises
+    ------
+    ValueError
+        For ``jobs`` below 1.
     """
     n = int(numba.get_num_threads()) if jobs is None else int(jobs)
+    if n < 1:
+        raise ValueError(f"jobs must be at least 1 (threads for the diagnosis's simulations), got {jobs}")
     with thread_map(n if plant.concurrent else 1, thread_name_prefix=f"{plant.name}-sim") as workers:
         yield workers
 
