@@ -21,7 +21,8 @@ from typing import Final
 #: version are never silently mixed with this one.
 #: 1.2 (docs/model-changes.md): the held-out family's seven terms, neutral by default.
 #: 1.3: the sealed family's seven terms, neutral by default.
-MODEL_VERSION: Final[str] = "1.3"
+#: 1.4: the second sealed family's seven terms (SEALED2), neutral by default.
+MODEL_VERSION: Final[str] = "1.4"
 
 # --- base quantities -------------------------------------------------------
 #: Rated supply frequency [Hz], the electrical base (MODEL.md section 1.1).
@@ -118,6 +119,21 @@ W_STRIBECK: Final[float] = 0.005
 #: DOP853 at rtol 1e-10, and the kernel on a 1 us grid agree), rounded. At x = X_REF the spring is
 #: stiffer by the factor 1 + v.
 X_REF: Final[float] = 0.01
+
+# --- model 1.4 extensions (docs/model-changes.md) ----------------------------
+# Constants of the second sealed family's terms (engine.simulation.sealed2).
+#: Film scale of the squeeze film in the clutch's gap [rad] (sealed2 effect
+#: ``clutch_squeeze_film``: the torque ``v (H_SQUEEZE / (H_SQUEEZE + h))^3 dw`` at the gap
+#: h = max(b - |d|, 0) to the zone's edge): a tenth of the nominal zone's half-width (K 5 mm / r,
+#: 0.05 rad), 0.5 mm of the gap at the wheel's radius. The cube is Reynolds' squeeze film between
+#: two flat faces (a damping that grows as 1 / h^3), kept finite at the edge by the film scale.
+H_SQUEEZE: Final[float] = 0.005
+#: Position of the bump on the load's track [rad of theta_3] (sealed2 effect ``load_track_bump``):
+#: 10 mm of travel of the mass at the wheel's radius (0.1 m) from where the test starts. The mass
+#: of the nominal plant passes it about 35 ms after the event (theta_3 reaches 0.25 rad).
+THETA_BUMP: Final[float] = 0.1
+#: Half-width of the bump [rad of theta_3] (sealed2 effect ``load_track_bump``): 2 mm of travel.
+W_BUMP: Final[float] = 0.02
 
 # --- test protocol (MODEL.md section 2) ------------------------------------
 #: Sample interval Ts [s].

@@ -107,6 +107,13 @@ def test_defaults_are_model_md_constants():
         "prog12": 0.0,
         "tau_dry2": 0.0,
         "b_3": 0.0,
+        # model 1.4 extensions (the second sealed family), neutral by default
+        "u_dc": 0.0,
+        "r_m": 0.0,
+        "mu_1": 0.0,
+        "sq12": 0.0,
+        "play2": 0.0,
+        "bump3": 0.0,
         # the per-unit base values (issue 52: parameters, MODEL.md's by default)
         "w_b": const.W_B,
         "pole_pairs": const.POLE_PAIRS,

@@ -1,15 +1,18 @@
-"""The model versions' families of effects, checked alike (docs/model-changes.md, versions 1.1 to 1.3).
+"""The model versions' families of effects, checked alike (docs/model-changes.md, versions 1.1 to 1.4).
 
 Each version from 1.1 on added a family of effects outside the catalogue, each effect a new term of
 the kernel: 1.1 the held-back family HELD_BACK (and the additive unknown input), 1.2 the held-out
-family HELD_OUT, 1.3 the sealed family SEALED. The checks they share run here from one table,
+family HELD_OUT, 1.3 the sealed family SEALED, 1.4 the second sealed family SEALED2. The checks they
+share run here from one table,
 :data:`VERSIONS`; a case id names the version and the effect (``1.3-supply_flicker``), or the version
 and the family (``1.2-held_out``) where the check is of a family. What one version alone has stays in
 its module: the unknown input of 1.1 in ``tests/test_simulation_model_1_1.py``, the terms of 1.3 that
 have a physics of their own (the leakages, the progressive contact, the cross-talk's a1, the
-visibility table) in ``tests/test_simulation_model_1_3.py``.
+visibility table) in ``tests/test_simulation_model_1_3.py``, and those of 1.4 (the DC offset, the
+core losses, the squeeze film's zone, the hub's play, the bump, the speed's sample-and-hold) in
+``tests/test_simulation_model_1_4.py``.
 
-Simulation only. HELD_OUT and SEALED are kept for scoring: nothing here diagnoses, calibrates,
+Simulation only. HELD_OUT, SEALED and SEALED2 are kept for scoring: nothing here diagnoses, calibrates,
 locates or validates a record of their effects (the case generator is run without its absorption
 rule, which refits).
 
@@ -19,7 +22,7 @@ rule, which refits).
   model 1.0 bit for bit;
 * the kernel agrees with the independent scipy reference (engine.simulation.reference) for every
   effect at its upper bound, for an unknown input at every locus (1.1) and in the combinations where
-  two terms meet (1.2, 1.3): MODEL.md section 4's spec, plus a regression guard at about twice the
+  two terms meet (1.2 to 1.4): MODEL.md section 4's spec, plus a regression guard at about twice the
   worst error measured;
 * from 1.2 on, at half its upper bound every effect is visible at 40 dB on the nominal plant, keeps
   the event across the plausible box at its upper bound, and has a slot of its own in the kernel's
@@ -43,6 +46,10 @@ cases, in % of peak-to-peak:
   (leakage_reactance 0.02); combinations 0.0339 % (a1, the leakages with saturation 0.5: the
   kernel's step, 0.0060 % at 10 us), |dt_e| 2.0e-8 s (every sealed effect at once). Guards as for
   model 1.1 and 1.2: 0.04 % and 5e-8 s.
+* 1.4: effects at their upper bound 0.0257 % (a1, supply_dc_offset 0.01: the kernel's step, 0.0057 %
+  at 10 us), |dt_e| 1.3e-8 s (supply_dc_offset 0.01); combinations and inputs 0.0100 % (a1, the core
+  losses with the switch-off decay), |dt_e| 4.2e-9 s (the core losses with saturation and leakages).
+  Guards as for model 1.1 to 1.3: 0.04 % and 5e-8 s.
 """
 
 from __future__ import annotations
@@ -66,6 +73,7 @@ from engine.simulation import (
     HELD_OUT,
     LOCI,
     SEALED,
+    SEALED2,
     Case,
     Disturbance,
     ParameterError,
@@ -77,6 +85,7 @@ from engine.simulation import (
     held_out,
     noise_std,
     sealed,
+    sealed2,
     simulate,
     simulate_batch,
 )
@@ -86,6 +95,7 @@ from engine.simulation.families import FAMILIES, locus_of
 from engine.simulation.reference import (
     HELD_BACK_NEUTRAL,
     HELD_OUT_NEUTRAL,
+    SEALED2_NEUTRAL,
     SEALED_NEUTRAL,
     reference_inputs,
     reference_simulate,
@@ -147,8 +157,21 @@ V1_3 = Version(
     SEALED_NEUTRAL,
     (_PLAIN, _COGGING, _EVERY_HELD_OUT),
 )
+_EVERY_SEALED = (
+    "on every sealed effect at half its bound",
+    SEALED.apply(Case(NOMINAL), {n: 0.5 * e.bounds[1] for n, e in SEALED.items()}),
+)
+V1_4 = Version(
+    "1.4",
+    "sealed2",
+    SEALED2,
+    (CATALOGUE, HELD_BACK, HELD_OUT, SEALED),
+    "1.3",
+    SEALED2_NEUTRAL,
+    (_PLAIN, _COGGING, _EVERY_HELD_OUT, _EVERY_SEALED),
+)
 #: Every version with a family of its own, oldest first; a new version adds its row here.
-VERSIONS = (V1_1, V1_2, V1_3)
+VERSIONS = (V1_1, V1_2, V1_3, V1_4)
 
 
 def _families(*versions: Version) -> list[Any]:
@@ -207,6 +230,46 @@ COMBINATIONS: dict[str, dict[str, dict[str, float]]] = {
         "crosstalk-lowpass-and-gain": {"accelerometer_crosstalk": 0.1, "sensor_lowpass": 1000.0, "sensor_gain": 1.2},
         "every-sealed-effect": {n: e.bounds[1] for n, e in SEALED.items()},
     },
+    "1.4": {
+        "core-loss-saturation-and-leakages": {
+            "core_loss_resistance": 0.1,
+            "magnetic_saturation": 0.5,
+            "leakage_reactance": 0.02,
+        },
+        "core-loss-and-switch-off-decay": {"core_loss_resistance": 0.1, "switch_off_decay": 0.2},
+        "bearing-friction-progressive-contact-and-squeeze-film": {
+            "motor_bearing_load_friction": 0.02,
+            "clutch_progressive_contact": 1.0,
+            "clutch_squeeze_film": 2.0,
+        },
+        "squeeze-film-zone-offset-and-preload": {
+            "clutch_squeeze_film": 2.0,
+            "clutch_offset": -0.004,
+            "clutch_preload_spring": 0.02,
+        },
+        "hub-play-hardening-and-dry-friction": {
+            "resilient_hub_play": 0.005,
+            "resilient_hardening": 1.0,
+            "resilient_dry_friction": 0.05,
+        },
+        "bump-load-spring-and-drag": {
+            "load_track_bump": 0.05,
+            "load_position_spring": 0.5,
+            "load_quadratic_drag": 20.0,
+        },
+        "hold-lowpass-encoder-and-gain": {
+            "speed_sample_hold": 0.002,
+            "sensor_lowpass": 1000.0,
+            "speed_encoder_eccentricity": 0.2,
+            "sensor_gain": 1.2,
+        },
+        "hold-delay-and-late-trigger": {
+            "speed_sample_hold": 0.002,
+            "measurement_delay": 0.0005,
+            "trigger_offset": -0.002,
+        },
+        "every-sealed2-effect": {n: e.bounds[1] for n, e in SEALED2.items()},
+    },
 }
 _SUPPLY_INPUT = {"locus": "supply", "t0": 0.01, "dt": 0.01, "values": [0.04, -0.03, 0.05, 0.02, -0.05] * 4}
 #: Unknown inputs, with the effects on top of them: (effects, the input's schedule) by case name.
@@ -225,6 +288,22 @@ INPUTS: dict[str, dict[str, tuple[dict[str, float] | None, dict[str, Any]]]] = {
             {"supply_flicker": SEALED["supply_flicker"].bounds[1], "supply_unbalance": 0.1},
             _SUPPLY_INPUT,
         )
+    },
+    # the DC offset beside a supply input, the flicker and the unbalance (which scale the AC part only);
+    # the squeeze film's gap follows a clutch input
+    "1.4": {
+        "dc-offset-flicker-unbalance-and-supply-input": (
+            {
+                "supply_dc_offset": SEALED2["supply_dc_offset"].bounds[1],
+                "supply_flicker": 0.02,
+                "supply_unbalance": 0.1,
+            },
+            _SUPPLY_INPUT,
+        ),
+        "squeeze-film-and-clutch-input": (
+            {"clutch_squeeze_film": SEALED2["clutch_squeeze_film"].bounds[1]},
+            _schedule("clutch"),
+        ),
     },
 }
 
@@ -312,7 +391,7 @@ def test_every_effect_is_neutral_at_its_neutral_value_and_acts_otherwise(version
 def test_the_extended_path_with_every_term_zero_is_model_1_0_bit_for_bit(
     solver: SolverSettings, n: int, grid: SampleGrid | None
 ) -> None:
-    """Forcing P_EXTENDED on with every 1.1, 1.2 and 1.3 term zero changes no bit: each term is guarded.
+    """Forcing P_EXTENDED on with every 1.1 to 1.4 term zero changes no bit: each term is guarded.
 
     Not a check of one version: the kernel's path of every version at once. MODEL.md's grid at the
     default step (the check since 1.2), and a 25 us grid at a 10 us step (added with 1.3).
@@ -321,6 +400,7 @@ def test_the_extended_path_with_every_term_zero_is_model_1_0_bit_for_bit(
     P = np.stack([parameter_vector(c, solver) if grid is None else parameter_vector(c, solver, grid) for c in cases])
     assert np.all(P[:, kern.P_EXTENDED] == 0.0)
     assert np.all(P[:, kern.P_FLICKER : kern.P_XTALK2 + 1] == 0.0)
+    assert np.all(P[:, kern.P_U_DC : kern.P_HOLD1 + 1] == 0.0)
     forced = P.copy()
     forced[:, kern.P_EXTENDED] = 1.0
     runs = []
@@ -356,14 +436,33 @@ SLOTS: dict[str, dict[str, int]] = {
         "b_3": kern.P_B_3,
         "xtalk2": kern.P_XTALK2,
     },
+    "1.4": {
+        "u_dc": kern.P_U_DC,
+        "r_m": kern.P_R_M,
+        "mu_1": kern.P_MU1,
+        "sq12": kern.P_SQ12,
+        "play2": kern.P_PLAY2,
+        "bump3": kern.P_BUMP3,
+        "hold1": kern.P_HOLD1,
+    },
 }
-#: The slots of each version, appended after the previous version's: range(start, stop).
-SLOT_RANGES = {"1.2": (kern.P_T_SWITCH_OFF + 1, kern.P_ECC1 + 1), "1.3": (kern.P_ECC1 + 1, kern.P_XTALK2 + 1)}
+#: The slots of each version, appended after the previous version's: range(start, stop) (1.4's
+#: after the per-unit base values P_W_B and P_OMEGA_B, which came within 1.3).
+SLOT_RANGES = {
+    "1.2": (kern.P_T_SWITCH_OFF + 1, kern.P_ECC1 + 1),
+    "1.3": (kern.P_ECC1 + 1, kern.P_XTALK2 + 1),
+    "1.4": (kern.P_OMEGA_B + 1, kern.P_HOLD1 + 1),
+}
 #: The values without a slot: the leakages enter x_s and x_r (tests/test_simulation_model_1_3.py).
-NO_SLOT = {"1.2": set(), "1.3": {"x_leak"}}
+NO_SLOT = {"1.2": set(), "1.3": {"x_leak"}, "1.4": set()}
 
 
-@pytest.mark.parametrize("version", _families(V1_2, V1_3))
+def _family_slots(P: np.ndarray) -> int:
+    """How many of the slots of every family from 1.2 on hold a non-zero value."""
+    return int(sum(np.count_nonzero(P[start:stop]) for start, stop in SLOT_RANGES.values()))
+
+
+@pytest.mark.parametrize("version", _families(V1_2, V1_3, V1_4))
 def test_the_version_s_slots_are_appended_after_the_previous_version_s(version: Version) -> None:
     slots = SLOTS[version.version]
     assert sorted(slots.values()) == list(range(*SLOT_RANGES[version.version]))
@@ -374,7 +473,7 @@ def test_the_version_s_slots_are_appended_after_the_previous_version_s(version: 
     ("version", "name"),
     [
         pytest.param(v, n, id=f"{v.version}-{n}")
-        for v in (V1_2, V1_3)
+        for v in (V1_2, V1_3, V1_4)
         for n, e in v.family.items()
         if e.field not in NO_SLOT[v.version]
     ],
@@ -387,7 +486,7 @@ def test_each_value_switches_the_extended_path_on_in_its_own_slot(version: Versi
     P = parameter_vector(e.apply(Case(NOMINAL), value))
     assert P[kern.P_EXTENDED] == 1.0
     assert P[SLOTS[version.version][e.field]] == value
-    assert np.count_nonzero(P[kern.P_U_NEG : kern.P_XTALK2 + 1]) == 1
+    assert _family_slots(P) == 1
     assert P[kern.P_X_S] == plain[kern.P_X_S] and P[kern.P_X_R] == plain[kern.P_X_R]
 
 
@@ -401,12 +500,12 @@ def _half_bound_runs(version: Version) -> SimulationResult:
     return simulate_batch([base] + [e.apply(base, 0.5 * e.bounds[1]) for e in version.family.values()])
 
 
-@pytest.mark.parametrize(("version", "name"), _effects(V1_2, V1_3))
+@pytest.mark.parametrize(("version", "name"), _effects(V1_2, V1_3, V1_4))
 def test_half_the_upper_bound_is_visible_at_40_db_on_the_nominal_plant(version: Version, name: str) -> None:
-    """The bounds' rule (docs/model-changes.md, 1.2 and 1.3): > 3 noise RMS on two channels at half the bound.
+    """The bounds' rule (docs/model-changes.md, 1.2 to 1.4): > 3 noise RMS on two channels at half the bound.
 
-    The sensors' effects are in one channel by definition (the speed encoder's error in omega1, the
-    accelerometer's cross-talk in a2): one channel for them.
+    The sensors' effects are in one channel by definition (the speed encoder's error and the speed's
+    sample-and-hold in omega1, the accelerometer's cross-talk in a2): one channel for them.
     """
     e = version.family[name]
     res = _half_bound_runs(version)
@@ -417,7 +516,7 @@ def test_half_the_upper_bound_is_visible_at_40_db_on_the_nominal_plant(version: 
     assert np.sum(rms > 3.0) >= need, (name, dict(zip(CHANNELS, rms.round(1), strict=True)))
 
 
-@pytest.mark.parametrize(("version", "name"), _effects(V1_2, V1_3))
+@pytest.mark.parametrize(("version", "name"), _effects(V1_2, V1_3, V1_4))
 def test_every_effect_at_its_upper_bound_keeps_the_event_across_the_plausible_box(version: Version, name: str) -> None:
     """The nominal plant and the eight corners of the plausible box (K, J1, c)."""
     e = version.family[name]
@@ -450,6 +549,14 @@ def test_every_effect_at_its_upper_bound_keeps_the_event_across_the_plausible_bo
             Case(NOMINAL, SensorParameters(xtalk2=0.05)),
             id="1.3-accelerometer_crosstalk",
         ),
+        pytest.param(V1_4, "resilient_hub_play", 0.002, NOMINAL.replace(play2=0.002), id="1.4-resilient_hub_play"),
+        pytest.param(
+            V1_4,
+            "speed_sample_hold",
+            0.001,
+            Case(NOMINAL, SensorParameters(hold1=0.001)),
+            id="1.4-speed_sample_hold",
+        ),
     ],
 )
 def test_simulate_takes_an_effect_by_name_from_its_family(
@@ -469,6 +576,7 @@ def test_simulate_takes_an_effect_by_name_from_its_family(
     [
         pytest.param(V1_2, "speed_encoder_eccentricity", 0.2, "omega1", id="1.2-speed_encoder_eccentricity"),
         pytest.param(V1_3, "accelerometer_crosstalk", 0.1, "a2", id="1.3-accelerometer_crosstalk"),
+        pytest.param(V1_4, "speed_sample_hold", 0.002, "omega1", id="1.4-speed_sample_hold"),
     ],
 )
 def test_a_sensor_s_effect_is_in_its_channel_only(version: Version, name: str, value: float, channel: str) -> None:
@@ -489,10 +597,10 @@ def test_the_family_is_outside_the_catalogue_and_the_earlier_families(version: V
 
 
 def test_the_model_version_is_the_last_version_s() -> None:
-    assert MODEL_VERSION == VERSIONS[-1].version == "1.3"
+    assert MODEL_VERSION == VERSIONS[-1].version == "1.4"
 
 
-@pytest.mark.parametrize("version", _families(V1_2, V1_3))
+@pytest.mark.parametrize("version", _families(V1_2, V1_3, V1_4))
 def test_the_family_has_one_new_term_per_locus_neutral_at_zero(version: Version) -> None:
     assert sorted(e.locus for e in version.family.values()) == sorted(LOCI)
     fields_before = {(e.target, e.field) for library in version.earlier for e in library.values()}
@@ -552,6 +660,23 @@ def test_reference_knows_every_effect_at_its_neutral_value(version: Version) -> 
             },
             id="1.3-sealed",
         ),
+        pytest.param(
+            V1_4,
+            Case(
+                NOMINAL.replace(u_dc=0.01, r_m=0.02, mu_1=0.03, sq12=0.04, play2=0.05, bump3=0.06),
+                SensorParameters(hold1=0.007),
+            ),
+            {
+                "supply_dc_offset": 0.01,
+                "core_loss_resistance": 0.02,
+                "motor_bearing_load_friction": 0.03,
+                "clutch_squeeze_film": 0.04,
+                "resilient_hub_play": 0.05,
+                "load_track_bump": 0.06,
+                "speed_sample_hold": 0.007,
+            },
+            id="1.4-sealed2",
+        ),
     ],
 )
 def test_the_reference_reads_every_effect_of_a_case(version: Version, case: Case, expected: dict[str, float]) -> None:
@@ -562,7 +687,11 @@ def test_the_reference_reads_every_effect_of_a_case(version: Version, case: Case
 
 @pytest.mark.parametrize(
     ("version", "module"),
-    [pytest.param(V1_2, held_out, id="1.2-held_out"), pytest.param(V1_3, sealed, id="1.3-sealed")],
+    [
+        pytest.param(V1_2, held_out, id="1.2-held_out"),
+        pytest.param(V1_3, sealed, id="1.3-sealed"),
+        pytest.param(V1_4, sealed2, id="1.4-sealed2"),
+    ],
 )
 def test_the_rule_is_stated_in_the_module_and_in_the_docs(version: Version, module: ModuleType) -> None:
     assert getattr(module, version.name.upper()) is version.family
@@ -570,7 +699,7 @@ def test_the_rule_is_stated_in_the_module_and_in_the_docs(version: Version, modu
     assert module.RULE in " ".join((DOCS / "model-changes.md").read_text().split())
 
 
-@pytest.mark.parametrize("version", _families(V1_2, V1_3))
+@pytest.mark.parametrize("version", _families(V1_2, V1_3, V1_4))
 def test_the_case_generator_draws_held_back_cases_from_the_family(version: Version) -> None:
     from engine.validation.cases import generate_cases
 
@@ -606,6 +735,14 @@ def test_the_case_generator_draws_held_back_cases_from_the_family(version: Versi
         pytest.param(PlantParameters, {"tau_dry2": -0.1}, "tau_dry2", id="1.3-resilient_dry_friction-negative"),
         pytest.param(PlantParameters, {"b_3": -1.0}, "b_3", id="1.3-load_quadratic_drag-negative"),
         pytest.param(SensorParameters, {"xtalk2": 1.5}, "xtalk2", id="1.3-accelerometer_crosstalk-too-large"),
+        pytest.param(PlantParameters, {"u_dc": -0.01}, "u_dc", id="1.4-supply_dc_offset-negative"),
+        pytest.param(PlantParameters, {"u_dc": 0.5}, "u_dc", id="1.4-supply_dc_offset-too-large"),
+        pytest.param(PlantParameters, {"r_m": -0.1}, "r_m", id="1.4-core_loss_resistance-negative"),
+        pytest.param(PlantParameters, {"mu_1": float("nan")}, "finite", id="1.4-motor_bearing_load_friction-nan"),
+        pytest.param(PlantParameters, {"sq12": -1.0}, "sq12", id="1.4-clutch_squeeze_film-negative"),
+        pytest.param(PlantParameters, {"play2": 0.5}, "play2", id="1.4-resilient_hub_play-too-large"),
+        pytest.param(PlantParameters, {"bump3": -0.1}, "bump3", id="1.4-load_track_bump-negative"),
+        pytest.param(SensorParameters, {"hold1": 0.05}, "hold1", id="1.4-speed_sample_hold-too-long"),
     ],
 )
 def test_an_absurd_value_is_refused_with_its_name(

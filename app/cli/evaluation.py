@@ -218,7 +218,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="protocol 2: the family of effects outside the catalogue that held-back cases draw from (default "
         f"{DEFAULT_FAMILY}: model 1.1's five, developed on; held_out: model 1.2's seven, kept for scoring, whose "
         "figures are out of sample; sealed: model 1.3's seven, kept for scoring, run only blind on committed code; "
-        "development: open to development). E.g. --held-back held_out --mix held_back=1",
+        "sealed2: model 1.4's seven, kept for scoring, run once, blind, on committed code; "
+        "development: open to development). E.g. --held-back sealed2 --mix held_back=1",
     )
     add_drive_option(p)  # protocol 2 only: the cases are drawn, simulated and diagnosed on the described drive
     p.set_defaults(func=cmd_validate)

@@ -16,6 +16,7 @@ from engine.simulation.parameters import (
     paper_grid,
 )
 from engine.simulation.sealed import SEALED
+from engine.simulation.sealed2 import SEALED2
 from engine.simulation.simulator import (
     SimulationError,
     SimulationResult,
@@ -32,6 +33,7 @@ __all__ = [
     "HELD_OUT",
     "LOCI",
     "SEALED",
+    "SEALED2",
     "Case",
     "Disturbance",
     "Effect",

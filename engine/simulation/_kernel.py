@@ -38,6 +38,14 @@ sensitivity to a1. (The seventh, higher leakage reactances, needs no term: the s
 ``P_X_S`` and ``P_X_R``.) With all of them zero the kernel performs model 1.2's floating-point
 operations.
 
+Model 1.4 adds seven more behind the same guard (the second sealed family,
+:data:`engine.simulation.sealed2.SEALED2`): a DC component of the supply voltage, the core losses as
+a resistance in the magnetising branch, bearing friction of the motor under the clutch's load, a
+squeeze film in the clutch's gap, play in the resilient element's hub, a bump on the load's track,
+and a sample-and-hold of omega1 (in :func:`simulate_one`: the speed at the last hold instant, from
+a copy of the state advanced to it, so the plant's own path and the other channels are untouched).
+With all of them zero the kernel performs model 1.3's floating-point operations.
+
 Every function but the entry points compiles without numba's reference-counting runtime
 (``_nrt=False``, a CPU target option of numba's, used where a function allocates nothing): with it,
 the parameter vector P was reference-counted at every call and every inlined call of a step, atomic
@@ -65,8 +73,11 @@ from engine.constants import (
     COGGING_ORDER,
     DISTURBANCE_MAX_KNOTS,
     F_FLICKER,
+    H_SQUEEZE,
     LOAD_RIPPLE_HZ,
     SWITCH_OFF_DECAY_TIME,
+    THETA_BUMP,
+    W_BUMP,
     W_SMOOTH,
     W_STRIBECK,
     X_REF,
@@ -125,7 +136,21 @@ P_XTALK2 = P_B_3 + 1
 # the reference plant's values multiply exactly as the constants did (same records bit for bit).
 P_W_B = P_XTALK2 + 1
 P_OMEGA_B = P_W_B + 1
-N_PARAMS = P_OMEGA_B + 1
+# model 1.4: parametric terms of the second sealed family (engine.simulation.sealed2), appended:
+# DC component of the supply [x u], core-loss resistance of the magnetising branch [pu], bearing
+# friction of the motor under the clutch's load [x], squeeze film in the clutch's gap
+# [pu torque / pu speed], play in the resilient element's hub [rad], bump on the load's track
+# [pu torque], sample-and-hold period of omega1 [s]
+P_U_DC = P_OMEGA_B + 1
+P_R_M = P_U_DC + 1
+P_MU1 = P_R_M + 1
+P_SQ12 = P_MU1 + 1
+P_PLAY2 = P_SQ12 + 1
+P_BUMP3 = P_PLAY2 + 1
+P_HOLD1 = P_BUMP3 + 1
+N_PARAMS = P_HOLD1 + 1
+#: sqrt(2 e): the bump's force v BUMP_NORM s exp(-s^2) peaks at v (at s = +-1/sqrt(2)).
+BUMP_NORM = math.sqrt(2.0 * math.e)
 
 # locus codes of the unknown input (P_DIST_LOCUS): what d(t) is and where it enters
 DIST_NONE = 0
@@ -161,9 +186,12 @@ def ring_size(P):
     trigger offset). Checkpoint j is taken at the start of the first step at or after
     j * CHECKPOINT_INTERVAL (steps are shorter than it), so ``span / CHECKPOINT_INTERVAL`` plus
     a margin of a few entries always holds one at or before the first instant. History older
-    than ``t_event_max`` is never needed: a first instant before switch-on starts from rest.
+    than ``t_event_max`` is never needed: a first instant before switch-on starts from rest. A
+    sample-and-hold of omega1 (model 1.4, ``P_HOLD1``) reaches one hold period further back.
     """
     span = P[P_EVENT_INDEX] * P[P_TS] + max(P[P_DELAY] + P[P_TRIGGER_OFFSET], 0.0)
+    if P[P_EXTENDED] != 0.0 and P[P_HOLD1] != 0.0:
+        span += P[P_HOLD1]
     span = min(span, P[P_T_MAX])
     return max(MIN_RING, math.ceil(span / CHECKPOINT_INTERVAL) + _RING_MARGIN)
 
@@ -258,6 +286,37 @@ def contact_push(d, dw, P, ext):
 
 
 @njit(cache=True, fastmath=False, **_NO_NRT)
+def sealed2_torques(y, d, dw, m_c, P):
+    """The mechanical torques of model 1.4's second sealed family at (y, d, dw) [pu], each 0 when its value is.
+
+    Returns ``m_sq``, the squeeze film in the clutch's gap h = max(b - |d|, 0) (from J1 to J2, beside
+    the contact torque ``m_c``, unclipped); ``m_play``, what the hub's play takes off the resilient
+    spring, k2 play2 tanh((theta_2 - theta_3) / play2) (from J2 to the mass); ``m_bearing``, the
+    motor's bearing friction mu_1 |m_c + m_sq| tanh(w_1 / W_SMOOTH) (against J1); and ``m_bump``, the
+    track bump's force on the mass. A function of its own, called only when one of them is on: with
+    these terms written into :func:`rhs`, the kernel ran 3-4 % slower with every term off (the code
+    generated for the right-hand side, not the skipped branches; the same with them inside its
+    ``if ext`` block).
+    """
+    b = P[P_B]
+    m_sq = 0.0
+    if P[P_SQ12] != 0.0:
+        g = H_SQUEEZE / (H_SQUEEZE + b - abs(d)) if abs(d) < b else 1.0
+        m_sq = P[P_SQ12] * g * g * g * dw
+    m_play = 0.0
+    if P[P_PLAY2] != 0.0:
+        m_play = P[P_K2] * P[P_PLAY2] * math.tanh((y[8] - y[9]) / P[P_PLAY2])
+    m_bearing = 0.0
+    if P[P_MU1] != 0.0:
+        m_bearing = P[P_MU1] * abs(m_c + m_sq) * smooth_sign(y[4])
+    m_bump = 0.0
+    if P[P_BUMP3] != 0.0:
+        sb = (y[9] - THETA_BUMP) / W_BUMP
+        m_bump = P[P_BUMP3] * BUMP_NORM * sb * math.exp(-(sb * sb))
+    return m_sq, m_play, m_bearing, m_bump
+
+
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def electromagnetic_torque(y, P):
     """m_el = psi_s_alpha i_s_beta - psi_s_beta i_s_alpha [pu] of the fluxes in y (model 1.2: saturated x_m)."""
     xs = P[P_X_S]
@@ -336,10 +395,19 @@ def rhs(t, y, P, motor_on):
         if ext and P[P_U_NEG] != 0.0:  # negative sequence: u (e^{j ang} + u_neg e^{-j ang})
             usa += P[P_U_NEG] * u * math.cos(ang)
             usb -= P[P_U_NEG] * u * math.sin(ang)
+        if ext and P[P_U_DC] != 0.0:  # a DC component of the supply in the alpha axis (phase a)
+            usa += P[P_U_DC] * P[P_U]
         dpsa = P[P_W_B] * (usa - P[P_R_S] * isa)
         dpsb = P[P_W_B] * (usb - P[P_R_S] * isb)
         dpra = P[P_W_B] * (-P[P_R_R] * ira - w1 * prb)
         dprb = P[P_W_B] * (-P[P_R_R] * irb + w1 * pra)
+        if ext and P[P_R_M] != 0.0:  # core losses: r_m in the magnetising branch, on i_m = i_s + i_r
+            rma = P[P_W_B] * P[P_R_M] * (isa + ira)
+            rmb = P[P_W_B] * P[P_R_M] * (isb + irb)
+            dpsa -= rma
+            dpsb -= rmb
+            dpra -= rma
+            dprb -= rmb
         m_el = psa * isb - psb * isa
     else:
         dpsa = 0.0
@@ -393,6 +461,11 @@ def rhs(t, y, P, motor_on):
             m_1 -= P[P_TAU_S1] * smooth_sign(w1) * math.exp(-(s * s))
         if P[P_B_3] != 0.0:  # quadratic drag on the load against its motion
             m_3 -= P[P_B_3] * w3 * abs(w3)
+        if P[P_SQ12] != 0.0 or P[P_PLAY2] != 0.0 or P[P_MU1] != 0.0 or P[P_BUMP3] != 0.0:  # model 1.4
+            m_sq, m_play, m_bearing, m_bump = sealed2_torques(y, d, dw, m_c, P)
+            m_1 -= m_sq + m_bearing
+            m_2 += m_sq + m_play
+            m_3 += m_bump - m_play
         if locus == DIST_MOTOR_SHAFT:
             m_1 += dd
         elif locus == DIST_DRIVE_TRAIN:
@@ -603,6 +676,26 @@ def advance(t, y, t_end, P, motor_on):
 
 #: The plant at rest before switch-on: every state zero.
 _REST = (0.0,) * N_STATES
+#: Row of omega1 in a record (the channel a sample-and-hold acts on, model 1.4).
+_OMEGA1 = CHANNELS.index("omega1")
+
+
+@njit(cache=True, fastmath=False, **_NO_NRT)
+def state_at(t, y, motor_on, t_end, P):
+    """The state at t_end >= t [s] advanced from (t, y), the motor switched off at ``P[P_T_SWITCH_OFF]``.
+
+    For a sample-and-hold of omega1 (model 1.4): the caller advances a copy of its state, so its
+    own path (and every other channel) stays as without the hold. Returns the state, whether the
+    motor is on at t_end, and whether the state stayed finite.
+    """
+    ok = True
+    if motor_on and t_end >= P[P_T_SWITCH_OFF]:
+        y, ok = advance(t, y, P[P_T_SWITCH_OFF], P, True)
+        t = P[P_T_SWITCH_OFF]
+        motor_on = False
+    if ok:
+        y, ok = advance(t, y, t_end, P, motor_on)
+    return y, motor_on, ok
 
 
 @njit(cache=True, fastmath=False, **_NO_NRT)
@@ -620,7 +713,9 @@ def simulate_one(P, out):
 
     Sample k of the record is taken at ``t_e + (k - P[P_EVENT_INDEX]) * P[P_TS] - shift`` with
     ``shift = P[P_DELAY] + P[P_TRIGGER_OFFSET]`` [s] (a negative shift samples later than
-    nominal); an instant before switch-on (t < 0) reads the plant at rest (zeros).
+    nominal); an instant before switch-on (t < 0) reads the plant at rest (zeros). With a
+    sample-and-hold of omega1 (model 1.4, ``P_HOLD1`` = h > 0), sample k's omega1 is the value at
+    the hold instant ``h floor(t_k / h)`` at or before its instant t_k.
 
     Parameters
     ----------
@@ -694,12 +789,34 @@ def simulate_one(P, out):
     t = best_t
     motor_on = True
     lowpass = P[P_LOWPASS] > 0.0
+    hold = P[P_HOLD1] if P[P_EXTENDED] != 0.0 else 0.0
+    held_at = -1.0  # the hold instant of the held omega1 [s]
+    held = 0.0
     for k in range(out.shape[1]):
         tk = t_e + (k - e_idx) * ts - shift
         if tk < 0.0:
             for i in range(N_CHANNELS):
                 out[i, k] = 0.0
             continue
+        if hold > 0.0:  # sample-and-hold of omega1: its value at the last hold instant th <= tk
+            th = math.floor(tk / hold) * hold
+            if th != held_at:
+                held_at = th
+                if th >= t:  # from the path's state at the last sample (a new instant lies after it)
+                    yh, on_h, ok = state_at(t, y, motor_on, th, P)
+                else:  # the first sample's instant may lie before the path's start: a checkpoint
+                    best_h = -1
+                    best_th = -1.0
+                    for s in range(n_valid):
+                        if ring_t[s] <= th and ring_t[s] > best_th:
+                            best_h = s
+                            best_th = ring_t[s]
+                    if best_h < 0:
+                        return HISTORY_TOO_SHORT, math.nan
+                    yh, on_h, ok = state_at(best_th, _state_from_row(ring_y, best_h), True, th, P)
+                if not ok:
+                    return NON_FINITE, math.nan
+                held = yh[10 + _OMEGA1] if lowpass else rhs(th, yh, P, on_h)[1][_OMEGA1]
         if motor_on and tk >= t_e:
             y, ok = advance(t, y, t_e, P, True)
             if not ok:
@@ -713,6 +830,8 @@ def simulate_one(P, out):
         chv = rhs(tk, y, P, motor_on)[1]
         for i in range(N_CHANNELS):
             out[i, k] = y[10 + i] if lowpass else chv[i]
+        if hold > 0.0:
+            out[_OMEGA1, k] = held
     return OK, t_e
 
 

@@ -12,6 +12,9 @@ A protocol-2 run hides one family from the diagnosis and draws its held-back cas
 * ``sealed``: :data:`~engine.simulation.sealed.SEALED` (model 1.3), kept for scoring (its rule:
   :data:`~engine.simulation.sealed.RULE`); run only in blind runs of committed code, its figures
   are out-of-sample ones.
+* ``sealed2``: :data:`~engine.simulation.sealed2.SEALED2` (model 1.4), kept for scoring (its rule:
+  :data:`~engine.simulation.sealed2.RULE`); run once, blind, on committed code, its figures are
+  out-of-sample ones.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from engine.simulation.effects import CATALOGUE, EffectLibrary
 from engine.simulation.held_back import HELD_BACK
 from engine.simulation.held_out import HELD_OUT
 from engine.simulation.sealed import SEALED
+from engine.simulation.sealed2 import SEALED2
 
 __all__ = ["DEFAULT_FAMILY", "FAMILIES", "locus_of"]
 
@@ -30,6 +34,7 @@ FAMILIES: dict[str, EffectLibrary] = {
     "development": DEVELOPMENT,
     "held_out": HELD_OUT,
     "sealed": SEALED,
+    "sealed2": SEALED2,
 }
 #: The family a run hides unless told otherwise.
 DEFAULT_FAMILY: str = "held_back"

@@ -10,7 +10,9 @@ effects (``tau_ripple3``, ``clutch_offset``, ``tau_cog``, ``tau_C2``,
 (``u_neg``, ``sat``, ``b_2``, ``k_pre``, ``hard2``, ``k_3`` and the sensors'
 ``ecc1``); since model 1.3 the terms of the sealed effects (``u_flicker``,
 ``x_leak``, ``tau_S1``, ``prog12``, ``tau_dry2``, ``b_3`` and the sensors'
-``xtalk2``). The sensor chain (delay, trigger offset, low-pass, gain, offset,
+``xtalk2``); since model 1.4 the terms of the second sealed family (``u_dc``,
+``r_m``, ``mu_1``, ``sq12``, ``play2``, ``bump3`` and the sensors' ``hold1``).
+The sensor chain (delay, trigger offset, low-pass, gain, offset,
 quantisation) is also an extension with neutral defaults. See
 ``docs/model-changes.md``.
 """
@@ -253,6 +255,29 @@ class PlantParameters:
     b_3 : float
         Extension (1.3): quadratic drag on the load, b_3 * w_3 * abs(w_3) against its motion
         [pu torque / pu speed^2].
+    u_dc : float
+        Extension (1.4): a DC component of the supply voltage in the alpha axis (phase a) [x u]:
+        u_s + u_dc * u, u this plant's amplitude (a supply disturbance and the flicker do not scale
+        the DC part).
+    r_m : float
+        Extension (1.4): the core (iron) losses as a resistance in the magnetising branch, in series
+        with x_m [pu]: dpsi_s/dt and dpsi_r/dt each less w_b r_m (i_s + i_r); m_el unchanged.
+    mu_1 : float
+        Extension (1.4): bearing friction of the motor shaft under the load the clutch transmits [x]:
+        mu_1 * abs(m_c) * tanh(w_1 / W_SMOOTH) against the motor's motion (not in m_el).
+    sq12 : float
+        Extension (1.4): a squeeze film in the clutch's gap [pu torque / pu speed]: the clutch
+        transmits sq12 (H_SQUEEZE / (H_SQUEEZE + h))^3 (w_1 - w_2) besides its contact, h =
+        max(b - |d|, 0) the gap to the zone's edge, H_SQUEEZE = 0.005 rad: growing as the gap closes,
+        at its largest (sq12) in contact, and not clipped (the film also resists the parting).
+    play2 : float
+        Extension (1.4): play in the hub of the resilient element [rad]: its spring torque k2 x
+        becomes k2 (x - play2 tanh(x / play2)), x = theta_2 - theta_3 (a dead zone of half-width
+        play2, smoothed over play2; the damping unchanged).
+    bump3 : float
+        Extension (1.4): a bump on the load's track [pu torque, the largest force]: on the mass
+        bump3 sqrt(2 e) s exp(-s^2), s = (theta_3 - THETA_BUMP) / W_BUMP (a hill at THETA_BUMP = 0.1
+        rad of half-width W_BUMP = 0.02 rad: against the motion up to its crest, with it beyond).
     w_b : float
         Base value (issue 52): electrical base angular frequency w_b [rad/s], 2 pi times the rated
         supply frequency (MODEL.md: 2 pi 50).
@@ -302,6 +327,12 @@ class PlantParameters:
     prog12: float = 0.0
     tau_dry2: float = 0.0
     b_3: float = 0.0
+    u_dc: float = 0.0
+    r_m: float = 0.0
+    mu_1: float = 0.0
+    sq12: float = 0.0
+    play2: float = 0.0
+    bump3: float = 0.0
     w_b: float = const.W_B
     pole_pairs: int = const.POLE_PAIRS
     tm_per_j: float = TM_PER_J
@@ -365,6 +396,12 @@ class PlantParameters:
         _check_range("prog12", self.prog12, 0.0, 1000.0, "x")
         _check_range("tau_dry2", self.tau_dry2, 0.0, 100.0, "pu")
         _check_range("b_3", self.b_3, 0.0, 1000.0, "pu")
+        _check_range("u_dc", self.u_dc, 0.0, 0.2, "x u")
+        _check_range("r_m", self.r_m, 0.0, 1.0, "pu")
+        _check_range("mu_1", self.mu_1, 0.0, 1.0, "x")
+        _check_range("sq12", self.sq12, 0.0, 1000.0, "pu")
+        _check_range("play2", self.play2, 0.0, 0.1, "rad")
+        _check_range("bump3", self.bump3, 0.0, 100.0, "pu")
         for name in ("k12", "k2"):
             _check_range(name, getattr(self, name), 1e-3, 1e5, "pu/rad")
         for name in ("r_s", "r_r"):
@@ -413,10 +450,11 @@ class SensorParameters:
     Model 1.2 adds an error of the speed encoder before the chain: omega1 reads
     ``Omega_b w_1 (1 + ecc1 sin(theta_1))`` (once per revolution of the motor shaft). Model 1.3
     adds the cross-axis sensitivity of the load's accelerometer before the chain: a2 reads
-    ``a2 + xtalk2 a1``.
+    ``a2 + xtalk2 a1``. Model 1.4 adds a sample-and-hold of omega1 after the low-pass: sample k's
+    omega1 is the value at ``hold1 floor(t_k / hold1)``, t_k its instant since switch-on (step 1).
 
-    Steps 1-2 (and the encoder's and the accelerometer's errors) are in the kernel, 3-5 act on the
-    sampled values (:func:`engine.simulation.simulator.apply_sensor_readout`).
+    Steps 1-2 (and the encoder's and the accelerometer's errors and the hold) are in the kernel, 3-5
+    act on the sampled values (:func:`engine.simulation.simulator.apply_sensor_readout`).
 
     Parameters
     ----------
@@ -440,6 +478,11 @@ class SensorParameters:
     xtalk2 : float
         Extension (1.3): cross-axis sensitivity of the load's accelerometer [x], in [0, 1]: a2 reads
         a2 + xtalk2 a1 [m/s^2] (the analog values, before the low-pass, gain and offset); 0 means none.
+    hold1 : float
+        Extension (1.4): sample-and-hold period of omega1 [s], in [0, 0.01]: the speed is updated
+        every hold1 seconds from switch-on and held in between (a drive publishing its speed at a
+        slower cycle than the logger samples), read after the encoder's error and the low-pass and
+        before the gain, offset and quantisation; 0 means none.
     """
 
     delay: float = 0.0
@@ -450,6 +493,7 @@ class SensorParameters:
     offset_rms: float = 0.0
     ecc1: float = 0.0
     xtalk2: float = 0.0
+    hold1: float = 0.0
 
     def validate(self) -> SensorParameters:
         for f in fields(self):
@@ -465,6 +509,7 @@ class SensorParameters:
         _check_range("offset_rms", self.offset_rms, -1.0, 1.0, "x RMS")
         _check_range("ecc1", self.ecc1, 0.0, 0.5, "x")
         _check_range("xtalk2", self.xtalk2, 0.0, 1.0, "x")
+        _check_range("hold1", self.hold1, 0.0, 0.01, "s")
         return self
 
     def replace(self, **changes: Any) -> SensorParameters:

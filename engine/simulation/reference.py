@@ -2,7 +2,8 @@
 
 A second, independent transcription of MODEL.md, of the effect catalogue, of the
 held-back effects and of the additive unknown input of model 1.1, of the held-out
-effects of model 1.2 and of the sealed effects of model 1.3,
+effects of model 1.2, of the sealed effects of model 1.3 and of the second sealed family of
+model 1.4,
 used as the yardstick of the numba kernel (MODEL.md section 4, relative
 tolerance 1e-9; ``tests/test_simulation_accuracy.py``) and as the baseline of
 ``bench/bench_simulator.py``. It is slow on purpose: plain numpy, complex
@@ -53,6 +54,18 @@ penetration ``x = |d| - b`` beyond the zone's edge, with the sign of d; dry fric
 ``v tanh((w_2 - w_3) / W_SMOOTH)`` in the resilient element's torque; drag ``-v w_3 |w_3|`` on the
 load; and the load accelerometer's ``a2 + v a1`` before the sensor chain.
 
+Model 1.4 (``docs/model-changes.md``)
+-------------------------------------
+The second sealed family (:data:`engine.simulation.SEALED2`), written out here from its
+definitions: a DC voltage ``v u`` added to the real (alpha) part of u_s; the core losses as a
+resistance v in the magnetising branch, ``v (i_s + i_r)`` subtracted in both flux equations; the
+motor's bearing friction ``v |m_c| tanh(w_1 / W_SMOOTH)`` (m_c with the film); a squeeze film
+``v (H_SQUEEZE / (H_SQUEEZE + h))^3 (w_1 - w_2)`` added to the clutch's torque at every deflection,
+``h = max(b - |d|, 0)`` (not clipped, the factor 1 in contact); the resilient spring
+``k_2 (x - v tanh(x / v))``; the force ``v sqrt(2 e) s exp(-s^2)``, ``s = (theta_3 - THETA_BUMP) /
+W_BUMP``, on the mass; and omega1 read at ``v floor(t_k / v)`` instead of t_k (after the low-pass,
+before the gain), from the same dense solution.
+
 Sensor chain
 ------------
 Applied in the order of the measurement:
@@ -89,14 +102,17 @@ from engine.constants import (
     CHANNELS,
     COGGING_ORDER,
     F_FLICKER,
+    H_SQUEEZE,
     LOAD_RIPPLE_HZ,
     OMEGA_B,
     POST_EVENT_TIME,
     PRE_EVENT_TIME,
     SWITCH_OFF_DECAY_TIME,
     T_EVENT_MAX,
+    THETA_BUMP,
     TM_PER_J,
     W_B,
+    W_BUMP,
     W_SMOOTH,
     W_STRIBECK,
     X_REF,
@@ -189,6 +205,17 @@ SEALED_NEUTRAL: Mapping[str, float] = {
     "accelerometer_crosstalk": 0.0,  # a2 read as a2 + value a1
 }
 
+#: The second sealed family (model 1.4), at its "no effect" value.
+SEALED2_NEUTRAL: Mapping[str, float] = {
+    "supply_dc_offset": 0.0,  # x u: u_s + value u on the alpha axis
+    "core_loss_resistance": 0.0,  # pu: resistance in the magnetising branch, - value (i_s + i_r) in both loops
+    "motor_bearing_load_friction": 0.0,  # x: - value |m_c| tanh(w_1 / W_SMOOTH) on the motor shaft
+    "clutch_squeeze_film": 0.0,  # pu: + value (H / (H + max(b - |d|, 0)))^3 (w_1 - w_2) in m_c, unclipped
+    "resilient_hub_play": 0.0,  # rad: resilient spring k_2 (x - value tanh(x / value))
+    "load_track_bump": 0.0,  # pu: value sqrt(2 e) s exp(-s^2) on the mass, s = (theta_3 - THETA_BUMP) / W_BUMP
+    "speed_sample_hold": 0.0,  # s: omega1 read at value floor(t / value)
+}
+
 _N_PLANT = 10  # psi_s (2), psi_r (2), w_1..3, theta_1..3
 _N_CHANNELS = len(CHANNELS)
 _OMEGA1 = CHANNELS.index("omega1")
@@ -224,7 +251,7 @@ def _resolve(parameters: Mapping[str, float] | None, effects: Mapping[str, float
         if name not in MODEL_DEFAULTS:
             raise ValueError(f"unknown MODEL.md parameter {name!r}; known: {', '.join(MODEL_DEFAULTS)}")
         values[name] = float(value)
-    neutral_values = {**EFFECT_NEUTRAL, **HELD_BACK_NEUTRAL, **HELD_OUT_NEUTRAL, **SEALED_NEUTRAL}
+    neutral_values = {**EFFECT_NEUTRAL, **HELD_BACK_NEUTRAL, **HELD_OUT_NEUTRAL, **SEALED_NEUTRAL, **SEALED2_NEUTRAL}
     for name in effects or {}:
         if name not in neutral_values:
             raise ValueError(f"the reference does not implement effect {name!r}; known: {', '.join(neutral_values)}")
@@ -266,8 +293,8 @@ class ReferenceModel:
     ----------
     values : mapping
         Every MODEL.md name and every effect name of :data:`EFFECT_NEUTRAL`,
-        :data:`HELD_BACK_NEUTRAL`, :data:`HELD_OUT_NEUTRAL` and :data:`SEALED_NEUTRAL` (see
-        :func:`reference_simulate`).
+        :data:`HELD_BACK_NEUTRAL`, :data:`HELD_OUT_NEUTRAL`, :data:`SEALED_NEUTRAL` and
+        :data:`SEALED2_NEUTRAL` (see :func:`reference_simulate`).
     disturbance : mapping, optional
         The unknown input ``{"locus", "t0", "dt", "values"}``.
 
@@ -291,6 +318,9 @@ class ReferenceModel:
         self.flicker, self.stribeck = v["supply_flicker"], v["motor_stribeck"]
         self.progressive, self.dry_friction = v["clutch_progressive_contact"], v["resilient_dry_friction"]
         self.drag, self.crosstalk = v["load_quadratic_drag"], v["accelerometer_crosstalk"]
+        self.dc, self.core_loss = v["supply_dc_offset"], v["core_loss_resistance"]
+        self.bearing, self.squeeze = v["motor_bearing_load_friction"], v["clutch_squeeze_film"]
+        self.play, self.bump = v["resilient_hub_play"], v["load_track_bump"]
         leak = v["leakage_reactance"]  # both leakages x_s - x_m and x_r - x_m higher by it
         self.x_s, self.x_r, self.x_m = v["x_s"] + leak, v["x_r"] + leak, v["x_m"]
         self.switch_off = (math.inf, 0.0)
@@ -328,8 +358,10 @@ class ReferenceModel:
             amplitude = self.u * (1.0 + self.input.at("supply", t))
             amplitude *= 1.0 + self.flicker * math.sin(2.0 * math.pi * F_FLICKER * t)
             u_s = amplitude * (phase + self.unbalance * np.conj(phase))
-            dpsi[0] = W_B * (u_s - self.r_s * i_s)
-            dpsi[1] = W_B * (-self.r_r * i_r + 1j * w[0] * psi[1])
+            u_s += self.dc * self.u  # a DC voltage in phase a (the real axis)
+            loss = self.core_loss * (i_s + i_r)  # the magnetising current through the core-loss resistance
+            dpsi[0] = W_B * (u_s - self.r_s * i_s - loss)
+            dpsi[1] = W_B * (-self.r_r * i_r - loss + 1j * w[0] * psi[1])
             m_el = float(np.imag(np.conj(psi[0]) * i_s))
         elif self.decay != 0:
             t_e, m_e = self.switch_off
@@ -344,14 +376,22 @@ class ReferenceModel:
             m_c = min(0.0, -contact_spring + self.d12 * dw)
         else:
             m_c = 0.0
+        if self.squeeze:  # a squeeze film in the gap, neither clipped nor zoned
+            gap = max(b - abs(d), 0.0)  # the film's thickness, none in contact
+            m_c += self.squeeze * (H_SQUEEZE / (H_SQUEEZE + gap)) ** 3 * dw
         spring = self.k2 * (th[1] - th[2])
         m_s = spring * (1.0 + self.hardening * spring**2) + self.d2 * (w[1] - w[2])
         m_s += self.dry_friction * math.tanh((w[1] - w[2]) / W_SMOOTH)
+        if self.play:  # the hub's play: the spring k_2 (x - play tanh(x / play))
+            m_s -= self.k2 * self.play * math.tanh((th[1] - th[2]) / self.play)
         m_a = self.c * w[2] + self.c1 * np.tanh(w[2] / W_SMOOTH)
         m_f = self.coulomb * np.tanh(w[0] / W_SMOOTH) + self.viscous * w[0]
         m_f += self.cogging * math.sin(COGGING_ORDER * th[0])
         m_f += self.windage * w[0] * abs(w[0])
         m_f += self.stribeck * math.tanh(w[0] / W_SMOOTH) * math.exp(-((w[0] / W_STRIBECK) ** 2))
+        m_f += self.bearing * abs(m_c) * math.tanh(w[0] / W_SMOOTH)  # the bearings under the clutch's load
+        s_bump = (th[2] - THETA_BUMP) / W_BUMP  # where the mass is on the bump
+        bump = self.bump * math.sqrt(2.0 * math.e) * s_bump * math.exp(-(s_bump**2)) if self.bump else 0.0
         m_pre = self.preload * self.k12 * d  # the spring across the clutch, inside the zone too
         torques = np.array(
             [
@@ -366,6 +406,7 @@ class ReferenceModel:
                 + self.ripple * math.sin(2.0 * math.pi * LOAD_RIPPLE_HZ * t)
                 - self.load_spring * th[2] / (2.0 * math.pi)
                 - self.drag * w[2] * abs(w[2])
+                + bump
                 + self.input.at("load", t, motor_on),
             ]
         )
@@ -415,9 +456,9 @@ def reference_simulate(
         MODEL.md parameters that differ from :data:`MODEL_DEFAULTS`, by their
         MODEL.md names (e.g. ``{"K": 0.005, "J1": 0.87, "c": 1.0}``).
     effects : mapping, optional
-        Catalogued, held-back, held-out and sealed effects by name and value (keys of
-        :data:`EFFECT_NEUTRAL`, :data:`HELD_BACK_NEUTRAL`, :data:`HELD_OUT_NEUTRAL` and
-        :data:`SEALED_NEUTRAL`).
+        Catalogued, held-back, held-out and sealed effects (both sealed families) by name and
+        value (keys of :data:`EFFECT_NEUTRAL`, :data:`HELD_BACK_NEUTRAL`, :data:`HELD_OUT_NEUTRAL`,
+        :data:`SEALED_NEUTRAL` and :data:`SEALED2_NEUTRAL`).
     method, rtol, atol
         ``solve_ivp`` settings.
     grid : SampleGrid, optional
@@ -476,16 +517,22 @@ def reference_simulate(
     if not s3.success:
         raise RuntimeError(f"reference: solver failed after the event ({s3.message})")
     analog = np.zeros((_N_CHANNELS, n))
-    for k, t in enumerate(t_k):
+
+    def read(t: float) -> np.ndarray:
+        """The channels as the sensors read them at t [s since switch-on] (zeros before it)."""
         if t < 0:
-            continue  # before switch-on: the plant at rest
+            return np.zeros(_N_CHANNELS)  # before switch-on: the plant at rest
         if t < t_c:
-            y, on = s1.sol(t), True
-        elif t < t_e:
-            y, on = s2.sol(t), True
-        else:
-            y, on = s3.sol(t), False
-        analog[:, k] = model.channels(t, y, on)
+            return model.channels(t, s1.sol(t), True)
+        if t < t_e:
+            return model.channels(t, s2.sol(t), True)
+        return model.channels(t, s3.sol(t), False)
+
+    hold = values["speed_sample_hold"]
+    for k, t in enumerate(t_k):
+        analog[:, k] = read(t)
+        if hold > 0 and t >= 0:  # omega1 as last updated, at the hold instant at or before t
+            analog[_OMEGA1, k] = read(hold * math.floor(t / hold))[_OMEGA1]
     analog = analog * values["sensor_gain"]
     first = e - math.ceil(PRE_EVENT_TIME / ts - 1e-9)
     stop = e + math.ceil(POST_EVENT_TIME / ts - 1e-9)
@@ -549,6 +596,13 @@ def reference_inputs(case: Case) -> tuple[dict[str, float], dict[str, float]]:
         "resilient_dry_friction": p.tau_dry2,
         "load_quadratic_drag": p.b_3,
         "accelerometer_crosstalk": s.xtalk2,
+        "supply_dc_offset": p.u_dc,
+        "core_loss_resistance": p.r_m,
+        "motor_bearing_load_friction": p.mu_1,
+        "clutch_squeeze_film": p.sq12,
+        "resilient_hub_play": p.play2,
+        "load_track_bump": p.bump3,
+        "speed_sample_hold": s.hold1,
     }
     return parameters, effects
 

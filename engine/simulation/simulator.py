@@ -161,11 +161,12 @@ def parameter_vector(
     Parameters
     ----------
     case : Case
-        Plant (with its model-1.1, 1.2 and 1.3 terms and unknown input, if any) and measurement
-        chain; only the chain's delay, trigger offset, low-pass, (model 1.2) encoder eccentricity
-        and (model 1.3) accelerometer cross-talk enter the kernel (gain, offset and quantisation act
-        afterwards: :func:`apply_sensor_readout`). Model 1.3's higher leakage reactances
-        (``x_leak``) enter as ``x_s + x_leak`` and ``x_r + x_leak``, with no term of their own.
+        Plant (with its model-1.1, 1.2, 1.3 and 1.4 terms and unknown input, if any) and measurement
+        chain; only the chain's delay, trigger offset, low-pass, (model 1.2) encoder eccentricity,
+        (model 1.3) accelerometer cross-talk and (model 1.4) omega1's sample-and-hold enter the
+        kernel (gain, offset and quantisation act afterwards: :func:`apply_sensor_readout`). Model
+        1.3's higher leakage reactances (``x_leak``) enter as ``x_s + x_leak`` and ``x_r + x_leak``,
+        with no term of their own.
     solver : SolverSettings
         RK4 step [s] and the longest time to the event [s].
     grid : SampleGrid
@@ -208,11 +209,16 @@ def parameter_vector(
     P[kern.P_TAU_DRY2], P[kern.P_B_3], P[kern.P_XTALK2] = p.tau_dry2, p.b_3, s.xtalk2
     # base values of the per-unit system (after the zeroing above): the plant's (MODEL.md's by default)
     P[kern.P_W_B], P[kern.P_OMEGA_B] = p.w_b, p.omega_b
+    # model 1.4 (appended after the base values)
+    P[kern.P_U_DC], P[kern.P_R_M], P[kern.P_MU1] = p.u_dc, p.r_m, p.mu_1
+    P[kern.P_SQ12], P[kern.P_PLAY2], P[kern.P_BUMP3] = p.sq12, p.play2, p.bump3
+    P[kern.P_HOLD1] = s.hold1
     extended = (
         dist is not None
         or any(P[kern.P_TAU_RIPPLE3 : kern.P_M_OFF + 1] != 0.0)
         or any(P[kern.P_U_NEG : kern.P_XTALK2 + 1] != 0.0)
         or p.x_leak != 0.0  # no kernel term (folded into x_s, x_r above); switched on as every 1.3 term is
+        or any(P[kern.P_U_DC : kern.P_HOLD1 + 1] != 0.0)
     )
     P[kern.P_EXTENDED] = 1.0 if extended else 0.0
     return P
@@ -388,7 +394,8 @@ def simulate_batch(
         Where the names of ``effects`` are looked up: the catalogue by default;
         e.g. :data:`~engine.simulation.held_back.HELD_BACK` for the held-back effects,
         :data:`~engine.simulation.held_out.HELD_OUT` for the held-out ones (model 1.2),
-        :data:`~engine.simulation.sealed.SEALED` for the sealed ones (model 1.3).
+        :data:`~engine.simulation.sealed.SEALED` for the sealed ones (model 1.3),
+        :data:`~engine.simulation.sealed2.SEALED2` for the second sealed family (model 1.4).
 
     Returns
     -------
