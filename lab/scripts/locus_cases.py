@@ -41,6 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(name)s %(message)s", stream=sys.stderr)
 
     from engine.diagnosis.calibration import calibrate
+    from engine.diagnosis.confidence import locus_feature
     from engine.diagnosis.diagnose import DiagnosisSettings
     from engine.diagnosis.locus import LocusSettings, estimate_locus
     from engine.diagnosis.space import default_space
@@ -87,6 +88,8 @@ def main(argv: list[str] | None = None) -> int:
                 if k.startswith(("drift_", "coulomb_"))
             },
             "nominal_chi2n": round(nominal.reduced_chi2, 2),
+            # what the committed confidence map reads (engine.diagnosis.confidence.locus_feature)
+            "locus_feature": locus_feature(out),
             "seconds": round(time.perf_counter() - t0, 1),
             "locus_simulations": report.n_simulations,
         }

@@ -42,7 +42,11 @@ estimation around the calibrated trajectory, one locus at a time:
 5. **Sensors.** An arbitrary additive sensor error would explain any residual,
    so the measurement chain gets a parametric library instead: per-channel
    offset and gain, one delay and one first-order low-pass (their response
-   columns, unpenalised, linearised).
+   columns, unpenalised, linearised), and, taken sparsely, a cross-talk from
+   any channel into any other (channel i reads ``g_ij`` times channel j besides
+   its own signal): forward selection of at most two such columns, each taken
+   only when it lowers the residual by more than ``ln n + 2 ln p`` (p candidate
+   columns: the risk-inflation criterion, so noise alone picks none).
 6. **Evidence.** Posterior weights ``exp(-BIC / 2)``, with the BIC differences
    divided by the best fit's dispersion (chi2 per degree of freedom, at least
    1: a best fit far above the noise means the model is still wrong somewhere),

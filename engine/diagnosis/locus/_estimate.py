@@ -15,7 +15,7 @@ import numpy as np
 
 from engine.constants import CHANNELS
 from engine.diagnosis.calibration import CalibrationError, CalibrationResult
-from engine.diagnosis.locus._linear import linear_fit, orth, penalised_fit, project
+from engine.diagnosis.locus._linear import orth, penalised_fit, project, sparse_extension
 from engine.diagnosis.locus._refine import Estimate, refine
 from engine.diagnosis.locus._report import LocusError, LocusReport, LocusScore, LocusSettings
 from engine.diagnosis.locus._responses import N_EXTRAS, Observed, responses
@@ -120,7 +120,11 @@ def _estimate(
         x = np.nan_to_num(fit.x)
         coef = np.linalg.lstsq(free, r - hats @ x, rcond=None)[0]
         estimates[locus] = Estimate(x, coef[-N_EXTRAS:], coef[:-N_EXTRAS], fit, fit.rss, fit.bic, refined=False)
-    s_rss, s_bic, s_coef = linear_fit(project(Q, resp.sensors), rp, k)
+    # the measurement chain: its base library, and the cross-talk the data ask for (sparse)
+    s_rss, s_bic, s_coef, s_cross, s_cross_coef = sparse_extension(
+        project(Q, resp.sensors), project(Q, resp.crosstalk), rp, k
+    )
+    s_dof = float(resp.sensors.shape[1] + len(s_cross))
     bic_none = rr + k * ln_n
 
     # 2. a scan of a constant input per locus: a global start where a term is too strong to
@@ -152,9 +156,7 @@ def _estimate(
     bics[SENSORS] = s_bic
     leader = min(bics, key=lambda key: bics[key])
     lead_rss = estimates[leader].rss if leader in estimates else s_rss
-    lead_dof = (
-        estimates[leader].fit.dof + estimates[leader].n_extras if leader in estimates else float(resp.sensors.shape[1])
-    )
+    lead_dof = estimates[leader].fit.dof + estimates[leader].n_extras if leader in estimates else s_dof
     dispersion = max(1.0, lead_rss / max(n - lead_dof - k, 1.0))
     best_bic = min(min(bics.values()), bic_none)
     all_w = {key: math.exp(-0.5 * (b - best_bic) / dispersion) for key, b in {**bics, "none": bic_none}.items()}
@@ -163,7 +165,7 @@ def _estimate(
     for locus in (*DISTURBANCE_LOCI, SENSORS):
         b = bics[locus] if locus in bics else estimates[locus].bic
         rss = estimates[locus].rss if locus in estimates else s_rss
-        dof = estimates[locus].fit.dof if locus in estimates else float(resp.sensors.shape[1])
+        dof = estimates[locus].fit.dof if locus in estimates else s_dof
         scores[locus] = LocusScore(
             bic=b,
             delta_bic=b - min(bics.values()),
@@ -196,6 +198,7 @@ def _estimate(
     chi2_injected = math.nan
     if best == SENSORS:
         values = dict(zip(resp.sensor_names, (float(v) for v in s_coef), strict=True))
+        values |= {resp.crosstalk_names[j]: float(v) for j, v in zip(s_cross, s_cross_coef, strict=True)}
         term = sensor_term(values, names, settings)
     else:
         est = estimates[best]

@@ -100,3 +100,59 @@ def linear_fit(A: np.ndarray, r: np.ndarray, k: int) -> tuple[float, float, np.n
     rank = int(np.linalg.matrix_rank(A)) if A.size else 0
     rss = float(res @ res)
     return rss, rss + (rank + k) * math.log(max(n, 2)), coef
+
+
+#: Most candidates :func:`sparse_extension` adds to a fit.
+MAX_EXTENSION_TERMS: int = 2
+
+
+def sparse_extension(
+    A: np.ndarray, C: np.ndarray, r: np.ndarray, k: int, max_terms: int = MAX_EXTENSION_TERMS
+) -> tuple[float, float, np.ndarray, list[int], np.ndarray]:
+    """Least squares of r on A, extended by the few columns of a dictionary C the data ask for.
+
+    Forward selection: the candidate of C that lowers the residual most is added while the drop
+    exceeds ``ln n + 2 ln p`` (BIC's price of a column plus the price of choosing it among p
+    candidates: the risk-inflation criterion of Foster and George, 1994, so that the best of p
+    columns of pure noise, whose drop is about ``2 ln p``, is not taken), up to ``max_terms``.
+
+    Returns
+    -------
+    rss : float
+    bic : float
+        ``rss + (rank(A) + k) ln n + m (ln n + 2 ln p)`` with m the columns taken.
+    coef : ndarray
+        Coefficients of A's columns.
+    chosen : list of int
+        Indices of the columns of C taken, in the order taken.
+    coef_chosen : ndarray
+        Their coefficients.
+    """
+    n, p = A.shape[0], C.shape[1]
+    ln_n = math.log(max(n, 2))
+    rss, bic, coef = linear_fit(A, r, k)
+    if p == 0:
+        return rss, bic, coef, [], np.zeros(0)
+    price = ln_n + 2.0 * math.log(p)
+    chosen: list[int] = []
+    design = A
+    for _ in range(max_terms):
+        Q = orth(design, n)
+        res = project(Q, r[:, None])[:, 0]
+        Cp = project(Q, C)
+        norms = np.einsum("ij,ij->j", Cp, Cp)
+        drop = np.where(
+            norms > 1e-12 * max(float(norms.max(initial=0.0)), 1e-300),
+            (Cp.T @ res) ** 2 / np.maximum(norms, 1e-300),
+            0.0,
+        )
+        drop[chosen] = 0.0
+        j = int(np.argmax(drop))
+        if drop[j] <= price:
+            break
+        chosen.append(j)
+        design = np.hstack([A, C[:, chosen]])
+    if not chosen:
+        return rss, bic, coef, [], np.zeros(0)
+    rss2, bic2, coef2 = linear_fit(design, r, k)
+    return rss2, bic2 + len(chosen) * 2.0 * math.log(p), coef2[: A.shape[1]], chosen, coef2[A.shape[1] :]

@@ -58,6 +58,8 @@ class Responses:
     param_names: list[str]
     sensors: np.ndarray  # (n_res, 2 n_ch + 2)
     sensor_names: list[str]
+    crosstalk: np.ndarray  # (n_res, n_ch (n_ch - 1)) channel i reading a share of channel j (i != j)
+    crosstalk_names: list[str]
     base: np.ndarray  # (5, n_samples) the calibrated case at the settings' step, all channels
     n_simulations: int
 
@@ -113,7 +115,8 @@ def responses(
     first = cal.event_time - dt * math.floor(cal.event_time / dt)
     knots = first + dt * np.arange(math.ceil((t_end - first) / dt) + 1)
     first_free = int(np.searchsorted(knots, t_start - 1e-12))
-    shell = Responses(knots, first_free, {}, np.zeros((0, 0)), [], np.zeros((0, 0)), [], np.zeros((0, 0)), 0)
+    none = np.zeros((0, 0))
+    shell = Responses(knots, first_free, {}, none, [], none, [], none, [], none, 0)
     zero_x, zero_e = np.zeros(shell.n_free), np.zeros(N_EXTRAS)
     # every simulation carries a schedule, so the integrator cuts its steps at the same knots
     base_case = with_input(cal.case, shell.schedule("load", zero_x, zero_e))
@@ -150,7 +153,45 @@ def responses(
     probes = white[:, k0 + len(pcases) :]
     names = [f"offset_{CHANNELS[r]}" for r in rows] + [f"gain_{CHANNELS[r]}" for r in rows] + ["delay", "lowpass"]
     sensors = np.hstack([offs, gains, probes])
-    return Responses(knots, first_free, columns, params, pnames, sensors, names, base, len(cases))
+    cross, cross_names = crosstalk_columns(base, rows, sigma)
+    return Responses(knots, first_free, columns, params, pnames, sensors, names, cross, cross_names, base, len(cases))
+
+
+def crosstalk_columns(base: np.ndarray, rows: list[int], sigma: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """Whitened columns of every channel reading a share of another: ``y_i + g_ij y_j`` (i != j).
+
+    The measurement chain's cross-talk in its generic, linear form: a channel picks up part of
+    another channel's signal (an accelerometer's cross-axis sensitivity, a shared ground, a
+    multiplexer's settling). Per unit of ``g_ij``, the change of channel i is the calibrated
+    simulation's channel j [channel j's unit per channel i's unit]; the columns are the
+    library's candidates, selected sparsely (:func:`engine.diagnosis.locus._linear.sparse_extension`).
+
+    Parameters
+    ----------
+    base : ndarray, shape (5, n_samples)
+        The calibrated simulation, every channel.
+    rows : list of int
+        The record's channels (indices into :data:`~engine.constants.CHANNELS`).
+    sigma : ndarray, shape (n_ch,)
+        Each record channel's noise standard deviation (the whitening).
+
+    Returns
+    -------
+    columns : ndarray, shape (n_ch n_samples, n_ch (n_ch - 1))
+    names : list of str
+        ``crosstalk_<i>_from_<j>`` per column.
+    """
+    n_ch, n_s = len(rows), base.shape[1]
+    cols, names = [], []
+    for i, ri in enumerate(rows):
+        for rj in rows:
+            if rj == ri:
+                continue
+            col = np.zeros(n_ch * n_s)
+            col[i * n_s : (i + 1) * n_s] = base[rj] / sigma[i]
+            cols.append(col)
+            names.append(f"crosstalk_{CHANNELS[ri]}_from_{CHANNELS[rj]}")
+    return (np.stack(cols, axis=1) if cols else np.zeros((n_ch * n_s, 0))), names
 
 
 @dataclass(frozen=True)

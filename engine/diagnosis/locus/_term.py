@@ -325,8 +325,9 @@ def locus_term(
 def sensor_term(values: Mapping[str, float], names: list[str], settings: LocusSettings) -> Term:
     """The sensor library's fit as a term (no time series).
 
-    The delay and low-pass columns are responses to the probe delay and the probe cut-off, so their
-    coefficients scale those: a delay of about ``coef * delay_probe`` [s], and a first-order lag of
+    ``values`` may hold cross-talk shares ``crosstalk_<i>_from_<j>`` (channel i reads that share of
+    channel j in addition). The delay and low-pass columns are responses to the probe delay and the
+    probe cut-off, so their coefficients scale those: a delay of about ``coef * delay_probe`` [s], and a first-order lag of
     about ``coef / (2 pi lowpass_probe_hz)`` [s] (valid while the terms are small).
     """
     parts = []
@@ -341,6 +342,13 @@ def sensor_term(values: Mapping[str, float], names: list[str], settings: LocusSe
     details["delay_s"] = delay
     details["lag_s"] = lag
     parts.append(f"delay {delay * 1e6:+.3g} us, first-order lag {lag * 1e6:+.3g} us")
+    cross = []
+    for key, g in values.items():
+        if key.startswith("crosstalk_"):
+            reader, source = key.removeprefix("crosstalk_").split("_from_")
+            details[key] = g
+            cross.append(f"{reader} reads {g:+.3g} x {source} in addition (cross-talk)")
+    parts = cross + parts  # what the data asked for first
     return Term(
         kind="sensor error",
         unit="",
