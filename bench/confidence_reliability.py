@@ -102,8 +102,44 @@ def _command(argv: Sequence[str]) -> str:
     return "python bench/confidence_reliability.py " + " ".join(argv)
 
 
-def fit_map(runs: Sequence[tuple[RunOutcomes, str | None]], command: str) -> ConfidenceMap:
-    """The map fitted on ``runs``: per verdict status on the score, and the locus on :func:`locus_feature`."""
+def read_locus_rows(path: Path) -> list[tuple[float, bool]]:
+    """(feature, right) of each case row of a locus re-run (``lab/scripts/locus_cases.py``'s JSON lines).
+
+    Rows without a located answer (no ``locus_feature``) are left out, as the runs' are.
+
+    Raises
+    ------
+    ValueError
+        A row is not JSON or a case row lacks ``right``.
+    """
+    out: list[tuple[float, bool]] = []
+    for i, line in enumerate(path.read_text().splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            row = json.loads(line)
+        except json.JSONDecodeError as e:
+            raise ValueError(f"{path}:{i}: not a JSON row ({e})") from None
+        if "case" not in row:
+            continue  # the summary line
+        if "right" not in row:
+            raise ValueError(f"{path}:{i}: a case row without 'right'")
+        x = row.get("locus_feature")
+        if isinstance(x, (int, float)):
+            out.append((float(x), bool(row["right"])))
+    return out
+
+
+def fit_map(
+    runs: Sequence[tuple[RunOutcomes, str | None]],
+    command: str,
+    locus_rows: Sequence[tuple[Path, list[tuple[float, bool]]]] = (),
+) -> ConfidenceMap:
+    """The map fitted on ``runs``: per verdict status on the score, and the locus on :func:`locus_feature`.
+
+    With ``locus_rows`` (files of a locus re-run and their (feature, right) pairs) the locus's map is
+    fitted on those instead of the runs' unexplained and weak-gap verdicts.
+    """
     outcomes = [o for run, _ in runs for o in run.outcomes]
     verdict: dict[str, IsotonicMap] = {}
     for status in VERDICT_STATUSES:
@@ -112,6 +148,8 @@ def fit_map(runs: Sequence[tuple[RunOutcomes, str | None]], command: str) -> Con
             verdict[status] = fit_isotonic([x for x, _ in xy], [ok for _, ok in xy], SCORE_FEATURE)
     loc = [(locus_feature(o.locus_estimate), o.locus_correct) for o in outcomes if o.locus_correct is not None]
     loc_xy = [(x, bool(ok)) for x, ok in loc if x is not None]
+    if locus_rows:
+        loc_xy = [xy for _, rows in locus_rows for xy in rows]
     locus = fit_isotonic([x for x, _ in loc_xy], [ok for _, ok in loc_xy], LOCUS_FEATURE) if loc_xy else None
     provenance = {
         "fitted_on": [
@@ -126,6 +164,11 @@ def fit_map(runs: Sequence[tuple[RunOutcomes, str | None]], command: str) -> Con
             for run, code in runs
         ],
         "held_out": list(HELD_OUT_RUNS),
+        "locus_fitted_on": (
+            [{"rows": str(p), "n": len(rows)} for p, rows in locus_rows]
+            if locus_rows
+            else "the unexplained and weak-gap verdicts of the runs above"
+        ),
         "fitted_at": _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(),
         "fitted_by": command,
         "fitting_code": code_version().get("describe"),
@@ -307,6 +350,14 @@ def main(argv: list[str] | None = None) -> int:
     what.add_argument("--out", type=Path, help="write report.json and report.md of the measurement here")
     what.add_argument("--fit", type=Path, help="fit the map on the runs (development only) and write it here")
     ap.add_argument("--map", type=Path, default=None, help=f"the map to measure (default: the committed {MAP_FILE})")
+    ap.add_argument(
+        "--locus-rows",
+        type=Path,
+        nargs="+",
+        default=(),
+        help="with --fit: fit the locus's map on these rows of lab/scripts/locus_cases.py (development data: "
+        "families whose blind run is spent) instead of the runs' unexplained verdicts",
+    )
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     for p in args.runs:
@@ -317,7 +368,11 @@ def main(argv: list[str] | None = None) -> int:
         held = sorted(set(names) & set(HELD_OUT_RUNS))
         if held:
             ap.error(f"refusing to fit on held-out runs: {', '.join(held)}")
-        cmap = fit_map(_read(args.runs), _command(argv))
+        try:
+            rows = [(p, read_locus_rows(p)) for p in args.locus_rows]
+        except (OSError, ValueError) as e:
+            ap.error(str(e))
+        cmap = fit_map(_read(args.runs), _command(argv), rows)
         write_text_atomic(args.fit, json.dumps(cmap.to_dict(), indent=1) + "\n")
         logger.info("wrote the map to %s", args.fit)
         return 0

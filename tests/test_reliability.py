@@ -135,6 +135,9 @@ def test_committed_map_loads_and_names_only_development_runs():
     assert calibrated_confidence("unexplained", 1.0) < 0.95
     assert calibrated_confidence("error", 0.3) == 0.3  # a status the map does not hold keeps its score
     assert cmap.locus is not None
+    # the locus's map: fitted on committed rows of spent families (physics never developed on), not on held-back runs
+    rows = cmap.provenance["locus_fitted_on"]
+    assert rows and all((ROOT / r["rows"]).is_file() and r["n"] > 0 for r in rows)
     loc = np.array([cmap.locus(v) for v in np.linspace(-6.0, 1.0, 701)])
     assert np.all(np.diff(loc) >= 0) and np.all((loc > 0) & (loc < 1))
 
