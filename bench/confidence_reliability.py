@@ -60,6 +60,7 @@ from engine.validation.reliability import (
     reliability_markdown,
     reliability_section,
 )
+from engine.validation.rows import json_rows
 
 logger = logging.getLogger("confidence_reliability")
 
@@ -113,17 +114,7 @@ def read_locus_rows(path: Path) -> list[tuple[float, bool]]:
         A row is not JSON or a case row lacks ``right``.
     """
     out: list[tuple[float, bool]] = []
-    for i, line in enumerate(path.read_text().splitlines(), 1):
-        if not line.strip():
-            continue
-        try:
-            row = json.loads(line)
-        except json.JSONDecodeError as e:
-            raise ValueError(f"{path}:{i}: not a JSON row ({e})") from None
-        if "case" not in row:
-            continue  # the summary line
-        if "right" not in row:
-            raise ValueError(f"{path}:{i}: a case row without 'right'")
+    for _, row in json_rows(path, ("right",)):
         x = row.get("locus_feature")
         if isinstance(x, (int, float)):
             out.append((float(x), bool(row["right"])))

@@ -32,6 +32,8 @@ from typing import Any
 
 from _runs import BUDGET_P90_S, GROUPS
 
+from engine.validation.rows import json_rows
+
 logger = logging.getLogger("lab.summarise_rows")
 
 
@@ -46,17 +48,11 @@ def read_rows(paths: Iterable[Path]) -> dict[str, dict[str, Any]]:
     """
     rows: dict[str, dict[str, Any]] = {}
     for path in paths:
-        for i, line in enumerate(Path(path).read_text().splitlines(), start=1):
-            if not line.strip():
-                continue
-            try:
-                row = json.loads(line)
-            except json.JSONDecodeError as exc:
-                raise ValueError(f"{path}:{i}: not a JSON row ({exc.msg})") from exc
-            missing = [k for k in ("case", "kind", "correct", "seconds") if not isinstance(row, dict) or k not in row]
-            if missing:
-                raise ValueError(f"{path}:{i}: the row has no {', '.join(missing)} (rows of lab/scripts/rediagnose.py)")
-            rows[str(row["case"])] = row
+        try:
+            for _, row in json_rows(path, ("kind", "correct", "seconds")):
+                rows[str(row["case"])] = row
+        except ValueError as exc:
+            raise ValueError(f"{exc} (rows of lab/scripts/rediagnose.py)") from None
     return rows
 
 
