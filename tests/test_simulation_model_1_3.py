@@ -26,20 +26,28 @@ import pytest
 from bench_scripts import load_bench
 
 from engine.constants import CHANNELS, X_REF
-from engine.simulation import SEALED, Case, PlantParameters, simulate_batch
+from engine.simulation import SEALED, SEALED2, Case, EffectLibrary, PlantParameters, simulate_batch
 from engine.simulation import _kernel as kern
 from engine.simulation.simulator import parameter_vector
 
 NOMINAL = PlantParameters(K=0.005, J1=0.87, c=1.0)
 
 
-def test_the_visibility_script_prints_the_rule_s_table() -> None:
-    """bench/family_visibility.py (the table of docs/model-changes.md, 1.3): one row per effect, simulation only."""
+@pytest.mark.parametrize(
+    ("family", "library", "row"),
+    [
+        ("sealed", SEALED, "| accelerometer_crosstalk 0.05 | 0 | 0 | 0 | "),  # a2 alone
+        ("sealed2", SEALED2, "| speed_sample_hold 0.001 | 0 | 0 | "),  # omega1 alone (model 1.4)
+    ],
+)
+def test_the_visibility_script_prints_the_rule_s_table(family: str, library: EffectLibrary, row: str) -> None:
+    """bench/family_visibility.py (the tables of docs/model-changes.md, 1.3 and 1.4): one row per effect,
+    simulation only; the measurement chain's effect changes its one channel alone."""
     script = load_bench("family_visibility")
-    rows = script.visibility("sealed", 0.5)
-    assert [r.name for r in rows] == list(SEALED)
+    rows = script.visibility(family, 0.5)
+    assert [r.name for r in rows] == list(library)
     text = script.table(rows, 0.5)
-    assert text.count("\n") == len(SEALED) + 1 and "| accelerometer_crosstalk 0.05 | 0 | 0 | 0 | " in text
+    assert text.count("\n") == len(library) + 1 and row in text
 
 
 def test_the_crosstalk_adds_a1() -> None:

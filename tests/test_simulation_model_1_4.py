@@ -23,7 +23,8 @@ and the sample-and-hold on the record:
 * the bump's force peaks at v and is against the motion up to the crest;
 * omega1 is held between hold instants on the record, and agrees with the reference on a grid that
   reaches back before switch-on;
-* bench/family_visibility.py prints the rule's table of docs/model-changes.md.
+* bench/family_visibility.py prints the rule's table of docs/model-changes.md (tested with model 1.3's, in
+  tests/test_simulation_model_1_3.py, for both families).
 """
 
 from __future__ import annotations
@@ -32,7 +33,6 @@ import math
 
 import numpy as np
 import pytest
-from bench_scripts import load_bench
 
 from engine.constants import CHANNELS, H_SQUEEZE, THETA_BUMP, W_BUMP
 from engine.records import SampleGrid
@@ -71,15 +71,6 @@ def _with(y: tuple[float, ...], **at: float) -> tuple[float, ...]:
     for name, value in at.items():
         out[index[name]] = value
     return tuple(out)
-
-
-def test_the_visibility_script_prints_the_rule_s_table() -> None:
-    """bench/family_visibility.py (the table of docs/model-changes.md, 1.4): one row per effect, simulation only."""
-    script = load_bench("family_visibility")
-    rows = script.visibility("sealed2", 0.5)
-    assert [r.name for r in rows] == list(SEALED2)
-    text = script.table(rows, 0.5)
-    assert text.count("\n") == len(SEALED2) + 1 and "| speed_sample_hold 0.001 | 0 | 0 | " in text
 
 
 def test_the_dc_offset_adds_v_u_to_the_alpha_voltage() -> None:
