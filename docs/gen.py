@@ -1025,13 +1025,7 @@ def render_plant_locus_real(page: Page) -> str:
 
 def render_plant_diagnosis_cost(page: Page) -> str:
     """A plant's diagnosis on threads against one thread (``bench/bench_plant_diagnosis.py``, issue 54), per run."""
-    paths = [
-        p
-        for p in ("docs/real-data/runs/plant-cost.json", "docs/real-data/runs/plant-cost-5873047.json")
-        if (ROOT / p).exists()
-    ]
-    if not paths:
-        return "(not run yet)"
+    paths = ["docs/real-data/runs/plant-cost.json", "docs/real-data/runs/plant-cost-5873047.json"]
     parts = []
     for path in paths:
         data = read_json(path)

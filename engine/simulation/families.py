@@ -10,11 +10,11 @@ A protocol-2 run hides one family from the diagnosis and draws its held-back cas
 * ``held_out``: :data:`~engine.simulation.held_out.HELD_OUT` (model 1.2), kept for scoring (its
   rule: :data:`~engine.simulation.held_out.RULE`); its figures are the out-of-sample ones.
 * ``sealed``: :data:`~engine.simulation.sealed.SEALED` (model 1.3), kept for scoring (its rule:
-  :data:`~engine.simulation.sealed.RULE`); run only in blind runs of committed code, its figures
-  are out-of-sample ones.
+  :data:`~engine.simulation.sealed.RULE`); its one blind run (seed 257) is published, so it is
+  spent: development data since.
 * ``sealed2``: :data:`~engine.simulation.sealed2.SEALED2` (model 1.4), kept for scoring (its rule:
-  :data:`~engine.simulation.sealed2.RULE`); run once, blind, on committed code, its figures are
-  out-of-sample ones.
+  :data:`~engine.simulation.sealed2.RULE`); its one blind run (seed 263) is published, so it is
+  spent: development data since. A next out-of-sample score needs a family defined after it.
 """
 
 from __future__ import annotations
