@@ -256,6 +256,16 @@ def test_a_channel_reading_part_of_another_is_a_cross_talk_of_the_sensors() -> N
     assert "a2 reads +0.0" in term.description and "x a1 in addition (cross-talk)" in term.description
 
 
+def test_a_cross_talk_between_channels_of_other_units_names_its_unit() -> None:
+    from engine.diagnosis.locus import LocusSettings
+    from engine.diagnosis.locus._term import sensor_term
+
+    values = {f"{k}_{c}": 0.0 for k in ("offset", "gain") for c in ("a1", "m_el")} | {"delay": 0.0, "lowpass": 0.0}
+    term = sensor_term(values | {"crosstalk_a1_from_m_el": -16.5}, ["a1", "m_el"], LocusSettings())
+    assert "a1 reads -16.5 (m/s^2 per pu) x m_el in addition (cross-talk)" in term.description
+    assert term.details["crosstalk_a1_from_m_el"] == -16.5
+
+
 def test_the_sparse_extension_takes_no_column_of_noise_and_the_one_the_data_hold() -> None:
     """Forward selection with the risk-inflation price: on pure noise none of 20 candidate columns
     is taken (in 50 of 50 draws); a column in the data at 5 noise RMS of signal is taken, alone."""

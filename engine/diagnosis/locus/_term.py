@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from engine.constants import CHANNELS, W_SMOOTH, Z95
+from engine.constants import CHANNEL_UNITS, CHANNELS, W_SMOOTH, Z95
 from engine.diagnosis.calibration import CalibrationResult
 from engine.diagnosis.locus._refine import Estimate
 from engine.diagnosis.locus._report import LocusSettings, Term
@@ -326,7 +326,7 @@ def sensor_term(values: Mapping[str, float], names: list[str], settings: LocusSe
     """The sensor library's fit as a term (no time series).
 
     ``values`` may hold cross-talk shares ``crosstalk_<i>_from_<j>`` (channel i reads that share of
-    channel j in addition). The delay and low-pass columns are responses to the probe delay and the
+    channel j in addition; in channel i's unit per channel j's, named where they differ). The delay and low-pass columns are responses to the probe delay and the
     probe cut-off, so their coefficients scale those: a delay of about ``coef * delay_probe`` [s], and a first-order lag of
     about ``coef / (2 pi lowpass_probe_hz)`` [s] (valid while the terms are small).
     """
@@ -347,7 +347,9 @@ def sensor_term(values: Mapping[str, float], names: list[str], settings: LocusSe
         if key.startswith("crosstalk_"):
             reader, source = key.removeprefix("crosstalk_").split("_from_")
             details[key] = g
-            cross.append(f"{reader} reads {g:+.3g} x {source} in addition (cross-talk)")
+            ui, uj = CHANNEL_UNITS[reader], CHANNEL_UNITS[source]
+            unit = "" if ui == uj else f" ({ui} per {uj})"
+            cross.append(f"{reader} reads {g:+.3g}{unit} x {source} in addition (cross-talk)")
     parts = cross + parts  # what the data asked for first
     return Term(
         kind="sensor error",
