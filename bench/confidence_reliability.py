@@ -11,12 +11,19 @@ observed accuracy with its Wilson 95 % interval, and the Brier score with a boot
 "After" on the development runs is in-sample (the map was fitted on them) and says so.
 
 Fit (``--fit``): fit the map on the given runs (development only: a run of :data:`HELD_OUT_RUNS`
-is refused) and write it with its provenance.
+is refused) and write it with its provenance. With ``--open-world-runs`` (runs of families outside
+the catalogue whose blind figures are spent) the map's open-world part is fitted too
+(:mod:`engine.diagnosis.open_world`): per band of the nominal chi2/n, how often the given runs'
+in-catalogue records and those runs' records were answered ``explained``.
+
+Runs whose every case is of a family outside the catalogue (``held_back``) are measured as a split
+of their own ("outside the catalogue"), held out or development as above.
 
 Examples (from the repository root)::
 
     python bench/confidence_reliability.py --fit engine/diagnosis/data/confidence_map.json \\
-        docs/validation/v2-seed{97,151,163,173,191,223} docs/validation/v1-seed{193,199,211}
+        docs/validation/v2-seed{97,151,163,173,191,223} docs/validation/v1-seed{193,199,211} \\
+        --open-world-runs docs/validation/v2-heldout-seed241 docs/validation/v2-sealed-seed257
     python bench/confidence_reliability.py --out docs/validation/confidence \\
         docs/validation/v2-seed{97,151,163,173,191,223,229} docs/validation/v1-seed{193,199,211,227}
 """
@@ -49,6 +56,7 @@ from engine.diagnosis.confidence import (
     locus_confidence,
     locus_feature,
 )
+from engine.diagnosis.open_world import fit_open_world
 from engine.validation.provenance import code_version
 from engine.validation.reliability import (
     TARGET_MIN_N,
@@ -71,6 +79,8 @@ HELD_OUT_RUNS: tuple[str, ...] = ("v2-seed229", "v1-seed227")
 #: The commit a protocol-1 run's README names in its title ("..., code 1b3904d ..."); its results
 #: do not stamp one.
 README_CODE = re.compile(r"\bcode ([0-9a-f]{7,40})\b")
+#: Case kinds whose records hold catalogue effects only (protocol 2 and protocol 1).
+IN_CATALOGUE_KINDS: frozenset[str] = frozenset({"single", "pair", "triple", "effect"})
 
 
 def _readme_code(run_dir: Path) -> str | None:
@@ -125,11 +135,14 @@ def fit_map(
     runs: Sequence[tuple[RunOutcomes, str | None]],
     command: str,
     locus_rows: Sequence[tuple[Path, list[tuple[float, bool]]]] = (),
+    open_world_runs: Sequence[tuple[RunOutcomes, str | None]] = (),
 ) -> ConfidenceMap:
     """The map fitted on ``runs``: per verdict status on the score, and the locus on :func:`locus_feature`.
 
     With ``locus_rows`` (files of a locus re-run and their (feature, right) pairs) the locus's map is
-    fitted on those instead of the runs' unexplained and weak-gap verdicts.
+    fitted on those instead of the runs' unexplained and weak-gap verdicts. With ``open_world_runs``
+    (runs of families outside the catalogue) the open-world part is fitted on their records against the
+    in-catalogue records of ``runs``.
     """
     outcomes = [o for run, _ in runs for o in run.outcomes]
     verdict: dict[str, IsotonicMap] = {}
@@ -142,6 +155,20 @@ def fit_map(
     if locus_rows:
         loc_xy = [xy for _, rows in locus_rows for xy in rows]
     locus = fit_isotonic([x for x, _ in loc_xy], [ok for _, ok in loc_xy], LOCUS_FEATURE) if loc_xy else None
+    world = None
+    if open_world_runs:
+        inside = [
+            (o.nominal_chi2, o.status == "explained")
+            for o in outcomes
+            if o.kind in IN_CATALOGUE_KINDS and o.nominal_chi2 is not None
+        ]
+        outside = [
+            (o.nominal_chi2, o.status == "explained")
+            for run, _ in open_world_runs
+            for o in run.outcomes
+            if o.nominal_chi2 is not None
+        ]
+        world = fit_open_world(inside, outside)
     provenance = {
         "fitted_on": [
             {
@@ -160,6 +187,10 @@ def fit_map(
             if locus_rows
             else "the unexplained and weak-gap verdicts of the runs above"
         ),
+        "open_world_fitted_on": [
+            {"run": run.name, "protocol": run.protocol, "seed": run.seed, "code_version": code, "n": len(run.outcomes)}
+            for run, code in open_world_runs
+        ],
         "fitted_at": _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(),
         "fitted_by": command,
         "fitting_code": code_version().get("describe"),
@@ -177,12 +208,12 @@ def fit_map(
             "those runs state"
         ),
     }
-    return ConfidenceMap(verdict=verdict, locus=locus, provenance=provenance)
+    return ConfidenceMap(verdict=verdict, locus=locus, provenance=provenance, open_world=world)
 
 
 def _calibrated(o: CaseOutcome, cmap: ConfidenceMap) -> CaseOutcome:
     """The outcome as the map would state it: the score's calibrated probability, the locus's."""
-    conf = calibrated_confidence(o.status, o.score, cmap) if o.score is not None else o.confidence
+    conf = calibrated_confidence(o.status, o.score, cmap, o.nominal_chi2) if o.score is not None else o.confidence
     loc = locus_confidence(o.locus_estimate, cmap) if o.locus_estimate is not None else None
     return replace(o, confidence=conf, locus_confidence=loc)
 
@@ -197,12 +228,16 @@ def measure(
 ) -> dict[str, Any]:
     """The measurement document: per protocol and split, the reliability before and after the map."""
     fitted = {r["run"] for r in cmap.provenance.get("fitted_on", [])}
+    fitted |= {r["run"] for r in cmap.provenance.get("open_world_fitted_on", [])}
+
+    def split_of(r: RunOutcomes) -> str:
+        outside = bool(r.outcomes) and all(o.kind == "held_back" for o in r.outcomes)
+        return ("development" if r.name in fitted else "held_out") + ("_outside_the_catalogue" if outside else "")
+
     groups = []
-    for split in ("held_out", "development"):
+    for split in ("held_out", "development", "held_out_outside_the_catalogue", "development_outside_the_catalogue"):
         for protocol in (2, 1):
-            sel = [
-                (r, c) for r, c in runs if r.protocol == protocol and ((r.name in fitted) == (split == "development"))
-            ]
+            sel = [(r, c) for r, c in runs if r.protocol == protocol and split_of(r) == split]
             if not sel:
                 continue
             outcomes = [o for r, _ in sel for o in r.outcomes]
@@ -223,7 +258,7 @@ def measure(
                     "n": len(outcomes),
                     "before": reliability_section([_raw(o) for o in outcomes]),
                     "after": reliability_section([_calibrated(o, cmap) for o in outcomes]),
-                    "after_in_sample": split == "development",
+                    "after_in_sample": split.startswith("development"),
                 }
             )
     per_run = []
@@ -234,7 +269,7 @@ def measure(
                 "run": r.name,
                 "protocol": r.protocol,
                 "code_version": c,
-                "split": "development" if r.name in fitted else "held_out",
+                "split": split_of(r),
                 "n": sec["verdict"]["n"],
                 "mean_stated": sec["verdict"]["mean_stated"],
                 "accuracy": sec["verdict"]["accuracy"],
@@ -349,6 +384,14 @@ def main(argv: list[str] | None = None) -> int:
         help="with --fit: fit the locus's map on these rows of lab/scripts/locus_cases.py (development data: "
         "families whose blind run is spent) instead of the runs' unexplained verdicts",
     )
+    ap.add_argument(
+        "--open-world-runs",
+        type=Path,
+        nargs="+",
+        default=(),
+        help="with --fit: runs of families outside the catalogue whose blind figures are spent; fits the map's "
+        "open-world part (engine.diagnosis.open_world)",
+    )
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     for p in args.runs:
@@ -356,14 +399,14 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"{p} holds no report.json: not a scored run")
     names = [p.name for p in args.runs]
     if args.fit is not None:
-        held = sorted(set(names) & set(HELD_OUT_RUNS))
+        held = sorted((set(names) | {p.name for p in args.open_world_runs}) & set(HELD_OUT_RUNS))
         if held:
             ap.error(f"refusing to fit on held-out runs: {', '.join(held)}")
         try:
             rows = [(p, read_locus_rows(p)) for p in args.locus_rows]
         except (OSError, ValueError) as e:
             ap.error(str(e))
-        cmap = fit_map(_read(args.runs), _command(argv), rows)
+        cmap = fit_map(_read(args.runs), _command(argv), rows, _read(args.open_world_runs))
         write_text_atomic(args.fit, json.dumps(cmap.to_dict(), indent=1) + "\n")
         logger.info("wrote the map to %s", args.fit)
         return 0

@@ -421,16 +421,20 @@ def render_confidence(page: Page) -> str:
     report = read_json(path)
     rows = []
     for g in report["groups"]:
-        if g["split"] != "held_out":
+        if g["split"] not in ("held_out", "held_out_outside_the_catalogue"):
             continue
+        outside = g["split"] != "held_out"
         runs = ", ".join(f"{r['run']} ({r['code_version']})" for r in g["runs"])
+        runs += " (outside the catalogue)" if outside else ""
         parts: list[tuple[str, Mapping[str, Any], Mapping[str, Any]]] = [
             ("every verdict", g["before"]["verdict"], g["after"]["verdict"])
         ]
+        # a family outside the catalogue: its explained answers (all stand-ins) are the point, however few
         parts += [
             (f"`{s}`", g["before"]["by_status"][s], g["after"]["by_status"][s])
             for s in g["before"]["by_status"]
             if g["before"]["by_status"][s]["n"] >= report["target"]["min_n"]
+            or (outside and s == "explained" and g["before"]["by_status"][s]["n"])
         ]
         parts.append(("locus", g["before"]["locus"], g["after"]["locus"]))
         for label, b, a in parts:
@@ -444,7 +448,7 @@ def render_confidence(page: Page) -> str:
                     f"{pct(b['mean_stated'])}, {rate_of(b['accuracy'])}, {b['brier']['value']:.3f}",
                     f"{pct(a['mean_stated'])}, {a['brier']['value']:.3f} "
                     f"{interval(a['brier']['low'], a['brier']['high'], 3, 1.0)}",
-                    "yes" if a["target_met"] else "**no**",
+                    "no group of 20" if a["target_met"] is None else "yes" if a["target_met"] else "**no**",
                 ]
             )
     head = [

@@ -238,7 +238,11 @@ def test_reading_a_committed_run_gives_the_reported_n(measurement, run, n, right
         assert group[when]["verdict"]["accuracy"]["k"] == right
     # and the map, applied to the run's scores, states what the measurement says it states
     cmap = load_map()
-    stated = [calibrated_confidence(o.status, float(o.score), cmap) for o in got.outcomes if o.score is not None]
+    stated = [
+        calibrated_confidence(o.status, float(o.score), cmap, o.nominal_chi2)
+        for o in got.outcomes
+        if o.score is not None
+    ]
     assert group["after"]["verdict"]["mean_stated"] == pytest.approx(float(np.mean(stated)), abs=1e-4)
 
 

@@ -65,7 +65,8 @@ class WarningOut(BaseModel):
 
     code: str = Field(
         description="Short stable id: constant_channel, channel_scale, sample_interval, misfit "
-        "(engine.diagnosis.plausibility)."
+        "(engine.diagnosis.plausibility); stand_in (an explained answer at a weak gap that may stand in for "
+        "physics outside the catalogue, engine.diagnosis.open_world)."
     )
     message: str = Field(description="The suspicion, with the numbers behind it, and what to check.")
     channel: str | None = Field(default=None, description="The channel it concerns (null: the whole record).")

@@ -23,6 +23,13 @@ records of physics the locus method was not developed on (the families kept for 
 runs are spent, located again by the current code; the map's provenance names the rows): an
 unexplained gap in the field is such physics, and on the family the method was developed on it is
 right more often than on any other.
+
+An ``explained`` verdict's probability is further multiplied by one minus the chance that its named
+effect stands in for physics outside the catalogue (:mod:`engine.diagnosis.open_world`: the map's
+``open_world`` part, per band of the nominal model's chi2/n, fitted on records of the families kept
+for scoring whose blind runs are spent). The verdict map above was fitted on runs whose records
+outside the catalogue were of the family the diagnosis was developed on, which it almost never
+explains; a gap in the field owes nothing to that family.
 """
 
 from __future__ import annotations
@@ -39,6 +46,8 @@ from typing import Any
 
 import numpy as np
 
+from engine.diagnosis.open_world import OpenWorldMap
+
 logger = logging.getLogger(__name__)
 
 __all__ = [
@@ -54,6 +63,7 @@ __all__ = [
     "load_map",
     "locus_confidence",
     "locus_feature",
+    "stand_in_probability",
 ]
 
 #: The committed map, relative to this package (``engine.diagnosis``).
@@ -225,11 +235,15 @@ class ConfidenceMap:
         The probability that an estimated locus is right given :func:`locus_feature`.
     provenance : dict
         Which runs (protocol, seed, code), when, how, and by which command it was fitted.
+    open_world : OpenWorldMap or None
+        How often an ``explained`` verdict is a stand-in, per band of the nominal chi2/n (None: not
+        applied).
     """
 
     verdict: dict[str, IsotonicMap]
     locus: IsotonicMap | None
     provenance: dict[str, Any]
+    open_world: OpenWorldMap | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -237,17 +251,19 @@ class ConfidenceMap:
             "provenance": self.provenance,
             "verdict": {s: m.to_dict() for s, m in self.verdict.items()},
             "locus": None if self.locus is None else self.locus.to_dict(),
+            "open_world": None if self.open_world is None else self.open_world.to_dict(),
         }
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> ConfidenceMap:
         if d.get("schema") != MAP_SCHEMA:
             raise ValueError(f"confidence map of schema {d.get('schema')!r}, this code reads {MAP_SCHEMA}")
-        locus = d.get("locus")
+        locus, world = d.get("locus"), d.get("open_world")
         return cls(
             verdict={str(s): IsotonicMap.from_dict(m) for s, m in d["verdict"].items()},
             locus=None if locus is None else IsotonicMap.from_dict(locus),
             provenance=dict(d.get("provenance") or {}),
+            open_world=None if world is None else OpenWorldMap.from_dict(world),
         )
 
 
@@ -264,7 +280,9 @@ def load_map(path: str | Path | None = None) -> ConfidenceMap:
     return ConfidenceMap.from_dict(json.loads(Path(path).read_text(encoding="utf-8")))
 
 
-def calibrated_confidence(status: str, score: float, cmap: ConfidenceMap | None = None) -> float:
+def calibrated_confidence(
+    status: str, score: float, cmap: ConfidenceMap | None = None, nominal_chi2: float | None = None
+) -> float:
     """The probability that a verdict of ``status`` with the decision's ``score`` is right.
 
     Parameters
@@ -275,17 +293,46 @@ def calibrated_confidence(status: str, score: float, cmap: ConfidenceMap | None 
         The decision's score (0..1).
     cmap : ConfidenceMap, optional
         Default: the committed map.
+    nominal_chi2 : float, optional
+        The nominal calibration's chi2/n: for an ``explained`` verdict, the probability is multiplied
+        by one minus :func:`stand_in_probability` (not applied when None).
 
     Returns
     -------
     float
         In [0, 1]; the score itself when the map holds no such status or the score is not finite.
     """
-    m = (cmap or load_map()).verdict.get(status)
+    cmap = cmap or load_map()
+    m = cmap.verdict.get(status)
     if m is None or not math.isfinite(score):
         logger.debug("no confidence map for %s (score %s): the score is stated", status, score)
         return float(score)
-    return m(float(score))
+    p = m(float(score))
+    if status == "explained" and nominal_chi2 is not None:
+        p *= 1.0 - (stand_in_probability(nominal_chi2, cmap) or 0.0)
+    return p
+
+
+def stand_in_probability(nominal_chi2: float, cmap: ConfidenceMap | None = None) -> float | None:
+    """The probability that an ``explained`` verdict at this nominal chi2/n is a catalogue stand-in.
+
+    Parameters
+    ----------
+    nominal_chi2 : float
+        The nominal calibration's chi2/n.
+    cmap : ConfidenceMap, optional
+        Default: the committed map.
+
+    Returns
+    -------
+    float or None
+        :meth:`engine.diagnosis.open_world.OpenWorldMap.stand_in`; None when the map has no open-world
+        part or the chi2/n is not finite.
+    """
+    world = (cmap or load_map()).open_world
+    if world is None or not math.isfinite(nominal_chi2):
+        return None
+    return world.stand_in(float(nominal_chi2))
 
 
 def locus_feature(report: Mapping[str, Any] | None) -> float | None:

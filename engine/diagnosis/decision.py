@@ -125,7 +125,9 @@ def decide(
     (:mod:`engine.diagnosis.confidence`); the status does not depend on either.
     """
     v = _decide(nominal, candidates, settings, sets)
-    return replace(v, confidence=calibrated_confidence(v.status, v.confidence), score=v.confidence)
+    # an explained verdict's probability also allows for a stand-in (engine.diagnosis.open_world)
+    conf = calibrated_confidence(v.status, v.confidence, nominal_chi2=nominal.reduced_chi2)
+    return replace(v, confidence=conf, score=v.confidence)
 
 
 def _decide(

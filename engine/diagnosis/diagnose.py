@@ -82,7 +82,10 @@ Plausibility
 ``result.warnings`` lists what the plant cannot produce (:mod:`engine.diagnosis.plausibility`):
 a channel out of the plant's range or in a likely wrong unit, a sample interval the dynamics
 contradict, a misfit of the answer's model far above the noise. Each names the suspicion and
-what to check; the verdict and the width stand beside them, to be read with them.
+what to check; the verdict and the width stand beside them, to be read with them. An ``explained``
+answer at a weak gap also carries a ``stand_in`` warning when the chance that its named effect stands
+in for physics outside the catalogue reaches :data:`engine.diagnosis.open_world.STAND_IN_WARN`
+(that chance is already in its confidence, :mod:`engine.diagnosis.open_world`).
 
 Twins
 -----
@@ -113,7 +116,7 @@ from engine.diagnosis.calibration import CalibrationResult, calibrate
 from engine.diagnosis.candidate import Candidate
 from engine.diagnosis.candidate_set import CandidateSet
 from engine.diagnosis.candidates import fit_candidates
-from engine.diagnosis.confidence import locus_confidence
+from engine.diagnosis.confidence import load_map, locus_confidence
 from engine.diagnosis.decision import (
     choose_model,
     decide,
@@ -126,6 +129,7 @@ from engine.diagnosis.decision import (
 )
 from engine.diagnosis.gap import gap_of
 from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, localise
+from engine.diagnosis.open_world import stand_in_warnings
 from engine.diagnosis.plausibility import PlausibilityWarning, check_calibration, check_record, merge_warnings
 from engine.diagnosis.result import DiagnosisResult, Verdict
 from engine.diagnosis.sets import search_sets
@@ -341,6 +345,7 @@ def _diagnose(
     except (ValueError, RuntimeError) as exc:  # the answer stands without the checks; say they did not run
         logger.warning("plausibility checks failed: %s", exc)
         warnings = [PlausibilityWarning("checks_failed", f"the plausibility checks could not run ({exc})")]
+    warnings += stand_in_warnings(verdict, nominal.reduced_chi2, load_map().open_world)
     for w in warnings:
         logger.warning("%s", w.message)
     stage("plausibility")

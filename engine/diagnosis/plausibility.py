@@ -200,7 +200,8 @@ class PlausibilityWarning:
     Attributes
     ----------
     code : str
-        Short stable id: ``constant_channel``, ``channel_scale``, ``sample_interval``, ``misfit``.
+        Short stable id: ``constant_channel``, ``channel_scale``, ``sample_interval``, ``misfit`` (and
+        ``stand_in``, :mod:`engine.diagnosis.open_world`).
     message : str
         One or two sentences: the suspicion, with the numbers behind it, and what to check.
     channel : str or None

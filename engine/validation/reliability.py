@@ -352,6 +352,9 @@ class CaseOutcome:
         (results written before the verdict stated one); None without a locus estimate.
     locus_estimate : dict or None
         The result's ``locus`` (the locus estimate's report) without the missing term.
+    nominal_chi2 : float or None
+        The nominal calibration's chi2/n (the open-world map's feature,
+        :mod:`engine.diagnosis.open_world`); None when the result holds no calibration.
     """
 
     run: str
@@ -366,6 +369,7 @@ class CaseOutcome:
     locus: str | None
     locus_confidence: float | None
     locus_estimate: dict[str, Any] | None
+    nominal_chi2: float | None = None
 
     @property
     def locus_correct(self) -> bool | None:
@@ -434,6 +438,7 @@ def _stated(result: Mapping[str, Any]) -> dict[str, Any]:
         "locus": v.get("locus"),
         "locus_confidence": loc_conf,
         "locus_estimate": est,
+        "nominal_chi2": _float((result.get("calibration") or {}).get("reduced_chi2")),
     }
 
 
@@ -466,6 +471,7 @@ def _v2_outcomes(name: str, doc: Mapping[str, Any], results: Mapping[str, Mappin
                 locus=s["locus"],
                 locus_confidence=s["locus_confidence"],
                 locus_estimate=s["locus_estimate"],
+                nominal_chi2=s["nominal_chi2"],
             )
         )
     return out
@@ -516,6 +522,7 @@ def _v1_outcomes(
                 locus=s["locus"],
                 locus_confidence=s["locus_confidence"],
                 locus_estimate=s["locus_estimate"],
+                nominal_chi2=s["nominal_chi2"],
             )
         )
     return out, excluded
@@ -588,7 +595,13 @@ def _slim(result: Mapping[str, Any]) -> dict[str, Any]:
     est = result.get("locus")
     if isinstance(est, dict):
         est = {k: v for k, v in est.items() if k != "term"}
-    return {"verdict": result.get("verdict"), "locus": est, "code_version": result.get("code_version")}
+    chi2 = (result.get("calibration") or {}).get("reduced_chi2")
+    return {
+        "verdict": result.get("verdict"),
+        "locus": est,
+        "code_version": result.get("code_version"),
+        "calibration": {"reduced_chi2": chi2},
+    }
 
 
 def read_run(run_dir: str | Path) -> RunOutcomes:
