@@ -177,3 +177,16 @@ def test_the_width_rule_adds_its_terms_in_quadrature():
     sigma, _, structure = width_sigma(K, sd, 1.0, 100.0, others, 10.0, True)
     assert structure == pytest.approx(STRUCTURE_FACTOR * 0.2e-3)
     assert sigma > structure
+
+
+def test_a_possible_stand_in_widens_the_interval_to_the_nominal_width(inertia_case):
+    rec, res = inertia_case
+    record, _ = rec.test_window()
+    final, nominal = res.final, res.calibration
+    assert res.width is not None and res.width.stand_in_reach == 0.0  # a strong gap: no doubt, no term
+    w = answer_width(record, final, "load_inertia", _space(record), stand_in_from=nominal)
+    assert final.values["K"] == w.K  # the point estimate stays the named model's
+    assert w.stand_in_reach == pytest.approx(abs(nominal.values["K"] - w.K))
+    lo, hi = w.interval_95
+    assert lo <= nominal.values["K"] <= hi and lo <= TRUE_K <= hi
+    assert w.to_dict()["stand_in_reach"] == w.stand_in_reach

@@ -50,3 +50,26 @@ def test_a_committed_run_is_read_whole() -> None:
     rebuilt = [t for t in truths if t.rule is not None]
     assert 250 < len(rebuilt) < 300  # some unexplained answers' rebuilt widths are not identifiable
     assert all(t.rule is not None for t in truths if t.status == "no_gap")
+
+
+def test_todays_rule_adds_the_stand_in_term_to_a_weak_explained_answer_written_before_it() -> None:
+    from engine.constants import Z95
+    from engine.validation.width_coverage import today_rule
+
+    def stored(chi2: float, status: str = "explained") -> dict:
+        width = {"K": 5.0e-3, "sigma_K": 2e-6, "identifiable": True, "structure_spread": 0.0, "structure_factor": 4.5}
+        return {
+            "verdict": {"status": status},
+            "calibration": {"reduced_chi2": chi2, "values": {"K": 5.1e-3}, "uncertainties": {"K": 1e-6}},
+            "width": width,
+        }
+
+    weak = today_rule(stored(4.0))
+    assert weak is not None and weak[0] == 5.0e-3
+    assert Z95 * weak[1] >= 0.1e-3  # the interval reaches the nominal K, 0.1 mm away
+    assert today_rule(stored(400.0)) == pytest.approx((5.0e-3, 2e-6))  # a strong gap: unchanged
+    assert today_rule(stored(4.0, "no_gap")) == pytest.approx((5.0e-3, 2e-6))  # no named effect: unchanged
+    # an answer that already carries the term is not widened twice
+    done = stored(4.0)
+    done["width"]["stand_in_reach"] = 0.1e-3
+    assert today_rule(done) == pytest.approx((5.0e-3, 2e-6))

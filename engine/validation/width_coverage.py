@@ -11,7 +11,9 @@ For every case of a protocol-2 run (:mod:`engine.validation.layout`) with a resu
 - ``rule``: for a result written before issue 50, the answer's width rebuilt from the stored fits
   by :func:`engine.diagnosis.width.width_sigma` with ``tau = 1`` (the residuals are not stored;
   ``tau >= 1``, so the rule as run is at least as wide): how the rule's constants were chosen on
-  the development runs and scored on held-out ones.
+  the development runs and scored on held-out ones; for a result with a width, the answer's own with
+  today's structure factor and, when it was written before term 5 (a named effect that may be a
+  stand-in, :mod:`engine.diagnosis.width`), that term added.
 
 Coverage is the fraction of intervals that hold the truth, with a Wilson 95 % interval, in total and
 by verdict status and by the case's kind. A committed run without its answer key (the key is not
@@ -32,6 +34,8 @@ from pathlib import Path
 from typing import Any
 
 from engine.constants import Z95
+from engine.diagnosis.confidence import stand_in_probability
+from engine.diagnosis.open_world import STAND_IN_WARN
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.diagnosis.space import DEFAULT_BOUNDS
 from engine.diagnosis.width import MAX_RELATIVE_HALF_WIDTH, MISSING_PHYSICS, STRUCTURE_FACTOR, width_sigma
@@ -43,7 +47,9 @@ __all__ = [
     "Truth",
     "coverage",
     "coverage_markdown",
+    "stand_in_reach",
     "stored_rule",
+    "today_rule",
     "truths_from_committed",
     "truths_from_layout",
 ]
@@ -155,7 +161,14 @@ def stored_rule(
     sd = float((fit.get("uncertainties") or {}).get("K", math.nan))
     others = [(float(f["values"]["K"]), float(f["bic"])) for f in _calibrations(result) if f is not fit]
     sigma, _, _ = width_sigma(
-        K, sd, 1.0, float(fit["bic"]), others, min_delta_bic, result["verdict"]["status"] in MISSING_PHYSICS
+        K,
+        sd,
+        1.0,
+        float(fit["bic"]),
+        others,
+        min_delta_bic,
+        result["verdict"]["status"] in MISSING_PHYSICS,
+        stand_in_reach(result, K),
     )
     if not math.isfinite(sigma) or Z95 * sigma > MAX_RELATIVE_HALF_WIDTH * _K_RANGE:
         return None
@@ -166,23 +179,48 @@ def stored_rule(
 ANSWERED_STRUCTURE_FACTOR: float = 3.0
 
 
-def recomposed_rule(width: Mapping[str, Any] | None) -> tuple[float, float] | None:
+def stand_in_reach(result: Mapping[str, Any], K: float) -> float:
+    """Term 5 of the width rule for a stored result: ``|K_nominal - K|`` [m] when its verdict is ``explained``
+    at a nominal chi2/n whose stand-in probability (the committed map) reaches
+    :data:`~engine.diagnosis.open_world.STAND_IN_WARN`, else 0."""
+    if (result.get("verdict") or {}).get("status") != "explained":
+        return 0.0
+    chi2 = (result.get("calibration") or {}).get("reduced_chi2")
+    nominal = _nominal(result)
+    p = stand_in_probability(float(chi2)) if isinstance(chi2, (int, float)) else None
+    if p is None or p < STAND_IN_WARN or nominal is None:
+        return 0.0
+    return abs(nominal[0] - K)
+
+
+def recomposed_rule(width: Mapping[str, Any] | None, reach: float = 0.0) -> tuple[float, float] | None:
     """A stored answer's (K, sigma_K) [m] with its missing-physics term at today's :data:`STRUCTURE_FACTOR`.
 
     The stored ``structure_spread`` is the factor of its time times the K spread of the best
     models (``structure_factor`` in the answer; :data:`ANSWERED_STRUCTURE_FACTOR` for answers that
-    store none); every other term is kept. None when the answer was not identifiable or, at
-    today's factor, its interval would be reported as not identifiable.
+    store none); every other term is kept. An answer written before term 5 (no ``stand_in_reach``)
+    gets ``reach`` [m] (:func:`stand_in_reach`) as that term. None when the answer was not
+    identifiable or, at today's factor, its interval would be reported as not identifiable.
     """
     if width is None or not width.get("identifiable") or width.get("sigma_K") is None:
         return None
     K, sd = float(width["K"]), float(width["sigma_K"])
     s = float(width.get("structure_spread") or 0.0)
     then = float(width.get("structure_factor", ANSWERED_STRUCTURE_FACTOR))
-    sigma = math.sqrt(max(sd**2 - s**2, 0.0) + (s * STRUCTURE_FACTOR / then) ** 2)
+    added = 0.0 if "stand_in_reach" in width else (reach / Z95) ** 2
+    sigma = math.sqrt(max(sd**2 - s**2, 0.0) + (s * STRUCTURE_FACTOR / then) ** 2 + added)
     if Z95 * sigma > MAX_RELATIVE_HALF_WIDTH * _K_RANGE:
         return None
     return K, sigma
+
+
+def today_rule(result: Mapping[str, Any]) -> tuple[float, float] | None:
+    """A stored result's (K, sigma_K) [m] by today's width rule: :func:`stored_rule` for a result written
+    before issue 50, else :func:`recomposed_rule` with :func:`stand_in_reach`."""
+    w = result.get("width")
+    if w is None:
+        return stored_rule(result)
+    return recomposed_rule(w, stand_in_reach(result, float(w["K"])) if w.get("K") is not None else 0.0)
 
 
 def truths_from_layout(root: Path) -> list[Truth]:
@@ -196,7 +234,7 @@ def truths_from_layout(root: Path) -> list[Truth]:
             continue
         res = layout.read_result(e.case_id)
         w = res.get("width")
-        rule = stored_rule(res) if w is None else recomposed_rule(w)
+        rule = today_rule(res)
         out.append(Truth(e.case_id, e.kind, e.K, 0.0, res["verdict"]["status"], w, _nominal(res), rule))
     return out
 
@@ -227,7 +265,7 @@ def truths_from_committed(root: Path) -> list[Truth]:
                     res["verdict"]["status"],
                     res.get("width"),
                     _nominal(res),
-                    stored_rule(res) if res.get("width") is None else recomposed_rule(res.get("width")),
+                    today_rule(res),
                 )
             )
     return sorted(out, key=lambda t: t.case_id)
@@ -306,7 +344,8 @@ def coverage_markdown(rows: list[CoverageRow], source: str) -> str:
     head = (
         f"Truth inside the stated 95 % interval, {source}. `answer`: the answer's `width` (issue 50); "
         f"`rule`: today's rule (structure factor {STRUCTURE_FACTOR:g}): the width rebuilt from the fits of a result "
-        "written before issue 50 (tau = 1), or the answer's width with its missing-physics term at that factor; "
+        "written before issue 50 (tau = 1), or the answer's width with its missing-physics term at that factor, "
+        "each with the stand-in term of a weak-gap `explained` answer (engine/diagnosis/width.py, term 5); "
         "`nominal`: the nominal calibration's K +- 1.96 sigma (what was shown before).\n\n"
         "| rule | group | n | covered | coverage [Wilson 95 %] | not identifiable | median half-width [um] |\n"
         "|---|---|---|---|---|---|---|\n"
