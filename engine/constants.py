@@ -22,7 +22,8 @@ from typing import Final
 #: 1.2 (docs/model-changes.md): the held-out family's seven terms, neutral by default.
 #: 1.3: the sealed family's seven terms, neutral by default.
 #: 1.4: the second sealed family's seven terms (SEALED2), neutral by default.
-MODEL_VERSION: Final[str] = "1.4"
+#: 1.5: the third sealed family's seven terms (SEALED3), neutral by default.
+MODEL_VERSION: Final[str] = "1.5"
 
 # --- base quantities -------------------------------------------------------
 #: Rated supply frequency [Hz], the electrical base (MODEL.md section 1.1).
@@ -134,6 +135,30 @@ H_SQUEEZE: Final[float] = 0.005
 THETA_BUMP: Final[float] = 0.1
 #: Half-width of the bump [rad of theta_3] (sealed2 effect ``load_track_bump``): 2 mm of travel.
 W_BUMP: Final[float] = 0.02
+
+# --- model 1.5 extensions (docs/model-changes.md) ----------------------------
+# Constants of the third sealed family's terms (engine.simulation.sealed3).
+#: Delay of the motor brake's release after switch-on [s] (sealed3 effect ``motor_brake``): the
+#: brake's coil is fed from the motor's terminals through a rectifier, so the spring-applied brake
+#: lifts only once its coil current has pulled the armature in (10 ms: a rectifier with
+#: over-excitation; a plain half-wave one needs several times that).
+T_BRAKE_RELEASE: Final[float] = 0.01
+#: Delay of the motor brake's application after the switch-off [s] (sealed3 effect
+#: ``motor_brake``): the armature's fall time with the brake's coil switched on its DC side.
+T_BRAKE_APPLY: Final[float] = 0.01
+#: Travel time of the brake's armature [s] (sealed3 effect ``motor_brake``): the brake's torque goes
+#: from full to none at the release and back at the application along a smoothstep of this length.
+T_BRAKE_TRAVEL: Final[float] = 0.005
+#: Tooth-mesh order of the resilient stage [per revolution of the wheel] (sealed3 effect
+#: ``resilient_mesh_stiffness``): the teeth of a gear (or toothed-belt) stage in the resilient
+#: path, whose stiffness varies as the number of teeth in mesh alternates; 40 teeth, a mesh
+#: period of 0.157 rad, so that the wheel's travel over a record (about 0.2 rad) holds more than one.
+MESH_ORDER: Final[int] = 40
+#: Critical speed of the eddy-current brake on the load [pu speed] (sealed3 effect
+#: ``load_eddy_current_brake``: the force ``v 2 s / (1 + s^2)``, s = w_3 / W_EDDY, largest, v, at
+#: w_3 = W_EDDY): 0.16 m/s at the wheel's radius, within the load's speeds in the test (up to
+#: 0.03 pu), so that both the rising and the falling branch of the characteristic are met.
+W_EDDY: Final[float] = 0.01
 
 # --- test protocol (MODEL.md section 2) ------------------------------------
 #: Sample interval Ts [s].

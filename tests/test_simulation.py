@@ -114,6 +114,13 @@ def test_defaults_are_model_md_constants():
         "sq12": 0.0,
         "play2": 0.0,
         "bump3": 0.0,
+        # model 1.5 extensions (the third sealed family), neutral by default
+        "r_con": 0.0,
+        "r_bar": 0.0,
+        "tau_brake": 0.0,
+        "hyst12": 0.0,
+        "mesh2": 0.0,
+        "eddy3": 0.0,
         # the per-unit base values (issue 52: parameters, MODEL.md's by default)
         "w_b": const.W_B,
         "pole_pairs": const.POLE_PAIRS,

@@ -1,20 +1,21 @@
-"""The model versions' families of effects, checked alike (docs/model-changes.md, versions 1.1 to 1.4).
+"""The model versions' families of effects, checked alike (docs/model-changes.md, versions 1.1 to 1.5).
 
 Each version from 1.1 on added a family of effects outside the catalogue, each effect a new term of
 the kernel: 1.1 the held-back family HELD_BACK (and the additive unknown input), 1.2 the held-out
-family HELD_OUT, 1.3 the sealed family SEALED, 1.4 the second sealed family SEALED2. The checks they
-share run here from one table,
+family HELD_OUT, 1.3 the sealed family SEALED, 1.4 the second sealed family SEALED2, 1.5 the third
+sealed family SEALED3. The checks they share run here from one table,
 :data:`VERSIONS`; a case id names the version and the effect (``1.3-supply_flicker``), or the version
 and the family (``1.2-held_out``) where the check is of a family. What one version alone has stays in
 its module: the unknown input of 1.1 in ``tests/test_simulation_model_1_1.py``, the terms of 1.3 that
 have a physics of their own (the leakages, the progressive contact, the cross-talk's a1, the
 visibility table) in ``tests/test_simulation_model_1_3.py``, and those of 1.4 (the DC offset, the
 core losses, the squeeze film's zone, the hub's play, the bump, the speed's sample-and-hold) in
-``tests/test_simulation_model_1_4.py``.
+``tests/test_simulation_model_1_4.py``, and those of 1.5 in ``tests/test_simulation_model_1_5.py``.
 
-Simulation only. HELD_OUT, SEALED and SEALED2 are kept for scoring: nothing here diagnoses, calibrates,
-locates or validates a record of their effects (the case generator is run without its absorption
-rule, which refits).
+Simulation only. HELD_OUT, SEALED, SEALED2 and SEALED3 are kept for scoring: nothing here diagnoses,
+calibrates, locates or validates a record of their effects (the case generator is run without its
+absorption rule, which refits, and not on SEALED3, which was defined without running anything of
+engine.validation on it).
 
 * every new term is exactly neutral at its neutral value: the records are bit for bit those without
   it (model 1.0's for 1.1), from 1.2 on also inside the kernel's extended path (``P_EXTENDED``),
@@ -22,7 +23,7 @@ rule, which refits).
   model 1.0 bit for bit;
 * the kernel agrees with the independent scipy reference (engine.simulation.reference) for every
   effect at its upper bound, for an unknown input at every locus (1.1) and in the combinations where
-  two terms meet (1.2 to 1.4): MODEL.md section 4's spec, plus a regression guard at about twice the
+  two terms meet (1.2 to 1.5): MODEL.md section 4's spec, plus a regression guard at about twice the
   worst error measured;
 * from 1.2 on, at half its upper bound every effect is visible at 40 dB on the nominal plant, keeps
   the event across the plausible box at its upper bound, and has a slot of its own in the kernel's
@@ -30,8 +31,8 @@ rule, which refits).
 * every family is disjoint from the catalogue and the earlier families, is known to the reference at
   its neutral values, is registered by its name for blind runs (``backlash validate --held-back
   NAME``), and refuses an absurd value with its name; from 1.2 on it has one effect per locus, each a
-  new term neutral at zero, its rule is stated in its module and the docs, and the case generator
-  of protocol 2 draws held-back cases from it.
+  new term neutral at zero, its rule is stated in its module and the docs, and (1.2 to 1.4) the case
+  generator of protocol 2 draws held-back cases from it.
 
 Measured with the default SolverSettings against the reference (DOP853, rtol 1e-9), worst over the
 cases, in % of peak-to-peak:
@@ -50,6 +51,10 @@ cases, in % of peak-to-peak:
   at 10 us), |dt_e| 1.3e-8 s (supply_dc_offset 0.01); combinations and inputs 0.0100 % (a1, the core
   losses with the switch-off decay), |dt_e| 4.2e-9 s (the core losses with saturation and leakages).
   Guards as for model 1.1 to 1.3: 0.04 % and 5e-8 s.
+* 1.5: effects at their upper bound 0.0035 % (a1, supply_loose_connection 0.05), |dt_e| 3.7e-9 s
+  (motor_brake 1); combinations and inputs 0.0214 % (a1, the loose connection with the DC offset and
+  the unbalance), |dt_e| 2.4e-8 s (every sealed3 effect at once). Guards as for model 1.1 to 1.4:
+  0.04 % and 5e-8 s.
 """
 
 from __future__ import annotations
@@ -74,6 +79,7 @@ from engine.simulation import (
     LOCI,
     SEALED,
     SEALED2,
+    SEALED3,
     Case,
     Disturbance,
     ParameterError,
@@ -86,6 +92,7 @@ from engine.simulation import (
     noise_std,
     sealed,
     sealed2,
+    sealed3,
     simulate,
     simulate_batch,
 )
@@ -96,6 +103,7 @@ from engine.simulation.reference import (
     HELD_BACK_NEUTRAL,
     HELD_OUT_NEUTRAL,
     SEALED2_NEUTRAL,
+    SEALED3_NEUTRAL,
     SEALED_NEUTRAL,
     reference_inputs,
     reference_simulate,
@@ -170,8 +178,21 @@ V1_4 = Version(
     SEALED2_NEUTRAL,
     (_PLAIN, _COGGING, _EVERY_HELD_OUT, _EVERY_SEALED),
 )
+_EVERY_SEALED2 = (
+    "on every sealed2 effect at half its bound",
+    SEALED2.apply(Case(NOMINAL), {n: 0.5 * e.bounds[1] for n, e in SEALED2.items()}),
+)
+V1_5 = Version(
+    "1.5",
+    "sealed3",
+    SEALED3,
+    (CATALOGUE, HELD_BACK, HELD_OUT, SEALED, SEALED2),
+    "1.4",
+    SEALED3_NEUTRAL,
+    (_PLAIN, _COGGING, _EVERY_HELD_OUT, _EVERY_SEALED, _EVERY_SEALED2),
+)
 #: Every version with a family of its own, oldest first; a new version adds its row here.
-VERSIONS = (V1_1, V1_2, V1_3, V1_4)
+VERSIONS = (V1_1, V1_2, V1_3, V1_4, V1_5)
 
 
 def _families(*versions: Version) -> list[Any]:
@@ -270,6 +291,45 @@ COMBINATIONS: dict[str, dict[str, dict[str, float]]] = {
         },
         "every-sealed2-effect": {n: e.bounds[1] for n, e in SEALED2.items()},
     },
+    "1.5": {
+        "loose-connection-dc-offset-and-unbalance": {
+            "supply_loose_connection": 0.05,
+            "supply_dc_offset": 0.01,
+            "supply_unbalance": 0.1,
+        },
+        "broken-bar-core-loss-and-saturation": {
+            "rotor_broken_bar": 0.2,
+            "core_loss_resistance": 0.1,
+            "magnetic_saturation": 0.5,
+        },
+        "brake-coulomb-and-switch-off-decay": {
+            "motor_brake": 1.0,
+            "motor_coulomb_friction": 0.1,
+            "switch_off_decay": 0.2,
+        },
+        "hysteresis-progressive-contact-and-squeeze-film": {
+            "clutch_hysteretic_contact": 0.3,
+            "clutch_progressive_contact": 1.0,
+            "clutch_squeeze_film": 2.0,
+        },
+        "mesh-stiffness-hardening-and-hub-play": {
+            "resilient_mesh_stiffness": 0.2,
+            "resilient_hardening": 1.0,
+            "resilient_hub_play": 0.005,
+        },
+        "eddy-brake-drag-and-bump": {
+            "load_eddy_current_brake": 0.05,
+            "load_quadratic_drag": 20.0,
+            "load_track_bump": 0.05,
+        },
+        "hum-crosstalk-lowpass-and-late-trigger": {
+            "accelerometer_mains_hum": 1.0,
+            "accelerometer_crosstalk": 0.1,
+            "sensor_lowpass": 1000.0,
+            "trigger_offset": -0.002,
+        },
+        "every-sealed3-effect": {n: e.bounds[1] for n, e in SEALED3.items()},
+    },
 }
 _SUPPLY_INPUT = {"locus": "supply", "t0": 0.01, "dt": 0.01, "values": [0.04, -0.03, 0.05, 0.02, -0.05] * 4}
 #: Unknown inputs, with the effects on top of them: (effects, the input's schedule) by case name.
@@ -302,6 +362,18 @@ INPUTS: dict[str, dict[str, tuple[dict[str, float] | None, dict[str, Any]]]] = {
         ),
         "squeeze-film-and-clutch-input": (
             {"clutch_squeeze_film": SEALED2["clutch_squeeze_film"].bounds[1]},
+            _schedule("clutch"),
+        ),
+    },
+    # the loose connection's drop follows the current of a disturbed supply; the hysteresis's sign
+    # follows a clutch input's moving zone
+    "1.5": {
+        "loose-connection-and-supply-input": (
+            {"supply_loose_connection": SEALED3["supply_loose_connection"].bounds[1]},
+            _SUPPLY_INPUT,
+        ),
+        "hysteretic-contact-and-clutch-input": (
+            {"clutch_hysteretic_contact": SEALED3["clutch_hysteretic_contact"].bounds[1]},
             _schedule("clutch"),
         ),
     },
@@ -391,7 +463,7 @@ def test_every_effect_is_neutral_at_its_neutral_value_and_acts_otherwise(version
 def test_the_extended_path_with_every_term_zero_is_model_1_0_bit_for_bit(
     solver: SolverSettings, n: int, grid: SampleGrid | None
 ) -> None:
-    """Forcing P_EXTENDED on with every 1.1 to 1.4 term zero changes no bit: each term is guarded.
+    """Forcing P_EXTENDED on with every 1.1 to 1.5 term zero changes no bit: each term is guarded.
 
     Not a check of one version: the kernel's path of every version at once. MODEL.md's grid at the
     default step (the check since 1.2), and a 25 us grid at a 10 us step (added with 1.3).
@@ -401,6 +473,7 @@ def test_the_extended_path_with_every_term_zero_is_model_1_0_bit_for_bit(
     assert np.all(P[:, kern.P_EXTENDED] == 0.0)
     assert np.all(P[:, kern.P_FLICKER : kern.P_XTALK2 + 1] == 0.0)
     assert np.all(P[:, kern.P_U_DC : kern.P_HOLD1 + 1] == 0.0)
+    assert np.all(P[:, kern.P_R_CON : kern.P_HUM + 1] == 0.0)
     forced = P.copy()
     forced[:, kern.P_EXTENDED] = 1.0
     runs = []
@@ -445,6 +518,15 @@ SLOTS: dict[str, dict[str, int]] = {
         "bump3": kern.P_BUMP3,
         "hold1": kern.P_HOLD1,
     },
+    "1.5": {
+        "r_con": kern.P_R_CON,
+        "r_bar": kern.P_R_BAR,
+        "tau_brake": kern.P_TAU_BRAKE,
+        "hyst12": kern.P_HYST12,
+        "mesh2": kern.P_MESH2,
+        "eddy3": kern.P_EDDY3,
+        "hum": kern.P_HUM,
+    },
 }
 #: The slots of each version, appended after the previous version's: range(start, stop) (1.4's
 #: after the per-unit base values P_W_B and P_OMEGA_B, which came within 1.3).
@@ -452,9 +534,10 @@ SLOT_RANGES = {
     "1.2": (kern.P_T_SWITCH_OFF + 1, kern.P_ECC1 + 1),
     "1.3": (kern.P_ECC1 + 1, kern.P_XTALK2 + 1),
     "1.4": (kern.P_OMEGA_B + 1, kern.P_HOLD1 + 1),
+    "1.5": (kern.P_HOLD1 + 1, kern.P_HUM + 1),
 }
 #: The values without a slot: the leakages enter x_s and x_r (tests/test_simulation_model_1_3.py).
-NO_SLOT = {"1.2": set(), "1.3": {"x_leak"}, "1.4": set()}
+NO_SLOT = {"1.2": set(), "1.3": {"x_leak"}, "1.4": set(), "1.5": set()}
 
 
 def _family_slots(P: np.ndarray) -> int:
@@ -462,7 +545,7 @@ def _family_slots(P: np.ndarray) -> int:
     return int(sum(np.count_nonzero(P[start:stop]) for start, stop in SLOT_RANGES.values()))
 
 
-@pytest.mark.parametrize("version", _families(V1_2, V1_3, V1_4))
+@pytest.mark.parametrize("version", _families(V1_2, V1_3, V1_4, V1_5))
 def test_the_version_s_slots_are_appended_after_the_previous_version_s(version: Version) -> None:
     slots = SLOTS[version.version]
     assert sorted(slots.values()) == list(range(*SLOT_RANGES[version.version]))
@@ -473,7 +556,7 @@ def test_the_version_s_slots_are_appended_after_the_previous_version_s(version: 
     ("version", "name"),
     [
         pytest.param(v, n, id=f"{v.version}-{n}")
-        for v in (V1_2, V1_3, V1_4)
+        for v in (V1_2, V1_3, V1_4, V1_5)
         for n, e in v.family.items()
         if e.field not in NO_SLOT[v.version]
     ],
@@ -500,12 +583,13 @@ def _half_bound_runs(version: Version) -> SimulationResult:
     return simulate_batch([base] + [e.apply(base, 0.5 * e.bounds[1]) for e in version.family.values()])
 
 
-@pytest.mark.parametrize(("version", "name"), _effects(V1_2, V1_3, V1_4))
+@pytest.mark.parametrize(("version", "name"), _effects(V1_2, V1_3, V1_4, V1_5))
 def test_half_the_upper_bound_is_visible_at_40_db_on_the_nominal_plant(version: Version, name: str) -> None:
-    """The bounds' rule (docs/model-changes.md, 1.2 to 1.4): > 3 noise RMS on two channels at half the bound.
+    """The bounds' rule (docs/model-changes.md, 1.2 to 1.5): > 3 noise RMS on two channels at half the bound.
 
     The sensors' effects are in one channel by definition (the speed encoder's error and the speed's
-    sample-and-hold in omega1, the accelerometer's cross-talk in a2): one channel for them.
+    sample-and-hold in omega1, the accelerometer's cross-talk in a2): one channel for them (the mains
+    hum of 1.5 is in two, a1 and a2, and passes with two).
     """
     e = version.family[name]
     res = _half_bound_runs(version)
@@ -516,7 +600,7 @@ def test_half_the_upper_bound_is_visible_at_40_db_on_the_nominal_plant(version: 
     assert np.sum(rms > 3.0) >= need, (name, dict(zip(CHANNELS, rms.round(1), strict=True)))
 
 
-@pytest.mark.parametrize(("version", "name"), _effects(V1_2, V1_3, V1_4))
+@pytest.mark.parametrize(("version", "name"), _effects(V1_2, V1_3, V1_4, V1_5))
 def test_every_effect_at_its_upper_bound_keeps_the_event_across_the_plausible_box(version: Version, name: str) -> None:
     """The nominal plant and the eight corners of the plausible box (K, J1, c)."""
     e = version.family[name]
@@ -556,6 +640,14 @@ def test_every_effect_at_its_upper_bound_keeps_the_event_across_the_plausible_bo
             0.001,
             Case(NOMINAL, SensorParameters(hold1=0.001)),
             id="1.4-speed_sample_hold",
+        ),
+        pytest.param(V1_5, "motor_brake", 0.4, NOMINAL.replace(tau_brake=0.4), id="1.5-motor_brake"),
+        pytest.param(
+            V1_5,
+            "accelerometer_mains_hum",
+            0.3,
+            Case(NOMINAL, SensorParameters(hum=0.3)),
+            id="1.5-accelerometer_mains_hum",
         ),
     ],
 )
@@ -597,10 +689,10 @@ def test_the_family_is_outside_the_catalogue_and_the_earlier_families(version: V
 
 
 def test_the_model_version_is_the_last_version_s() -> None:
-    assert MODEL_VERSION == VERSIONS[-1].version == "1.4"
+    assert MODEL_VERSION == VERSIONS[-1].version == "1.5"
 
 
-@pytest.mark.parametrize("version", _families(V1_2, V1_3, V1_4))
+@pytest.mark.parametrize("version", _families(V1_2, V1_3, V1_4, V1_5))
 def test_the_family_has_one_new_term_per_locus_neutral_at_zero(version: Version) -> None:
     assert sorted(e.locus for e in version.family.values()) == sorted(LOCI)
     fields_before = {(e.target, e.field) for library in version.earlier for e in library.values()}
@@ -677,6 +769,23 @@ def test_reference_knows_every_effect_at_its_neutral_value(version: Version) -> 
             },
             id="1.4-sealed2",
         ),
+        pytest.param(
+            V1_5,
+            Case(
+                NOMINAL.replace(r_con=0.01, r_bar=0.02, tau_brake=0.03, hyst12=0.04, mesh2=0.05, eddy3=0.06),
+                SensorParameters(hum=0.07),
+            ),
+            {
+                "supply_loose_connection": 0.01,
+                "rotor_broken_bar": 0.02,
+                "motor_brake": 0.03,
+                "clutch_hysteretic_contact": 0.04,
+                "resilient_mesh_stiffness": 0.05,
+                "load_eddy_current_brake": 0.06,
+                "accelerometer_mains_hum": 0.07,
+            },
+            id="1.5-sealed3",
+        ),
     ],
 )
 def test_the_reference_reads_every_effect_of_a_case(version: Version, case: Case, expected: dict[str, float]) -> None:
@@ -691,6 +800,7 @@ def test_the_reference_reads_every_effect_of_a_case(version: Version, case: Case
         pytest.param(V1_2, held_out, id="1.2-held_out"),
         pytest.param(V1_3, sealed, id="1.3-sealed"),
         pytest.param(V1_4, sealed2, id="1.4-sealed2"),
+        pytest.param(V1_5, sealed3, id="1.5-sealed3"),
     ],
 )
 def test_the_rule_is_stated_in_the_module_and_in_the_docs(version: Version, module: ModuleType) -> None:
@@ -743,6 +853,13 @@ def test_the_case_generator_draws_held_back_cases_from_the_family(version: Versi
         pytest.param(PlantParameters, {"play2": 0.5}, "play2", id="1.4-resilient_hub_play-too-large"),
         pytest.param(PlantParameters, {"bump3": -0.1}, "bump3", id="1.4-load_track_bump-negative"),
         pytest.param(SensorParameters, {"hold1": 0.05}, "hold1", id="1.4-speed_sample_hold-too-long"),
+        pytest.param(PlantParameters, {"r_con": -0.01}, "r_con", id="1.5-supply_loose_connection-negative"),
+        pytest.param(PlantParameters, {"r_bar": float("nan")}, "finite", id="1.5-rotor_broken_bar-nan"),
+        pytest.param(PlantParameters, {"tau_brake": -0.1}, "tau_brake", id="1.5-motor_brake-negative"),
+        pytest.param(PlantParameters, {"hyst12": 1.0}, "hyst12", id="1.5-clutch_hysteretic_contact-too-large"),
+        pytest.param(PlantParameters, {"mesh2": 1.0}, "mesh2", id="1.5-resilient_mesh_stiffness-too-large"),
+        pytest.param(PlantParameters, {"eddy3": -0.1}, "eddy3", id="1.5-load_eddy_current_brake-negative"),
+        pytest.param(SensorParameters, {"hum": -1.0}, "hum", id="1.5-accelerometer_mains_hum-negative"),
     ],
 )
 def test_an_absurd_value_is_refused_with_its_name(

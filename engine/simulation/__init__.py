@@ -17,6 +17,7 @@ from engine.simulation.parameters import (
 )
 from engine.simulation.sealed import SEALED
 from engine.simulation.sealed2 import SEALED2
+from engine.simulation.sealed3 import SEALED3
 from engine.simulation.simulator import (
     SimulationError,
     SimulationResult,
@@ -34,6 +35,7 @@ __all__ = [
     "LOCI",
     "SEALED",
     "SEALED2",
+    "SEALED3",
     "Case",
     "Disturbance",
     "Effect",

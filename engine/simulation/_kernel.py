@@ -46,6 +46,14 @@ and a sample-and-hold of omega1 (in :func:`simulate_one`: the speed at the last 
 a copy of the state advanced to it, so the plant's own path and the other channels are untouched).
 With all of them zero the kernel performs model 1.3's floating-point operations.
 
+Model 1.5 adds seven more behind the same guard (the third sealed family,
+:data:`engine.simulation.sealed3.SEALED3`): a high-resistance connection in one phase of the supply,
+a broken rotor bar (the rotor's resistance higher along one of its axes), the
+spring-applied brake of a brake motor, hysteretic damping of the clutch's contact, the mesh
+stiffness variation of a gear stage in the resilient path, an eddy-current brake on the load, and
+the mains' hum of a ground loop on the accelerometers' channels. With all of them zero the kernel
+performs model 1.4's floating-point operations.
+
 Every function but the entry points compiles without numba's reference-counting runtime
 (``_nrt=False``, a CPU target option of numba's, used where a function allocates nothing): with it,
 the parameter vector P was reference-counted at every call and every inlined call of a step, atomic
@@ -75,9 +83,14 @@ from engine.constants import (
     F_FLICKER,
     H_SQUEEZE,
     LOAD_RIPPLE_HZ,
+    MESH_ORDER,
     SWITCH_OFF_DECAY_TIME,
+    T_BRAKE_APPLY,
+    T_BRAKE_RELEASE,
+    T_BRAKE_TRAVEL,
     THETA_BUMP,
     W_BUMP,
+    W_EDDY,
     W_SMOOTH,
     W_STRIBECK,
     X_REF,
@@ -148,7 +161,18 @@ P_SQ12 = P_MU1 + 1
 P_PLAY2 = P_SQ12 + 1
 P_BUMP3 = P_PLAY2 + 1
 P_HOLD1 = P_BUMP3 + 1
-N_PARAMS = P_HOLD1 + 1
+# model 1.5: parametric terms of the third sealed family (engine.simulation.sealed3), appended:
+# high-resistance connection in phase a of the supply [pu resistance], broken rotor bar [x r_r], the motor's brake
+# [pu torque], hysteretic damping of the clutch's contact [x], mesh stiffness variation of the
+# resilient stage [x], eddy-current brake on the load [pu torque], mains hum on a1 and a2 [m/s^2]
+P_R_CON = P_HOLD1 + 1
+P_R_BAR = P_R_CON + 1
+P_TAU_BRAKE = P_R_BAR + 1
+P_HYST12 = P_TAU_BRAKE + 1
+P_MESH2 = P_HYST12 + 1
+P_EDDY3 = P_MESH2 + 1
+P_HUM = P_EDDY3 + 1
+N_PARAMS = P_HUM + 1
 #: sqrt(2 e): the bump's force v BUMP_NORM s exp(-s^2) peaks at v (at s = +-1/sqrt(2)).
 BUMP_NORM = math.sqrt(2.0 * math.e)
 
@@ -273,16 +297,35 @@ def contact_push(d, dw, P, ext):
     """The clutch's contact torque before its clip, k12 x + d12 dw [pu], at a deflection d outside the zone.
 
     x = d - b or d + b is the signed penetration beyond the zone's edge [rad]; with model 1.3's
-    progressive contact (``P_PROG12``, under the guard ``ext``) the spring is k12 x (1 + prog12 |x| / X_REF).
+    progressive contact (``P_PROG12``, under the guard ``ext``) the spring is k12 x (1 + prog12 |x| / X_REF), and
+    with model 1.5's hysteresis (``P_HYST12``) also times 1 + hyst12 tanh(sgn(x) dw / W_SMOOTH)
+    (:func:`shaped_contact_spring`).
     The caller clips it (a contact can push, never pull). Inlined (numba IR) into its callers,
     :func:`rhs` and :func:`zone`, which evaluate it at every stage of every step.
     """
     b = P[P_B]
     x = d - b if d > b else d + b
     spring = P[P_K12] * x
-    if ext and P[P_PROG12] != 0.0:  # progressive contact: the spring hardens with the penetration
-        spring = spring * (1.0 + P[P_PROG12] * abs(x) / X_REF)
+    if ext and (P[P_PROG12] != 0.0 or P[P_HYST12] != 0.0):
+        spring = shaped_contact_spring(spring, x, dw, P)
     return spring + P[P_D12] * dw
+
+
+@njit(cache=True, fastmath=False, **_NO_NRT)
+def shaped_contact_spring(spring, x, dw, P):
+    """The contact spring k12 x [pu] shaped by model 1.3's progressive contact and model 1.5's hysteresis.
+
+    Progressive (``P_PROG12``): times 1 + prog12 |x| / X_REF. Hysteretic (``P_HYST12``): times
+    1 + hyst12 tanh(sgn(x) dw / W_SMOOTH), stiffer while the penetration x deepens, softer while it
+    recedes. A function of its own, called only when one of them is on: the hysteresis's branch in
+    :func:`contact_push`, inlined at every stage of every step, cost the kernel time with every term
+    off (as model 1.4's mechanical terms did in :func:`rhs`).
+    """
+    if P[P_PROG12] != 0.0:  # progressive contact: the spring hardens with the penetration
+        spring = spring * (1.0 + P[P_PROG12] * abs(x) / X_REF)
+    if P[P_HYST12] != 0.0:  # hysteresis: stiffer while x deepens, softer while it recedes
+        spring = spring * (1.0 + P[P_HYST12] * smooth_sign(dw if x > 0.0 else -dw))
+    return spring
 
 
 @njit(cache=True, fastmath=False, **_NO_NRT)
@@ -314,6 +357,46 @@ def sealed2_torques(y, d, dw, m_c, P):
         sb = (y[9] - THETA_BUMP) / W_BUMP
         m_bump = P[P_BUMP3] * BUMP_NORM * sb * math.exp(-(sb * sb))
     return m_sq, m_play, m_bearing, m_bump
+
+
+@njit(cache=True, fastmath=False, **_NO_NRT)
+def smoothstep(x):
+    """3 x^2 - 2 x^3 for x in [0, 1], 0 below, 1 above: a ramp with zero slope at both ends."""
+    if x <= 0.0:
+        return 0.0
+    if x >= 1.0:
+        return 1.0
+    return x * x * (3.0 - 2.0 * x)
+
+
+@njit(cache=True, fastmath=False, **_NO_NRT)
+def sealed3_torques(t, y, P, motor_on):
+    """The mechanical torques of model 1.5's third sealed family at (t, y) [pu], each 0 when its value is.
+
+    Returns ``m_brake``, the motor brake's torque against J1's motion, tau_brake g_b(t)
+    tanh(w_1 / W_SMOOTH), g_b the brake's engagement (1 at switch-on, lifting T_BRAKE_RELEASE after
+    it, falling again T_BRAKE_APPLY after the switch-off ``P[P_T_SWITCH_OFF]``, each along a
+    smoothstep of T_BRAKE_TRAVEL); ``m_mesh``, what the mesh stiffness variation adds to the
+    resilient element's torque, k2 x mesh2 sin(MESH_ORDER theta_2) (from J2 to the mass); and
+    ``m_eddy``, the eddy-current brake's force against the mass's motion, eddy3 2 s / (1 + s^2),
+    s = w_3 / W_EDDY. A function of its own, called only when one of them is on (as model 1.4's
+    :func:`sealed2_torques`, so that the right-hand side's code is unchanged with every term off).
+    """
+    m_brake = 0.0
+    if P[P_TAU_BRAKE] != 0.0:
+        if motor_on:
+            g = 1.0 - smoothstep((t - T_BRAKE_RELEASE) / T_BRAKE_TRAVEL)
+        else:
+            g = smoothstep((t - P[P_T_SWITCH_OFF] - T_BRAKE_APPLY) / T_BRAKE_TRAVEL)
+        m_brake = P[P_TAU_BRAKE] * g * smooth_sign(y[4])
+    m_mesh = 0.0
+    if P[P_MESH2] != 0.0:
+        m_mesh = P[P_K2] * (y[8] - y[9]) * P[P_MESH2] * math.sin(MESH_ORDER * y[8])
+    m_eddy = 0.0
+    if P[P_EDDY3] != 0.0:
+        s = y[6] / W_EDDY
+        m_eddy = P[P_EDDY3] * 2.0 * s / (1.0 + s * s)
+    return m_brake, m_mesh, m_eddy
 
 
 @njit(cache=True, fastmath=False, **_NO_NRT)
@@ -397,6 +480,8 @@ def rhs(t, y, P, motor_on):
             usb -= P[P_U_NEG] * u * math.sin(ang)
         if ext and P[P_U_DC] != 0.0:  # a DC component of the supply in the alpha axis (phase a)
             usa += P[P_U_DC] * P[P_U]
+        if ext and P[P_R_CON] != 0.0:  # a resistance in phase a (star point floating): 2/3 r_con i_sa off u_sa
+            usa -= 2.0 / 3.0 * P[P_R_CON] * isa
         dpsa = P[P_W_B] * (usa - P[P_R_S] * isa)
         dpsb = P[P_W_B] * (usb - P[P_R_S] * isb)
         dpra = P[P_W_B] * (-P[P_R_R] * ira - w1 * prb)
@@ -408,6 +493,13 @@ def rhs(t, y, P, motor_on):
             dpsb -= rmb
             dpra -= rma
             dprb -= rmb
+        if ext and P[P_R_BAR] != 0.0:  # broken rotor bar: r_bar r_r more along the rotor's axis at p theta_1
+            gam = y[7] * (P[P_W_B] / P[P_OMEGA_B])
+            cg = math.cos(gam)
+            sg = math.sin(gam)
+            drop = P[P_W_B] * P[P_R_BAR] * P[P_R_R] * (ira * cg + irb * sg)
+            dpra -= drop * cg
+            dprb -= drop * sg
         m_el = psa * isb - psb * isa
     else:
         dpsa = 0.0
@@ -466,6 +558,11 @@ def rhs(t, y, P, motor_on):
             m_1 -= m_sq + m_bearing
             m_2 += m_sq + m_play
             m_3 += m_bump - m_play
+        if P[P_TAU_BRAKE] != 0.0 or P[P_MESH2] != 0.0 or P[P_EDDY3] != 0.0:  # model 1.5
+            m_brake, m_mesh, m_eddy = sealed3_torques(t, y, P, motor_on)
+            m_1 -= m_brake
+            m_2 -= m_mesh
+            m_3 += m_mesh - m_eddy
         if locus == DIST_MOTOR_SHAFT:
             m_1 += dd
         elif locus == DIST_DRIVE_TRAIN:
@@ -483,6 +580,10 @@ def rhs(t, y, P, motor_on):
     ch3 = r * P[P_OMEGA_B] * dw3
     if ext and P[P_XTALK2] != 0.0:  # cross-axis sensitivity of the load accelerometer to a1
         ch3 += P[P_XTALK2] * ch0
+    if ext and P[P_HUM] != 0.0:  # mains hum of a ground loop in the accelerometers' cabling
+        hum = P[P_HUM] * math.sin(P[P_F] * P[P_W_B] * t)
+        ch0 += hum
+        ch3 += hum
     ch4 = r * P[P_OMEGA_B] * w3
     fc = P[P_LOWPASS]
     if fc > 0.0:

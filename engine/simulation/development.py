@@ -9,8 +9,9 @@ lies. Families of effects outside the catalogue serve to measure it, with opposi
   moves: the supply frequency, the resilient element's damping and the load's inertia. They
   need no new term in the simulator (each multiplies one field of MODEL.md).
 * :data:`~engine.simulation.held_out.HELD_OUT` (model 1.2),
-  :data:`~engine.simulation.sealed.SEALED` (model 1.3) and
-  :data:`~engine.simulation.sealed2.SEALED2` (model 1.4) are kept for scoring: development never
+  :data:`~engine.simulation.sealed.SEALED` (model 1.3),
+  :data:`~engine.simulation.sealed2.SEALED2` (model 1.4) and
+  :data:`~engine.simulation.sealed3.SEALED3` (model 1.5) are kept for scoring: development never
   reads their scores.
 
 =============================  ===============  ===============================  =============

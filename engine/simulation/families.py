@@ -14,7 +14,10 @@ A protocol-2 run hides one family from the diagnosis and draws its held-back cas
   spent: development data since.
 * ``sealed2``: :data:`~engine.simulation.sealed2.SEALED2` (model 1.4), kept for scoring (its rule:
   :data:`~engine.simulation.sealed2.RULE`); its one blind run (seed 263) is published, so it is
-  spent: development data since. A next out-of-sample score needs a family defined after it.
+  spent: development data since.
+* ``sealed3``: :data:`~engine.simulation.sealed3.SEALED3` (model 1.5), kept for scoring (its rule:
+  :data:`~engine.simulation.sealed3.RULE`); run once, blind, on committed code, its figures are
+  out-of-sample ones.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from engine.simulation.held_back import HELD_BACK
 from engine.simulation.held_out import HELD_OUT
 from engine.simulation.sealed import SEALED
 from engine.simulation.sealed2 import SEALED2
+from engine.simulation.sealed3 import SEALED3
 
 __all__ = ["DEFAULT_FAMILY", "FAMILIES", "locus_of"]
 
@@ -35,6 +39,7 @@ FAMILIES: dict[str, EffectLibrary] = {
     "held_out": HELD_OUT,
     "sealed": SEALED,
     "sealed2": SEALED2,
+    "sealed3": SEALED3,
 }
 #: The family a run hides unless told otherwise.
 DEFAULT_FAMILY: str = "held_back"

@@ -11,7 +11,9 @@ effects (``tau_ripple3``, ``clutch_offset``, ``tau_cog``, ``tau_C2``,
 ``ecc1``); since model 1.3 the terms of the sealed effects (``u_flicker``,
 ``x_leak``, ``tau_S1``, ``prog12``, ``tau_dry2``, ``b_3`` and the sensors'
 ``xtalk2``); since model 1.4 the terms of the second sealed family (``u_dc``,
-``r_m``, ``mu_1``, ``sq12``, ``play2``, ``bump3`` and the sensors' ``hold1``).
+``r_m``, ``mu_1``, ``sq12``, ``play2``, ``bump3`` and the sensors' ``hold1``);
+since model 1.5 the terms of the third sealed family (``r_con``, ``r_bar``,
+``tau_brake``, ``hyst12``, ``mesh2``, ``eddy3`` and the sensors' ``hum``).
 The sensor chain (delay, trigger offset, low-pass, gain, offset,
 quantisation) is also an extension with neutral defaults. See
 ``docs/model-changes.md``.
@@ -278,6 +280,31 @@ class PlantParameters:
         Extension (1.4): a bump on the load's track [pu torque, the largest force]: on the mass
         bump3 sqrt(2 e) s exp(-s^2), s = (theta_3 - THETA_BUMP) / W_BUMP (a hill at THETA_BUMP = 0.1
         rad of half-width W_BUMP = 0.02 rad: against the motion up to its crest, with it beyond).
+    r_con : float
+        Extension (1.5): a high-resistance connection in phase a of the supply (a loose terminal, a
+        pitted contactor contact) [pu resistance]: the star point floats, so the motor's voltage is
+        u_s - (2/3) r_con i_s_alpha along the alpha axis (phase a) and u_s along beta; motor on.
+    r_bar : float
+        Extension (1.5): a broken rotor bar [x r_r]: the rotor's resistance higher by r_bar * r_r along
+        one axis of the rotor, at the electrical angle g = p theta_1 (on the alpha axis at switch-on):
+        dpsi_r/dt less w_b r_bar r_r Re(i_r e^(-j g)) e^(j g); m_el unchanged.
+    tau_brake : float
+        Extension (1.5): the spring-applied brake of a brake motor [pu torque]: tau_brake g_b(t)
+        tanh(w_1 / W_SMOOTH) against the motor's motion (not in m_el), g_b 1 at switch-on, lifting to 0
+        T_BRAKE_RELEASE after it and back to 1 T_BRAKE_APPLY after the switch-off, each along a
+        smoothstep of T_BRAKE_TRAVEL.
+    hyst12 : float
+        Extension (1.5): hysteretic (rate-independent) damping of the clutch's contact [x], in [0, 1):
+        the contact spring k12 x (x the signed penetration beyond the zone's edge) becomes
+        k12 x (1 + hyst12 tanh(sgn(x) (w_1 - w_2) / W_SMOOTH)), stiffer while the penetration deepens,
+        softer while it recedes (after the progressive contact of 1.3; damping and clip unchanged).
+    mesh2 : float
+        Extension (1.5): the mesh stiffness variation of a gear stage in the resilient path [x], in
+        [0, 1): the resilient spring k2 x becomes k2 x (1 + mesh2 sin(MESH_ORDER theta_2)),
+        x = theta_2 - theta_3 (the hardening of 1.2 and the hub's play of 1.4 unchanged).
+    eddy3 : float
+        Extension (1.5): an eddy-current brake on the load [pu torque, the largest force]: on the mass
+        -eddy3 2 s / (1 + s^2), s = w_3 / W_EDDY (linear in the speed below W_EDDY, falling above it).
     w_b : float
         Base value (issue 52): electrical base angular frequency w_b [rad/s], 2 pi times the rated
         supply frequency (MODEL.md: 2 pi 50).
@@ -333,6 +360,12 @@ class PlantParameters:
     sq12: float = 0.0
     play2: float = 0.0
     bump3: float = 0.0
+    r_con: float = 0.0
+    r_bar: float = 0.0
+    tau_brake: float = 0.0
+    hyst12: float = 0.0
+    mesh2: float = 0.0
+    eddy3: float = 0.0
     w_b: float = const.W_B
     pole_pairs: int = const.POLE_PAIRS
     tm_per_j: float = TM_PER_J
@@ -402,6 +435,12 @@ class PlantParameters:
         _check_range("sq12", self.sq12, 0.0, 1000.0, "pu")
         _check_range("play2", self.play2, 0.0, 0.1, "rad")
         _check_range("bump3", self.bump3, 0.0, 100.0, "pu")
+        _check_range("r_con", self.r_con, 0.0, 1.0, "pu")
+        _check_range("r_bar", self.r_bar, 0.0, 10.0, "x r_r")
+        _check_range("tau_brake", self.tau_brake, 0.0, 10.0, "pu")
+        _check_range("hyst12", self.hyst12, 0.0, 0.9, "x")
+        _check_range("mesh2", self.mesh2, 0.0, 0.9, "x")
+        _check_range("eddy3", self.eddy3, 0.0, 100.0, "pu")
         for name in ("k12", "k2"):
             _check_range(name, getattr(self, name), 1e-3, 1e5, "pu/rad")
         for name in ("r_s", "r_r"):
@@ -452,8 +491,10 @@ class SensorParameters:
     adds the cross-axis sensitivity of the load's accelerometer before the chain: a2 reads
     ``a2 + xtalk2 a1``. Model 1.4 adds a sample-and-hold of omega1 after the low-pass: sample k's
     omega1 is the value at ``hold1 floor(t_k / hold1)``, t_k its instant since switch-on (step 1).
+    Model 1.5 adds the mains' hum of a ground loop in the accelerometers' cabling before the chain:
+    a1 and a2 each read ``hum sin(f w_b t)`` more.
 
-    Steps 1-2 (and the encoder's and the accelerometer's errors and the hold) are in the kernel, 3-5
+    Steps 1-2 (and the encoder's and the accelerometer's errors, the hold and the hum) are in the kernel, 3-5
     act on the sampled values (:func:`engine.simulation.simulator.apply_sensor_readout`).
 
     Parameters
@@ -483,6 +524,11 @@ class SensorParameters:
         every hold1 seconds from switch-on and held in between (a drive publishing its speed at a
         slower cycle than the logger samples), read after the encoder's error and the low-pass and
         before the gain, offset and quantisation; 0 means none.
+    hum : float
+        Extension (1.5): mains hum of a ground loop in the accelerometers' cabling [m/s^2], in
+        [0, 100]: a1 and a2 each read hum * sin(f w_b t) more (t since switch-on, f w_b the supply's
+        angular frequency; after the accelerometer's cross-talk, before the low-pass, gain and
+        offset); 0 means none.
     """
 
     delay: float = 0.0
@@ -494,6 +540,7 @@ class SensorParameters:
     ecc1: float = 0.0
     xtalk2: float = 0.0
     hold1: float = 0.0
+    hum: float = 0.0
 
     def validate(self) -> SensorParameters:
         for f in fields(self):
@@ -510,6 +557,7 @@ class SensorParameters:
         _check_range("ecc1", self.ecc1, 0.0, 0.5, "x")
         _check_range("xtalk2", self.xtalk2, 0.0, 1.0, "x")
         _check_range("hold1", self.hold1, 0.0, 0.01, "s")
+        _check_range("hum", self.hum, 0.0, 100.0, "m/s^2")
         return self
 
     def replace(self, **changes: Any) -> SensorParameters:

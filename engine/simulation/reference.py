@@ -2,8 +2,8 @@
 
 A second, independent transcription of MODEL.md, of the effect catalogue, of the
 held-back effects and of the additive unknown input of model 1.1, of the held-out
-effects of model 1.2, of the sealed effects of model 1.3 and of the second sealed family of
-model 1.4,
+effects of model 1.2, of the sealed effects of model 1.3, of the second sealed family of
+model 1.4 and of the third sealed family of model 1.5,
 used as the yardstick of the numba kernel (MODEL.md section 4, relative
 tolerance 1e-9; ``tests/test_simulation_accuracy.py``) and as the baseline of
 ``bench/bench_simulator.py``. It is slow on purpose: plain numpy, complex
@@ -66,6 +66,20 @@ motor's bearing friction ``v |m_c| tanh(w_1 / W_SMOOTH)`` (m_c with the film); a
 W_BUMP``, on the mass; and omega1 read at ``v floor(t_k / v)`` instead of t_k (after the low-pass,
 before the gain), from the same dense solution.
 
+Model 1.5 (``docs/model-changes.md``)
+-------------------------------------
+The third sealed family (:data:`engine.simulation.SEALED3`), written out here from its
+definitions: the voltage drop of a resistance v in phase a with the star point floating,
+``(2/3) v Re(i_s)`` off the real part of u_s; a broken rotor bar, the rotor's resistance higher by
+``v r_r`` along the rotor's axis ``e^(j g)``, ``g = p theta_1``, so that ``v r_r Re(i_r e^(-j g))
+e^(j g)`` is subtracted in the rotor's flux equation; the brake ``v g_b(t) tanh(w_1 / W_SMOOTH)``
+against the motor, g_b a smoothstep from 1 to 0 between T_BRAKE_RELEASE and T_BRAKE_RELEASE +
+T_BRAKE_TRAVEL after switch-on and from 0 to 1 between T_BRAKE_APPLY and T_BRAKE_APPLY +
+T_BRAKE_TRAVEL after t_e; the contact spring times ``1 + v tanh(sgn(x) (w_1 - w_2) / W_SMOOTH)``,
+x the signed penetration; the resilient spring plus ``v k_2 x sin(MESH_ORDER theta_2)``; the force
+``-v 2 s / (1 + s^2)``, ``s = w_3 / W_EDDY``, on the mass; and ``v sin(f w_b t)`` added to a1 and a2
+after the cross-talk.
+
 Sensor chain
 ------------
 Applied in the order of the measurement:
@@ -104,15 +118,21 @@ from engine.constants import (
     F_FLICKER,
     H_SQUEEZE,
     LOAD_RIPPLE_HZ,
+    MESH_ORDER,
     OMEGA_B,
+    POLE_PAIRS,
     POST_EVENT_TIME,
     PRE_EVENT_TIME,
     SWITCH_OFF_DECAY_TIME,
+    T_BRAKE_APPLY,
+    T_BRAKE_RELEASE,
+    T_BRAKE_TRAVEL,
     T_EVENT_MAX,
     THETA_BUMP,
     TM_PER_J,
     W_B,
     W_BUMP,
+    W_EDDY,
     W_SMOOTH,
     W_STRIBECK,
     X_REF,
@@ -216,6 +236,17 @@ SEALED2_NEUTRAL: Mapping[str, float] = {
     "speed_sample_hold": 0.0,  # s: omega1 read at value floor(t / value)
 }
 
+#: The third sealed family (model 1.5), at its "no effect" value.
+SEALED3_NEUTRAL: Mapping[str, float] = {
+    "supply_loose_connection": 0.0,  # pu: a resistance in phase a, u_s less (2/3) value Re(i_s)
+    "rotor_broken_bar": 0.0,  # x r_r: the rotor's resistance higher by value r_r along its axis at p theta_1
+    "motor_brake": 0.0,  # pu: - value g_b(t) tanh(w_1 / W_SMOOTH) on the motor shaft
+    "clutch_hysteretic_contact": 0.0,  # x: contact spring k_12 x (1 + value tanh(sgn(x) dw / W_SMOOTH))
+    "resilient_mesh_stiffness": 0.0,  # x: resilient spring k_2 x (1 + value sin(MESH_ORDER theta_2))
+    "load_eddy_current_brake": 0.0,  # pu: - value 2 s / (1 + s^2) on the mass, s = w_3 / W_EDDY
+    "accelerometer_mains_hum": 0.0,  # m/s^2: a1 and a2 read value sin(f w_b t) more
+}
+
 _N_PLANT = 10  # psi_s (2), psi_r (2), w_1..3, theta_1..3
 _N_CHANNELS = len(CHANNELS)
 _OMEGA1 = CHANNELS.index("omega1")
@@ -251,7 +282,14 @@ def _resolve(parameters: Mapping[str, float] | None, effects: Mapping[str, float
         if name not in MODEL_DEFAULTS:
             raise ValueError(f"unknown MODEL.md parameter {name!r}; known: {', '.join(MODEL_DEFAULTS)}")
         values[name] = float(value)
-    neutral_values = {**EFFECT_NEUTRAL, **HELD_BACK_NEUTRAL, **HELD_OUT_NEUTRAL, **SEALED_NEUTRAL, **SEALED2_NEUTRAL}
+    neutral_values = {
+        **EFFECT_NEUTRAL,
+        **HELD_BACK_NEUTRAL,
+        **HELD_OUT_NEUTRAL,
+        **SEALED_NEUTRAL,
+        **SEALED2_NEUTRAL,
+        **SEALED3_NEUTRAL,
+    }
     for name in effects or {}:
         if name not in neutral_values:
             raise ValueError(f"the reference does not implement effect {name!r}; known: {', '.join(neutral_values)}")
@@ -293,8 +331,8 @@ class ReferenceModel:
     ----------
     values : mapping
         Every MODEL.md name and every effect name of :data:`EFFECT_NEUTRAL`,
-        :data:`HELD_BACK_NEUTRAL`, :data:`HELD_OUT_NEUTRAL`, :data:`SEALED_NEUTRAL` and
-        :data:`SEALED2_NEUTRAL` (see :func:`reference_simulate`).
+        :data:`HELD_BACK_NEUTRAL`, :data:`HELD_OUT_NEUTRAL`, :data:`SEALED_NEUTRAL`,
+        :data:`SEALED2_NEUTRAL` and :data:`SEALED3_NEUTRAL` (see :func:`reference_simulate`).
     disturbance : mapping, optional
         The unknown input ``{"locus", "t0", "dt", "values"}``.
 
@@ -321,6 +359,10 @@ class ReferenceModel:
         self.dc, self.core_loss = v["supply_dc_offset"], v["core_loss_resistance"]
         self.bearing, self.squeeze = v["motor_bearing_load_friction"], v["clutch_squeeze_film"]
         self.play, self.bump = v["resilient_hub_play"], v["load_track_bump"]
+        self.connection, self.broken_bar = v["supply_loose_connection"], v["rotor_broken_bar"]
+        self.brake, self.hysteresis = v["motor_brake"], v["clutch_hysteretic_contact"]
+        self.mesh, self.eddy = v["resilient_mesh_stiffness"], v["load_eddy_current_brake"]
+        self.hum = v["accelerometer_mains_hum"]
         leak = v["leakage_reactance"]  # both leakages x_s - x_m and x_r - x_m higher by it
         self.x_s, self.x_r, self.x_m = v["x_s"] + leak, v["x_r"] + leak, v["x_m"]
         self.switch_off = (math.inf, 0.0)
@@ -359,9 +401,12 @@ class ReferenceModel:
             amplitude *= 1.0 + self.flicker * math.sin(2.0 * math.pi * F_FLICKER * t)
             u_s = amplitude * (phase + self.unbalance * np.conj(phase))
             u_s += self.dc * self.u  # a DC voltage in phase a (the real axis)
+            u_s -= 2.0 / 3.0 * self.connection * i_s.real  # phase a's resistance, seen from a floating star point
             loss = self.core_loss * (i_s + i_r)  # the magnetising current through the core-loss resistance
+            axis = np.exp(1j * POLE_PAIRS * th[0])  # the broken bar's rotor axis, electrical angle p theta_1
+            bar = self.broken_bar * self.r_r * (i_r * np.conj(axis)).real * axis
             dpsi[0] = W_B * (u_s - self.r_s * i_s - loss)
-            dpsi[1] = W_B * (-self.r_r * i_r - loss + 1j * w[0] * psi[1])
+            dpsi[1] = W_B * (-self.r_r * i_r - bar - loss + 1j * w[0] * psi[1])
             m_el = float(np.imag(np.conj(psi[0]) * i_s))
         elif self.decay != 0:
             t_e, m_e = self.switch_off
@@ -370,6 +415,8 @@ class ReferenceModel:
         d, dw, b = self.deflection(t, y, motor_on), w[0] - w[1], self.half_gap
         penetration = abs(d) - b  # beyond the zone's edge [rad]
         contact_spring = self.k12 * penetration * (1.0 + self.progressive * penetration / X_REF)
+        if self.hysteresis:  # stiffer while the penetration deepens (|d| grows), softer while it recedes
+            contact_spring *= 1.0 + self.hysteresis * math.tanh(math.copysign(1.0, d) * dw / W_SMOOTH)
         if d > b:
             m_c = max(0.0, contact_spring + self.d12 * dw)
         elif d < -b:
@@ -384,12 +431,16 @@ class ReferenceModel:
         m_s += self.dry_friction * math.tanh((w[1] - w[2]) / W_SMOOTH)
         if self.play:  # the hub's play: the spring k_2 (x - play tanh(x / play))
             m_s -= self.k2 * self.play * math.tanh((th[1] - th[2]) / self.play)
+        m_s += self.mesh * self.k2 * (th[1] - th[2]) * math.sin(MESH_ORDER * th[1])  # the teeth in mesh
         m_a = self.c * w[2] + self.c1 * np.tanh(w[2] / W_SMOOTH)
         m_f = self.coulomb * np.tanh(w[0] / W_SMOOTH) + self.viscous * w[0]
         m_f += self.cogging * math.sin(COGGING_ORDER * th[0])
         m_f += self.windage * w[0] * abs(w[0])
         m_f += self.stribeck * math.tanh(w[0] / W_SMOOTH) * math.exp(-((w[0] / W_STRIBECK) ** 2))
         m_f += self.bearing * abs(m_c) * math.tanh(w[0] / W_SMOOTH)  # the bearings under the clutch's load
+        m_f += self.brake * self.brake_engagement(t, motor_on) * math.tanh(w[0] / W_SMOOTH)
+        s_eddy = w[2] / W_EDDY
+        eddy = self.eddy * 2.0 * s_eddy / (1.0 + s_eddy**2)  # the eddy-current brake's force on the mass
         s_bump = (th[2] - THETA_BUMP) / W_BUMP  # where the mass is on the bump
         bump = self.bump * math.sqrt(2.0 * math.e) * s_bump * math.exp(-(s_bump**2)) if self.bump else 0.0
         m_pre = self.preload * self.k12 * d  # the spring across the clutch, inside the zone too
@@ -407,6 +458,7 @@ class ReferenceModel:
                 - self.load_spring * th[2] / (2.0 * math.pi)
                 - self.drag * w[2] * abs(w[2])
                 + bump
+                - eddy
                 + self.input.at("load", t, motor_on),
             ]
         )
@@ -414,11 +466,23 @@ class ReferenceModel:
         omega1 = OMEGA_B * w[0] * (1.0 + self.eccentricity * math.sin(th[0]))  # the encoder's reading
         a1, a2 = self.r * OMEGA_B * dw_dt[0], self.r * OMEGA_B * dw_dt[2]
         a2 += self.crosstalk * a1  # the load accelerometer's cross-axis sensitivity
-        raw = np.array([a1, m_el, omega1, a2, self.r * OMEGA_B * w[2]])
+        hum = self.hum * math.sin(self.f * W_B * t)  # the mains in the accelerometers' cabling
+        raw = np.array([a1 + hum, m_el, omega1, a2 + hum, self.r * OMEGA_B * w[2]])
         parts = [dpsi.real, dpsi.imag, dw_dt, OMEGA_B * w]
         if self.filter_rate:
             parts.append(self.filter_rate * (raw - y[_N_PLANT:]))
         return np.concatenate(parts), raw
+
+    def brake_engagement(self, t: float, motor_on: bool) -> float:
+        """g_b(t) of the motor brake: 1 applied, 0 lifted (t [s] since switch-on; the switch-off from ``switch_off``)."""
+
+        def ramp(x: float) -> float:  # smoothstep: 0 below 0, 1 above 1, 3 x^2 - 2 x^3 between
+            x = min(max(x, 0.0), 1.0)
+            return x * x * (3.0 - 2.0 * x)
+
+        if motor_on:
+            return 1.0 - ramp((t - T_BRAKE_RELEASE) / T_BRAKE_TRAVEL)
+        return ramp((t - self.switch_off[0] - T_BRAKE_APPLY) / T_BRAKE_TRAVEL)
 
     def inverse_inductance(self, psi_s: complex) -> np.ndarray:
         """L^-1 with [i_s, i_r] = L^-1 [psi_s, psi_r]; with saturation x_m depends on |psi_s|."""
@@ -456,9 +520,9 @@ def reference_simulate(
         MODEL.md parameters that differ from :data:`MODEL_DEFAULTS`, by their
         MODEL.md names (e.g. ``{"K": 0.005, "J1": 0.87, "c": 1.0}``).
     effects : mapping, optional
-        Catalogued, held-back, held-out and sealed effects (both sealed families) by name and
+        Catalogued, held-back, held-out and sealed effects (the three sealed families) by name and
         value (keys of :data:`EFFECT_NEUTRAL`, :data:`HELD_BACK_NEUTRAL`, :data:`HELD_OUT_NEUTRAL`,
-        :data:`SEALED_NEUTRAL` and :data:`SEALED2_NEUTRAL`).
+        :data:`SEALED_NEUTRAL`, :data:`SEALED2_NEUTRAL` and :data:`SEALED3_NEUTRAL`).
     method, rtol, atol
         ``solve_ivp`` settings.
     grid : SampleGrid, optional
@@ -603,6 +667,13 @@ def reference_inputs(case: Case) -> tuple[dict[str, float], dict[str, float]]:
         "resilient_hub_play": p.play2,
         "load_track_bump": p.bump3,
         "speed_sample_hold": s.hold1,
+        "supply_loose_connection": p.r_con,
+        "rotor_broken_bar": p.r_bar,
+        "motor_brake": p.tau_brake,
+        "clutch_hysteretic_contact": p.hyst12,
+        "resilient_mesh_stiffness": p.mesh2,
+        "load_eddy_current_brake": p.eddy3,
+        "accelerometer_mains_hum": s.hum,
     }
     return parameters, effects
 

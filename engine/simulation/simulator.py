@@ -161,10 +161,10 @@ def parameter_vector(
     Parameters
     ----------
     case : Case
-        Plant (with its model-1.1, 1.2, 1.3 and 1.4 terms and unknown input, if any) and measurement
+        Plant (with its model-1.1 to 1.5 terms and unknown input, if any) and measurement
         chain; only the chain's delay, trigger offset, low-pass, (model 1.2) encoder eccentricity,
-        (model 1.3) accelerometer cross-talk and (model 1.4) omega1's sample-and-hold enter the
-        kernel (gain, offset and quantisation act afterwards: :func:`apply_sensor_readout`). Model
+        (model 1.3) accelerometer cross-talk, (model 1.4) omega1's sample-and-hold and (model 1.5)
+        the accelerometers' mains hum enter the kernel (gain, offset and quantisation act afterwards: :func:`apply_sensor_readout`). Model
         1.3's higher leakage reactances (``x_leak``) enter as ``x_s + x_leak`` and ``x_r + x_leak``,
         with no term of their own.
     solver : SolverSettings
@@ -213,12 +213,17 @@ def parameter_vector(
     P[kern.P_U_DC], P[kern.P_R_M], P[kern.P_MU1] = p.u_dc, p.r_m, p.mu_1
     P[kern.P_SQ12], P[kern.P_PLAY2], P[kern.P_BUMP3] = p.sq12, p.play2, p.bump3
     P[kern.P_HOLD1] = s.hold1
+    # model 1.5 (appended after model 1.4's)
+    P[kern.P_R_CON], P[kern.P_R_BAR], P[kern.P_TAU_BRAKE] = p.r_con, p.r_bar, p.tau_brake
+    P[kern.P_HYST12], P[kern.P_MESH2], P[kern.P_EDDY3] = p.hyst12, p.mesh2, p.eddy3
+    P[kern.P_HUM] = s.hum
     extended = (
         dist is not None
         or any(P[kern.P_TAU_RIPPLE3 : kern.P_M_OFF + 1] != 0.0)
         or any(P[kern.P_U_NEG : kern.P_XTALK2 + 1] != 0.0)
         or p.x_leak != 0.0  # no kernel term (folded into x_s, x_r above); switched on as every 1.3 term is
         or any(P[kern.P_U_DC : kern.P_HOLD1 + 1] != 0.0)
+        or any(P[kern.P_R_CON : kern.P_HUM + 1] != 0.0)
     )
     P[kern.P_EXTENDED] = 1.0 if extended else 0.0
     return P
@@ -395,7 +400,8 @@ def simulate_batch(
         e.g. :data:`~engine.simulation.held_back.HELD_BACK` for the held-back effects,
         :data:`~engine.simulation.held_out.HELD_OUT` for the held-out ones (model 1.2),
         :data:`~engine.simulation.sealed.SEALED` for the sealed ones (model 1.3),
-        :data:`~engine.simulation.sealed2.SEALED2` for the second sealed family (model 1.4).
+        :data:`~engine.simulation.sealed2.SEALED2` for the second sealed family (model 1.4),
+        :data:`~engine.simulation.sealed3.SEALED3` for the third (model 1.5).
 
     Returns
     -------
