@@ -16,8 +16,8 @@ A protocol-2 run hides one family from the diagnosis and draws its held-back cas
   :data:`~engine.simulation.sealed2.RULE`); its one blind run (seed 263) is published, so it is
   spent: development data since.
 * ``sealed3``: :data:`~engine.simulation.sealed3.SEALED3` (model 1.5), kept for scoring (its rule:
-  :data:`~engine.simulation.sealed3.RULE`); run once, blind, on committed code, its figures are
-  out-of-sample ones.
+  :data:`~engine.simulation.sealed3.RULE`); its one blind run (seed 269) is published, so it is
+  spent: development data since.
 """
 
 from __future__ import annotations
