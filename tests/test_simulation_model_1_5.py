@@ -33,43 +33,20 @@ import math
 import numpy as np
 import pytest
 from bench_scripts import load_bench
+from kernel_terms import NOMINAL, STATE, vectors
+from kernel_terms import rhs as _rhs
+from kernel_terms import with_state as _with
 
 from engine.constants import CHANNELS, MESH_ORDER, T_BRAKE_APPLY, T_BRAKE_RELEASE, T_BRAKE_TRAVEL, W_EDDY, W_SMOOTH
-from engine.simulation import SEALED3, Case, PlantParameters, SensorParameters, simulate_batch
+from engine.simulation import SEALED3, Case, SensorParameters, simulate_batch
 from engine.simulation import _kernel as kern
-from engine.simulation.simulator import parameter_vector
 
-NOMINAL = PlantParameters(K=0.005, J1=0.87, c=1.0)
-#: A state of the test's order of magnitude (fluxes, speeds, angles; no sensor states), the
-#: clutch's deflection theta_1 - theta_2 = 0.03 rad inside the nominal zone (b = 0.05 rad).
-STATE = (0.9, -0.3, 0.8, -0.35, 0.02, 0.012, 0.004, 0.07, 0.04, 0.01, 0.0, 0.0, 0.0, 0.0, 0.0)
 A1, M_EL, A2 = (CHANNELS.index(c) for c in ("a1", "m_el", "a2"))
 
 
 def _vectors(name: str, value: float, case: Case | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The parameter vectors of ``case`` (the nominal plant) without and with the effect, both on the extended path."""
-    base = Case(NOMINAL) if case is None else case
-    P0 = parameter_vector(base)
-    P1 = parameter_vector(SEALED3[name].apply(base, value))
-    P0[kern.P_EXTENDED] = 1.0  # the same path, so that the difference is the term alone
-    P0[kern.P_T_SWITCH_OFF] = P1[kern.P_T_SWITCH_OFF] = math.inf
-    return P0, P1
-
-
-def _rhs(
-    P: np.ndarray, y: tuple[float, ...] = STATE, t: float = 0.01, motor_on: bool = True
-) -> tuple[np.ndarray, np.ndarray]:
-    dy, ch = kern.rhs(t, y, P, motor_on)
-    return np.array(dy), np.array(ch)
-
-
-def _with(y: tuple[float, ...], **at: float) -> tuple[float, ...]:
-    """``y`` with some of its entries replaced, by index name (``w1`` .. ``w3``, ``th1`` .. ``th3``)."""
-    index = {"w1": 4, "w2": 5, "w3": 6, "th1": 7, "th2": 8, "th3": 9}
-    out = list(y)
-    for name, value in at.items():
-        out[index[name]] = value
-    return tuple(out)
+    """The parameter vectors without and with one SEALED3 effect (:func:`kernel_terms.vectors`)."""
+    return vectors(SEALED3, name, value, case)
 
 
 def _currents(y: tuple[float, ...]) -> tuple[complex, complex]:
