@@ -59,11 +59,13 @@ from engine.diagnosis.confidence import (
 from engine.diagnosis.open_world import fit_open_world
 from engine.validation.provenance import code_version
 from engine.validation.reliability import (
+    IN_CATALOGUE_KINDS,
     TARGET_MIN_N,
     TARGET_TOLERANCE,
     VERDICT_STATUSES,
     CaseOutcome,
     RunOutcomes,
+    explained_by_gap,
     read_run,
     reliability_markdown,
     reliability_section,
@@ -79,8 +81,6 @@ HELD_OUT_RUNS: tuple[str, ...] = ("v2-seed229", "v1-seed227")
 #: The commit a protocol-1 run's README names in its title ("..., code 1b3904d ..."); its results
 #: do not stamp one.
 README_CODE = re.compile(r"\bcode ([0-9a-f]{7,40})\b")
-#: Case kinds whose records hold catalogue effects only (protocol 2 and protocol 1).
-IN_CATALOGUE_KINDS: frozenset[str] = frozenset({"single", "pair", "triple", "effect"})
 
 
 def _readme_code(run_dir: Path) -> str | None:
@@ -157,17 +157,8 @@ def fit_map(
     locus = fit_isotonic([x for x, _ in loc_xy], [ok for _, ok in loc_xy], LOCUS_FEATURE) if loc_xy else None
     world = None
     if open_world_runs:
-        inside = [
-            (o.nominal_chi2, o.status == "explained")
-            for o in outcomes
-            if o.kind in IN_CATALOGUE_KINDS and o.nominal_chi2 is not None
-        ]
-        outside = [
-            (o.nominal_chi2, o.status == "explained")
-            for run, _ in open_world_runs
-            for o in run.outcomes
-            if o.nominal_chi2 is not None
-        ]
+        inside = explained_by_gap(outcomes, IN_CATALOGUE_KINDS)
+        outside = explained_by_gap(o for run, _ in open_world_runs for o in run.outcomes)
         world = fit_open_world(inside, outside)
     provenance = {
         "fitted_on": [

@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
 import os
 import re
 import sys
@@ -432,6 +433,31 @@ def render_width_coverage(page: Page) -> str:
 
 
 # --- confidence -----------------------------------------------------------------------------------
+
+
+def render_open_world(page: Page) -> str:
+    """The committed map's open-world part: per band of the nominal chi2/n, the counts and the stand-in chance."""
+    path = "engine/diagnosis/data/confidence_map.json"
+    cmap = read_json(path)
+    world, prov = cmap["open_world"], cmap["provenance"]
+    edges = [0.0, *world["edges"], math.inf]
+    rows = []
+    for i, ((k_in, n_in), (k_out, n_out)) in enumerate(zip(world["explained_in"], world["explained_out"], strict=True)):
+        band = f"{edges[i]:g} to {edges[i + 1]:g}" if math.isfinite(edges[i + 1]) else f">= {edges[i]:g}"
+        rows.append([band, rate(k_in, n_in), rate(k_out, n_out), f"{world['stand_in'][i]:.2f}"])
+    head = [
+        f"{world['feature']}",
+        "in-catalogue records answered `explained` there (development runs)",
+        "records of new physics answered `explained` there ("
+        + ", ".join(r["run"] for r in prov.get("open_world_fitted_on", []))
+        + ")",
+        "chance that such an answer is a stand-in",
+    ]
+    note = (
+        f"\n\nShare of gaps taken to be of physics outside the catalogue: {world['share']:.3f} (protocol 2's mix, an "
+        "assumption); Bayes' rule with a Beta(1/2, 1/2) prior on each rate."
+    )
+    return table(head, rows) + note + sources(page, [path])
 
 
 def render_confidence(page: Page) -> str:
@@ -1626,6 +1652,7 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "width-coverage": render_width_coverage,
     "drive-p2": render_drive_p2,
     "confidence": render_confidence,
+    "open-world": render_open_world,
     "identification-accuracy": render_identification_accuracy,
     "kernel-speed": render_kernel_speed,
     "kernel-speed-runs": render_kernel_speed_runs,

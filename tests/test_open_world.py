@@ -14,6 +14,7 @@ from engine.diagnosis.open_world import (
     STAND_IN_WARN,
     OpenWorldMap,
     fit_open_world,
+    stand_in_doubt,
     stand_in_warnings,
 )
 from engine.diagnosis.result import Verdict
@@ -74,9 +75,25 @@ def test_stand_in_warning_names_the_effect_and_what_to_check():
     assert world is not None
     row = {"effect": "rotor_resistance_drift", "value": 0.9282, "uncertainty": 0.001, "unit": "x"}
     v = Verdict("explained", "rotor_resistance_drift", 0.9282, 0.001, "x", 0.5, "r", effects=[row])
-    (w,) = stand_in_warnings(v, 4.0, world)
+    (w,) = stand_in_warnings(v, 4.0, stand_in_doubt(v.status, 4.0, world))
     assert w.code == "stand_in" and "rotor_resistance_drift = 0.9282 x" in w.message
     assert "chi2/n = 4" in w.message and "stronger excitation" in w.message
-    assert stand_in_warnings(v, 400.0, world) == []  # a strong gap: no warning
-    assert stand_in_warnings(v, 4.0, None) == []  # no map part: no warning
-    assert stand_in_warnings(Verdict.without_effect("unexplained", 0.9, "r"), 4.0, world) == []
+    assert stand_in_warnings(v, 400.0, stand_in_doubt(v.status, 400.0, world)) == []  # a strong gap: no warning
+    assert stand_in_warnings(v, 4.0, stand_in_doubt(v.status, 4.0, None)) == []  # no map part: no warning
+    other = Verdict.without_effect("unexplained", 0.9, "r")
+    assert stand_in_warnings(other, 4.0, stand_in_doubt(other.status, 4.0, world)) == []
+
+
+def test_explained_by_gap_keeps_the_kinds_asked_and_the_outcomes_with_a_nominal_fit():
+    from engine.validation.reliability import IN_CATALOGUE_KINDS, CaseOutcome, explained_by_gap
+
+    def outcome(kind: str, status: str, chi2: float | None) -> CaseOutcome:
+        return CaseOutcome("r", 2, "c", kind, status, 0.9, 0.9, True, (), None, None, None, chi2)
+
+    rows = [
+        outcome("single", "explained", 4.0),
+        outcome("held_back", "explained", 3.0),
+        outcome("pair", "no_gap", None),
+    ]
+    assert explained_by_gap(rows, IN_CATALOGUE_KINDS) == [(4.0, True)]
+    assert explained_by_gap(rows) == [(4.0, True), (3.0, True)]

@@ -116,7 +116,7 @@ from engine.diagnosis.calibration import CalibrationResult, calibrate
 from engine.diagnosis.candidate import Candidate
 from engine.diagnosis.candidate_set import CandidateSet
 from engine.diagnosis.candidates import fit_candidates
-from engine.diagnosis.confidence import load_map, locus_confidence, stand_in_probability
+from engine.diagnosis.confidence import load_map, locus_confidence
 from engine.diagnosis.decision import (
     choose_model,
     decide,
@@ -129,7 +129,7 @@ from engine.diagnosis.decision import (
 )
 from engine.diagnosis.gap import gap_of
 from engine.diagnosis.localisation import DEFAULT_WINDOWS_MS, Cell, localise
-from engine.diagnosis.open_world import STAND_IN_WARN, stand_in_warnings
+from engine.diagnosis.open_world import stand_in_doubt, stand_in_warnings
 from engine.diagnosis.plausibility import PlausibilityWarning, check_calibration, check_record, merge_warnings
 from engine.diagnosis.result import DiagnosisResult, Verdict
 from engine.diagnosis.sets import search_sets
@@ -335,8 +335,7 @@ def _diagnose(
     models: list[Model] = [*cands, *sets]
     final, source = answer_calibration(verdict.status, nominal, model, models)
     fitted = [nominal, *(m.calibration for m in models if m.calibration is not None)]
-    cmap = load_map()
-    doubt = (stand_in_probability(nominal.reduced_chi2, cmap) or 0.0) if verdict.status == "explained" else 0.0
+    doubt = stand_in_doubt(verdict.status, nominal.reduced_chi2, load_map().open_world)
     width = answer_width(
         record,
         final,
@@ -345,7 +344,7 @@ def _diagnose(
         fitted,
         settings.min_delta_bic,
         verdict.status in MISSING_PHYSICS,
-        stand_in_from=nominal if doubt >= STAND_IN_WARN else None,
+        stand_in_from=nominal if doubt is not None else None,
     )
     stage("decision")
     # what the plant cannot produce, judged on the model the answer ends with (a named effect's misfit is no warning)
@@ -354,7 +353,7 @@ def _diagnose(
     except (ValueError, RuntimeError) as exc:  # the answer stands without the checks; say they did not run
         logger.warning("plausibility checks failed: %s", exc)
         warnings = [PlausibilityWarning("checks_failed", f"the plausibility checks could not run ({exc})")]
-    warnings += stand_in_warnings(verdict, nominal.reduced_chi2, cmap.open_world)
+    warnings += stand_in_warnings(verdict, nominal.reduced_chi2, doubt)
     for w in warnings:
         logger.warning("%s", w.message)
     stage("plausibility")

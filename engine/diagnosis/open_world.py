@@ -19,8 +19,9 @@ lies outside the catalogue (:data:`OPEN_WORLD_SHARE`, an assumption). Bayes' rul
 probability that an ``explained`` answer in that band is a stand-in (:meth:`OpenWorldMap.stand_in`);
 the verdict's confidence is multiplied by one minus it
 (:func:`engine.diagnosis.confidence.calibrated_confidence`), and when it reaches
-:data:`STAND_IN_WARN` the answer carries a ``stand_in`` warning (:func:`stand_in_warning`) that says
-so and what to check. The status is not changed: on the development runs such answers are right 133
+:data:`STAND_IN_WARN` (:func:`stand_in_doubt`, the one rule) the answer carries a ``stand_in``
+warning (:func:`stand_in_warnings`) that says so and what to check, and its width interval is
+widened (term 5 of :mod:`engine.diagnosis.width`). The status is not changed: on the development runs such answers are right 133
 times in 139, and abstaining there would refuse those 133 right answers (11 % of the in-catalogue
 records).
 
@@ -48,7 +49,7 @@ __all__ = [
     "STAND_IN_WARN",
     "OpenWorldMap",
     "fit_open_world",
-    "stand_in_warning",
+    "stand_in_doubt",
     "stand_in_warnings",
 ]
 
@@ -180,50 +181,62 @@ def fit_open_world(
     return OpenWorldMap(tuple(float(e) for e in edges), counts(inside), counts(outside), share)
 
 
-def stand_in_warning(effects: str, nominal_chi2: float, probability: float) -> PlausibilityWarning:
-    """The warning of an explained answer that may be a stand-in (module docstring).
+def stand_in_doubt(status: str, nominal_chi2: float | None, world: OpenWorldMap | None) -> float | None:
+    """The stand-in probability of an answer that is in doubt: ``explained``, and at or above :data:`STAND_IN_WARN`.
+
+    The one rule that decides both the ``stand_in`` warning (:func:`stand_in_warnings`) and the
+    width's term 5 (:func:`engine.diagnosis.width.answer_width`), in a diagnosis and when stored
+    answers are re-scored (:func:`engine.validation.width_coverage.stand_in_reach`).
 
     Parameters
     ----------
-    effects : str
-        The named effect or set, as the verdict states it.
-    nominal_chi2 : float
+    status : str
+        The verdict's status.
+    nominal_chi2 : float or None
         The nominal calibration's chi2/n.
-    probability : float
-        :meth:`OpenWorldMap.stand_in` at that chi2/n.
+    world : OpenWorldMap or None
+        The committed map's open-world part.
+
+    Returns
+    -------
+    float or None
+        :meth:`OpenWorldMap.stand_in`, or None: another status, no map, no finite chi2/n, or below
+        :data:`STAND_IN_WARN`.
     """
-    return PlausibilityWarning(
-        "stand_in",
-        f"The gap is weak (the nominal model leaves chi2/n = {nominal_chi2:.3g}): {effects} reproduces it, but "
-        f"at such gaps physics outside the catalogue is often reproduced by a small change of a catalogue "
-        f"parameter (a {100 * probability:.0f} % chance here that the named effect stands in for something "
-        "else, included in the confidence). Before acting on it, check that the named change is plausible "
-        "for this machine (a measured resistance, a known friction), or repeat the test with a stronger "
-        "excitation, where the two part company.",
-    )
+    if status != "explained" or world is None or nominal_chi2 is None or not math.isfinite(nominal_chi2):
+        return None
+    p = world.stand_in(nominal_chi2)
+    return p if p >= STAND_IN_WARN else None
 
 
-def stand_in_warnings(verdict: Verdict, nominal_chi2: float, world: OpenWorldMap | None) -> list[PlausibilityWarning]:
-    """The ``stand_in`` warning of an ``explained`` verdict whose stand-in probability reaches :data:`STAND_IN_WARN`.
+def stand_in_warnings(verdict: Verdict, nominal_chi2: float, doubt: float | None) -> list[PlausibilityWarning]:
+    """The ``stand_in`` warning of an answer in doubt (:func:`stand_in_doubt`), or none.
 
     Parameters
     ----------
     verdict : Verdict
-        The diagnosis's verdict.
+        The diagnosis's verdict (its named effects go into the message).
     nominal_chi2 : float
         The nominal calibration's chi2/n.
-    world : OpenWorldMap or None
-        The committed map's open-world part (no warning without one).
+    doubt : float or None
+        :func:`stand_in_doubt` of the answer.
 
     Returns
     -------
     list of PlausibilityWarning
-        One warning, or none (another status, a strong gap, no map, a chi2/n that is not finite).
+        One warning when ``doubt`` is not None, else none.
     """
-    if verdict.status != "explained" or world is None or not math.isfinite(nominal_chi2):
-        return []
-    p = world.stand_in(nominal_chi2)
-    if p < STAND_IN_WARN:
+    if doubt is None:
         return []
     named = " and ".join(f"{r['effect']} = {r['value']:.4g} {r['unit']}" for r in verdict.effects)
-    return [stand_in_warning(named or str(verdict.effect), nominal_chi2, p)]
+    return [
+        PlausibilityWarning(
+            "stand_in",
+            f"The gap is weak (the nominal model leaves chi2/n = {nominal_chi2:.3g}): {named or verdict.effect} "
+            "reproduces it, but at such gaps physics outside the catalogue is often reproduced by a small change "
+            f"of a catalogue parameter (a {100 * doubt:.0f} % chance here that the named effect stands in for "
+            "something else, included in the confidence). Before acting on it, check that the named change is "
+            "plausible for this machine (a measured resistance, a known friction), or repeat the test with a "
+            "stronger excitation, where the two part company.",
+        )
+    ]

@@ -32,7 +32,7 @@ import json
 import logging
 import math
 import tarfile
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Collection, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,6 +46,7 @@ from engine.validation.stats import CONFIDENCE, Rate, rate
 logger = logging.getLogger(__name__)
 
 __all__ = [
+    "IN_CATALOGUE_KINDS",
     "RELIABILITY_EDGES",
     "TARGET_MIN_N",
     "TARGET_TOLERANCE",
@@ -56,6 +57,7 @@ __all__ = [
     "ReliabilityTable",
     "RunOutcomes",
     "brier_score",
+    "explained_by_gap",
     "protocol_of",
     "read_run",
     "reliability_markdown",
@@ -407,6 +409,20 @@ class RunOutcomes:
     code_version: str | None
     outcomes: tuple[CaseOutcome, ...]
     excluded: tuple[tuple[str, str], ...] = ()
+
+
+#: Case kinds whose records hold catalogue effects only (protocol 2's and protocol 1's).
+IN_CATALOGUE_KINDS: frozenset[str] = frozenset({"single", "pair", "triple", "effect"})
+
+
+def explained_by_gap(outcomes: Iterable[CaseOutcome], kinds: Collection[str] | None = None) -> list[tuple[float, bool]]:
+    """``(nominal chi2/n, answered explained)`` of every outcome of ``kinds`` (all kinds when None) that holds a
+    nominal chi2/n: the rows :func:`engine.diagnosis.open_world.fit_open_world` counts."""
+    return [
+        (o.nominal_chi2, o.status == "explained")
+        for o in outcomes
+        if o.nominal_chi2 is not None and (kinds is None or o.kind in kinds)
+    ]
 
 
 def _locus_of(name: str) -> str | None:

@@ -34,8 +34,8 @@ from pathlib import Path
 from typing import Any
 
 from engine.constants import Z95
-from engine.diagnosis.confidence import stand_in_probability
-from engine.diagnosis.open_world import STAND_IN_WARN
+from engine.diagnosis.confidence import load_map
+from engine.diagnosis.open_world import stand_in_doubt
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.diagnosis.space import DEFAULT_BOUNDS
 from engine.diagnosis.width import MAX_RELATIVE_HALF_WIDTH, MISSING_PHYSICS, STRUCTURE_FACTOR, width_sigma
@@ -181,16 +181,12 @@ ANSWERED_STRUCTURE_FACTOR: float = 3.0
 
 def stand_in_reach(result: Mapping[str, Any], K: float) -> float:
     """Term 5 of the width rule for a stored result: ``|K_nominal - K|`` [m] when its verdict is ``explained``
-    at a nominal chi2/n whose stand-in probability (the committed map) reaches
-    :data:`~engine.diagnosis.open_world.STAND_IN_WARN`, else 0."""
-    if (result.get("verdict") or {}).get("status") != "explained":
-        return 0.0
+    in doubt by :func:`~engine.diagnosis.open_world.stand_in_doubt` (the committed map), else 0."""
     chi2 = (result.get("calibration") or {}).get("reduced_chi2")
+    status = str((result.get("verdict") or {}).get("status"))
+    doubt = stand_in_doubt(status, float(chi2) if isinstance(chi2, (int, float)) else None, load_map().open_world)
     nominal = _nominal(result)
-    p = stand_in_probability(float(chi2)) if isinstance(chi2, (int, float)) else None
-    if p is None or p < STAND_IN_WARN or nominal is None:
-        return 0.0
-    return abs(nominal[0] - K)
+    return 0.0 if doubt is None or nominal is None else abs(nominal[0] - K)
 
 
 def recomposed_rule(width: Mapping[str, Any] | None, reach: float = 0.0) -> tuple[float, float] | None:

@@ -18,11 +18,12 @@ spent (development data, not validation):
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 from pathlib import Path
 
 from engine.diagnosis.confidence import calibrated_confidence, load_map
 from engine.diagnosis.open_world import fit_open_world
-from engine.validation.reliability import CaseOutcome, read_run
+from engine.validation.reliability import IN_CATALOGUE_KINDS, CaseOutcome, explained_by_gap, read_run
 from engine.validation.stats import wilson_interval
 
 logger = logging.getLogger("open_world_check")
@@ -30,7 +31,6 @@ logger = logging.getLogger("open_world_check")
 RUNS = Path("docs/validation")
 DEVELOPMENT = [f"v2-seed{s}" for s in (97, 151, 163, 173, 191, 223)] + [f"v1-seed{s}" for s in (193, 199, 211)]
 SPENT = ["v2-heldout-seed241", "v2-sealed-seed257", "v2-sealed2-seed263"]
-IN_KINDS = {"single", "pair", "triple", "effect"}
 
 
 def _pct(k: int, n: int) -> str:
@@ -41,7 +41,7 @@ def _pct(k: int, n: int) -> str:
 def main() -> None:
     logging.basicConfig(level=logging.WARNING)
     dev = [o for name in DEVELOPMENT for o in read_run(RUNS / name).outcomes]
-    inside = [(o.nominal_chi2, o.status == "explained") for o in dev if o.kind in IN_KINDS and o.nominal_chi2]
+    inside = explained_by_gap(dev, IN_CATALOGUE_KINDS)
     spent = {name: read_run(RUNS / name).outcomes for name in SPENT}
     held = read_run(RUNS / "v2-seed229").outcomes
     committed = load_map()
@@ -49,9 +49,8 @@ def main() -> None:
     print("| --- | --- | --- | --- | --- | --- |")
     mixed: list[tuple[str, CaseOutcome, float]] = []
     for left in SPENT:
-        outside = [(o.nominal_chi2, o.status == "explained") for n in SPENT if n != left for o in spent[n]]
-        world = fit_open_world(inside, [(x, e) for x, e in outside if x is not None])
-        cmap = type(committed)(committed.verdict, committed.locus, committed.provenance, world)
+        world = fit_open_world(inside, explained_by_gap(o for n in SPENT if n != left for o in spent[n]))
+        cmap = replace(committed, open_world=world)
         expl = [o for o in spent[left] if o.status == "explained"]
         now = [calibrated_confidence(o.status, o.score or 0.0, cmap, o.nominal_chi2) for o in expl]
         as_run = [o.confidence or 0.0 for o in expl]
