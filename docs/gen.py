@@ -896,6 +896,21 @@ PLANT_CHECK_MEASURES = (
 )
 
 
+def check_measure_rows(runs: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> list[list[str]]:
+    """Rows of a table of synthetic checks (``engine.validation.plant_check`` reports): per measure of ``keys``
+    its label, then its rate in each run (a dash where a run lacks it); measures no run has are left out."""
+    labels: dict[str, str] = {}
+    cells: dict[str, list[str]] = {key: [] for key in keys}
+    for r in runs:
+        by_key = {m["key"]: m for m in r["measures"]}
+        for key in keys:
+            m = by_key.get(key)
+            if m is not None:
+                labels.setdefault(key, m["label"])
+            cells[key].append("-" if m is None else rate(m["k"], m["n"], m["low"], m["high"]))
+    return [[labels[key], *cells[key]] for key in keys if key in labels]
+
+
 def render_plant_checks(page: Page) -> str:
     """The synthetic checks through the plant interface: clean cases, strong and weak effects, per run."""
     paths = [
@@ -913,16 +928,7 @@ def render_plant_checks(page: Page) -> str:
             for r, n in zip(runs, names, strict=True)
         ),
     ]
-    labels: dict[str, str] = {}
-    cells: dict[str, list[str]] = {key: [] for key in PLANT_CHECK_MEASURES}
-    for r in runs:
-        by_key = {m["key"]: m for m in r["measures"]}
-        for key in PLANT_CHECK_MEASURES:
-            m = by_key.get(key)
-            if m is not None:
-                labels.setdefault(key, m["label"])
-            cells[key].append("-" if m is None else rate(m["k"], m["n"], m["low"], m["high"]))
-    rows = [[labels.get(key, key), *cells[key]] for key in PLANT_CHECK_MEASURES if key in labels]
+    rows = check_measure_rows(runs, PLANT_CHECK_MEASURES)
     rows.append(
         [
             "seconds per diagnosis, median / max",
@@ -1643,6 +1649,119 @@ def render_service_summary(page: Page) -> str:
     return "\n".join(lines) + sources(page, [LOAD_REPORT, FUZZ_REPORT])
 
 
+#: The synthetic checks of the FMU plants' catalogues (issue 55): report paths, oldest first.
+FMU_CHECKS: tuple[str, ...] = ("docs/validation/fmu/quarter_car-seed41.json",)
+#: The rates the FMU checks' table shows, in order.
+FMU_CHECK_MEASURES: tuple[str, ...] = (
+    "strong_top1",
+    "top1",
+    "weak_ok",
+    "absorbed",
+    "named_where_absorbed",
+    "clean_no_gap",
+    "clean_false_alarm",
+)
+#: The FMU cost bench's report (``bench/bench_fmu.py --json``).
+FMU_COST = "docs/validation/fmu/cost.json"
+
+
+def _fmu_check_runs() -> list[tuple[str, dict[str, Any]]]:
+    return [(p, read_json(p)) for p in FMU_CHECKS if (ROOT / p).exists()]
+
+
+def render_fmu_checks(page: Page) -> str:
+    """The FMU plants' synthetic checks: per run, the catalogue's rates, every case's effect, and the time."""
+    runs = _fmu_check_runs()
+    if not runs:
+        return "No committed check yet."
+    head = [
+        "measure",
+        *(f"{Path(r['run']['plant']).parent.name or r['run']['plant']}, seed {r['run']['seed']}" for _, r in runs),
+    ]
+    rows = check_measure_rows([r for _, r in runs], FMU_CHECK_MEASURES)
+    rows.append(
+        [
+            "seconds per diagnosis, median / max",
+            *(f"{r['seconds']['median']:.0f} / {r['seconds']['max']:.0f}" for _, r in runs),
+        ]
+    )
+    misses = []
+    for _, r in runs:
+        for c in r["cases"]:
+            if c["effect"] is None or c["held_back"] or c["absorbed"]:
+                continue
+            if (c["named"] or [None])[0] != c["effect"]:
+                misses.append(
+                    f"`{c['effect']}` = {c['value']:.4g} ({c['strength_noise_rms']:.1f} noise RMS): "
+                    f"{c['status']}{' ' + ', '.join(c['named']) if c['named'] else ''}"
+                )
+    note = (
+        f"\n\nStrong: the true effect moves the record by more than {runs[0][1]['min_strength_noise_rms']:g} noise RMS "
+        "(computed from the truth after the diagnosis); Wilson 95 % intervals; the code of each run is in its report. "
+        + ("Cases whose first named effect is not the truth: " + "; ".join(misses) + "." if misses else "")
+    )
+    return table(head, rows) + note + sources(page, [p for p, _ in runs])
+
+
+def render_fmu_cost(page: Page) -> str:
+    """One simulation of each plant (FMU and native) and the quarter car's diagnoses, from ``bench/bench_fmu.py``."""
+    r = read_json(FMU_COST)
+    rows = [
+        [
+            s["plant"],
+            str(s["samples"]),
+            f"{1e3 * s['seconds']:.2f}",
+            f"{s['us_per_sample']:.2f}",
+            f"{s['ratio_to_native']:.2f}x",
+        ]
+        for s in r["simulations"]
+    ]
+    lines = [table(["plant", "samples", "ms per simulation", "us per sample", "against the native drive"], rows)]
+    if r["diagnoses"]:
+        d_rows = [
+            [
+                f"`{d['effect']}` = {d['value']:g}",
+                f"{d['status']} {', '.join(d['named'])}".strip(),
+                f"{d['seconds']:.1f}",
+                str(d["simulations"]),
+                f"{d['simulation_equivalents']:.0f}",
+                f"{d['seconds_on_processes']:.1f} ({d['ratio']:.2f}x)",
+                "yes" if d["identical"] else "**no**",
+            ]
+            for d in r["diagnoses"]
+        ]
+        head = ["quarter car, one effect", "answer", "seconds, one process", "simulations", "simulation-equivalents"]
+        head += [f"seconds on {r['diagnoses'][0]['processes']} processes", "same answer"]
+        lines.append("\n\n" + table(head, d_rows))
+    lines.append(f"\n\nCode {r['code']}, {r['calls']} timed calls of one simulation per plant; `{r['command']}`.")
+    return "".join(lines) + sources(page, [FMU_COST])
+
+
+def render_fmu_summary(page: Page) -> str:
+    """One line for the README: the FMU checks pooled (the catalogue named first, clean records answered)."""
+    runs = _fmu_check_runs()
+    if not runs:
+        return "No committed check yet."
+    pooled: dict[str, list[int]] = {}
+    for _, r in runs:
+        for m in r["measures"]:
+            k, n = pooled.setdefault(m["key"], [0, 0])
+            pooled[m["key"]] = [k + m["k"], n + m["n"]]
+
+    def pooled_rate(key: str) -> str:
+        k, n = pooled.get(key, [0, 0])
+        return rate(k, n)
+
+    plants = ", ".join(sorted({Path(r["run"]["plant"]).parent.name for _, r in runs}))
+    text = (
+        f"- **A plant from an FMU** ({plants}; {len(runs)} synthetic check(s) of its catalogue through the plant interface, "
+        f"blind for the code of the report): an effect beyond 3 noise RMS is named first in {pooled_rate('strong_top1')}; "
+        f"a clean record is answered `no_gap` in {pooled_rate('clean_no_gap')}, with a false alarm in "
+        f"{pooled_rate('clean_false_alarm')} ({page.link('docs/fmu-plant.md', 'your own simulator')})."
+    )
+    return text + sources(page, [p for p, _ in runs])
+
+
 #: Every renderer by the name its region bears.
 RENDERERS: dict[str, Callable[[Page], str]] = {
     "validation-summary": render_validation_summary,
@@ -1677,6 +1796,9 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "service-load": render_service_load,
     "service-fuzz": render_service_fuzz,
     "service-summary": render_service_summary,
+    "fmu-checks": render_fmu_checks,
+    "fmu-cost": render_fmu_cost,
+    "fmu-summary": render_fmu_summary,
 }
 
 

@@ -74,6 +74,20 @@ def param(text: str) -> tuple[str, Any]:
 UNITS_HELP = "a1, a2: m/s^2 | g; omega1: rad/s | rpm | pu; v2: m/s | mm/s; m_el: pu | N*m (with --base-torque)"
 
 
+def plant_name(text: str) -> str:
+    """``--plant``: a registered plant's name, or the path of a plant description (``*.toml``, an FMU plant)."""
+    from engine.plants import DEFAULT_PLANT, PLANTS, is_description
+
+    if is_description(text):
+        if not Path(text).is_file():
+            raise argparse.ArgumentTypeError(f"no plant description file {text!r}")
+        return text
+    if text not in {DEFAULT_PLANT, *PLANTS}:
+        known = ", ".join(sorted({DEFAULT_PLANT, *PLANTS}))
+        raise argparse.ArgumentTypeError(f"unknown plant {text!r}: one of {known}, or a plant description file (.toml)")
+    return text
+
+
 def add_unit_options(p: argparse.ArgumentParser, what: str) -> None:
     """``--unit CHANNEL=UNIT`` (repeatable) and ``--base-torque``; ``what`` completes the help (whose units)."""
     p.add_argument(
@@ -241,6 +255,9 @@ def user_errors() -> tuple[type[BaseException], ...]:
     from app.services.errors import ServiceError
     from engine.diagnosis.space import BoundsError
     from engine.distributed import SchedulerUnreachable
+    from engine.plants.fmu.build import FmuBuildError
+    from engine.plants.fmu.description import DescriptionError
+    from engine.plants.fmu.runner import FmuSimulationError
     from engine.records import RecordError
     from engine.simulation import ParameterError, SimulationError
     from engine.storage import InvalidPatternSet, PatternStoreError
@@ -258,6 +275,9 @@ def user_errors() -> tuple[type[BaseException], ...]:
         ServiceError,
         ServiceLockError,
         ExposureError,
+        DescriptionError,
+        FmuBuildError,
+        FmuSimulationError,
     )
 
 

@@ -15,12 +15,13 @@ from app.cli.common import (
     add_record_options,
     effects_help,
     examples,
+    plant_name,
     read_drive,
     read_record,
 )
 from app.records_io import stated_provenance
 from engine.atomic import write_json_atomic
-from engine.plants import DEFAULT_PLANT, PLANTS
+from engine.plants import DEFAULT_PLANT
 
 
 def cmd_diagnose(args: argparse.Namespace) -> int:
@@ -152,10 +153,12 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     p.add_argument(
         "--plant",
-        choices=sorted({DEFAULT_PLANT, *PLANTS}),
+        type=plant_name,
+        metavar="PLANT",
         default=DEFAULT_PLANT,
-        help=f"the plant the record is of (default {DEFAULT_PLANT}); emps reads the benchmark's .mat file as "
-        "distributed, or its CSV form",
+        help=f"the plant the record is of (default {DEFAULT_PLANT}): brfd, emps (the benchmark's .mat file as "
+        "distributed, or its CSV form), or the path of a plant description (plant.toml: your own simulator as an "
+        "FMU, its record a CSV file; docs/fmu-plant.md)",
     )
     p.add_argument(
         "--calibrate-on",

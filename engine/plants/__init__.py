@@ -19,6 +19,7 @@ __all__ = [
     "Channel",
     "Plant",
     "get_plant",
+    "is_description",
     "relative_error",
 ]
 
@@ -48,14 +49,27 @@ def _emps() -> Plant:
 PLANTS: dict[str, Callable[[], Plant]] = {"backlash_drive": _backlash_drive, "brfd": _brfd, "emps": _emps}
 
 
+def is_description(name: str) -> bool:
+    """Whether ``name`` names a plant description file (a ``.toml`` path) rather than a registered plant."""
+    return name.lower().endswith(".toml")
+
+
 def get_plant(name: str) -> Plant:
-    """The plant registered as ``name``.
+    """The plant registered as ``name``, or the plant a description file ``name`` (``*.toml``) describes.
+
+    A description is a plant from the user's own simulator, an FMU (:mod:`engine.plants.fmu`).
 
     Raises
     ------
     KeyError
         For an unknown name, listing the known ones.
+    engine.plants.fmu.DescriptionError
+        For a description (or its FMU) the plant cannot use, saying what to fix.
     """
+    if is_description(name):
+        from engine.plants.fmu import load_plant
+
+        return load_plant(name)
     try:
         return PLANTS[name]()
     except KeyError:

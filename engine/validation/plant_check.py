@@ -28,6 +28,8 @@ verdict on the real record rests on.
     .venv/bin/python -m engine.validation.plant_check --plant emps --cases 40 --seed 2 --seconds 12
     .venv/bin/python -m engine.validation.plant_check --plant brfd --cases 40 --clean 40 --seed 2
     .venv/bin/python -m engine.validation.plant_check --plant backlash_drive --cases 40 --seed 2
+    .venv/bin/python -m engine.validation.plant_check --plant engine/plants/fmu/examples/quarter_car/plant.toml \
+        --cases 40 --clean 20 --seed 41
 """
 
 from __future__ import annotations
@@ -494,10 +496,14 @@ def report(rows: Sequence[CheckRow], run: dict[str, Any]) -> dict[str, Any]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: ``--plant NAME --cases N --seed S --record NAME --seconds T`` (a shipped record's inputs)."""
-    from engine.plants import PLANTS, get_plant
+    from engine.plants import PLANTS, get_plant, is_description
 
     p = argparse.ArgumentParser(prog="python -m engine.validation.plant_check", description=__doc__.splitlines()[0])
-    p.add_argument("--plant", default="emps", choices=sorted(PLANTS))
+    p.add_argument(
+        "--plant",
+        default="emps",
+        help=f"a registered plant ({', '.join(sorted(PLANTS))}) or a plant description file (.toml: an FMU plant)",
+    )
     p.add_argument("--cases", type=int, default=20)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--clean", type=int, default=0, help="clean cases (no effect) after the effect cases")
@@ -517,6 +523,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--record", help="the shipped record whose inputs the cases use (default the plant's first)")
     p.add_argument("--json", type=Path, help="also write the JSON report (rates and every case) to this file")
     args = p.parse_args(argv)
+    if args.plant not in PLANTS and not is_description(args.plant):
+        p.error(
+            f"--plant: {args.plant!r} is neither a registered plant ({', '.join(sorted(PLANTS))}) nor a .toml description"
+        )
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     logging.getLogger("engine.diagnosis.plant_gap").setLevel(logging.WARNING)
     plant = get_plant(args.plant)

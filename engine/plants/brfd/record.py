@@ -16,7 +16,6 @@ friction_force`` and one comment line per unit before it (``# displacement units
 from __future__ import annotations
 
 import gzip
-import io
 import json
 import math
 import re
@@ -28,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from engine.records import RecordError
+from engine.records.csv_table import numeric_rows
 from engine.records.limits import require_length, require_magnitude
 
 __all__ = [
@@ -273,12 +273,7 @@ def load_csv(source: str | Path | bytes, name: str | None = None) -> BrfdRecord:
     absent = [c for c in need if c not in header]
     if absent:
         raise RecordError(f"{label}: CSV header {header} lacks the column(s) {absent}")
-    try:
-        rows = np.loadtxt(io.StringIO("\n".join(body[1:])), delimiter=",", ndmin=2)
-    except ValueError as exc:
-        raise RecordError(f"{label}: a CSV row cannot be read as numbers ({exc})") from None
-    if rows.shape[1] != len(header):
-        raise RecordError(f"{label}: rows have {rows.shape[1]} values but the header names {len(header)} columns")
+    rows = numeric_rows(body[1:], len(header), label)
     col = {c: rows[:, header.index(c)] for c in need}
     return record_from_arrays(
         col["time"],
