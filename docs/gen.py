@@ -1650,7 +1650,7 @@ def render_service_summary(page: Page) -> str:
 
 
 #: The synthetic checks of the FMU plants' catalogues (issue 55): report paths, oldest first.
-FMU_CHECKS: tuple[str, ...] = ("docs/validation/fmu/quarter_car-seed41.json",)
+FMU_CHECKS: tuple[str, ...] = ("docs/validation/fmu/quarter_car-seed43.json",)
 #: The rates the FMU checks' table shows, in order.
 FMU_CHECK_MEASURES: tuple[str, ...] = (
     "strong_top1",
@@ -1733,7 +1733,8 @@ def render_fmu_cost(page: Page) -> str:
         head = ["quarter car, one effect", "answer", "seconds, one process", "simulations", "simulation-equivalents"]
         head += [f"seconds on {r['diagnoses'][0]['processes']} processes", "same answer"]
         lines.append("\n\n" + table(head, d_rows))
-    lines.append(f"\n\nCode {r['code']}, {r['calls']} timed calls of one simulation per plant; `{r['command']}`.")
+    code = r["code"]["describe"] if isinstance(r["code"], Mapping) else r["code"]
+    lines.append(f"\n\nCode {code}, {r['calls']} timed calls of one simulation per plant; `{r['command']}`.")
     return "".join(lines) + sources(page, [FMU_COST])
 
 
@@ -1754,8 +1755,8 @@ def render_fmu_summary(page: Page) -> str:
 
     plants = ", ".join(sorted({Path(r["run"]["plant"]).parent.name for _, r in runs}))
     text = (
-        f"- **A plant from an FMU** ({plants}; {len(runs)} synthetic check(s) of its catalogue through the plant interface, "
-        f"blind for the code of the report): an effect beyond 3 noise RMS is named first in {pooled_rate('strong_top1')}; "
+        f"- **A plant from an FMU** ({plants}; {len(runs)} blind synthetic {'check' if len(runs) == 1 else 'checks'} of its "
+        "catalogue through the plant interface, of the code its report names): an effect beyond 3 noise RMS is named first in {pooled_rate('strong_top1')}; "
         f"a clean record is answered `no_gap` in {pooled_rate('clean_no_gap')}, with a false alarm in "
         f"{pooled_rate('clean_false_alarm')} ({page.link('docs/fmu-plant.md', 'your own simulator')})."
     )

@@ -529,6 +529,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     logging.getLogger("engine.diagnosis.plant_gap").setLevel(logging.WARNING)
+    code = code_version()  # the code this run imports now, not the tree's state when it ends
     plant = get_plant(args.plant)
     if args.record is not None and args.record not in plant.examples:
         p.error(f"plant {args.plant} ships the records {', '.join(plant.examples)}, not {args.record!r}")
@@ -548,7 +549,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "clean": args.clean,
             "held_back": args.held_back,
             "family": args.family,
-            "code": code_version(),
+            "code": code,
             "command": "python -m engine.validation.plant_check " + " ".join(sys.argv[1:] if argv is None else argv),
         }
         write_json_atomic(args.json, report(rows, run), indent=1)

@@ -2,9 +2,9 @@
 
 :class:`FmuModel` opens an FMU once (its model description read, the archive extracted into a
 temporary folder that lives as long as the object) and simulates it as often as a diagnosis asks:
-each thread gets its own instance, instantiated once and reset between simulations, so the
-simulations of one diagnosis may run on several threads (the framework's FMUs keep no global state;
-an FMU that does must not be run so, see :attr:`FmuModel.thread_safe`).
+each thread that calls it gets its own instance, instantiated once and reset between simulations.
+(The plant runs simultaneous simulations on worker processes, :mod:`engine.plants.fmu.pool`, one
+instance per process, so an FMU that keeps global state is run safely too.)
 
 One simulation (:meth:`FmuModel.simulate`): reset, the experiment set up at the start time, the
 parameters set in initialization mode, the inputs of the first sample set, one step to the first
@@ -164,8 +164,6 @@ class FmuModel:
         self._names: list[str] = []
         weakref.finalize(self, _forget, self._names)
         self._lock = threading.Lock()
-        #: Whether the FMU may run on several threads at once (one instance each).
-        self.thread_safe: bool = True
 
     def variable(self, name: str, causality: str | Sequence[str] | None = None) -> FmuVariable:
         """The real variable ``name``, checked to have one of the given causalities.
