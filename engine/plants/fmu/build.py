@@ -98,7 +98,11 @@ def build_fmu(source_dir: str | Path, out_dir: str | Path) -> Path:
         unzipdir = Path(tmp) / "fmu"
         build_dir = Path(tmp) / "build"
         build_dir.mkdir()
-        shutil.copytree(source_dir, unzipdir, ignore=shutil.ignore_patterns("*.fmu", "__pycache__", "*.toml", "*.csv", "*.md", "*.py"))
+        shutil.copytree(
+            source_dir,
+            unzipdir,
+            ignore=shutil.ignore_patterns("*.fmu", "__pycache__", "*.toml", "*.csv", "*.md", "*.py"),
+        )
         for name in _FRAMEWORK_FILES:
             shutil.copy2(FRAMEWORK_DIR / name, unzipdir / "sources" / name)
         _compile(unzipdir, build_dir, identifier, source_dir)
