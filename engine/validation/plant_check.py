@@ -29,7 +29,7 @@ verdict on the real record rests on.
     .venv/bin/python -m engine.validation.plant_check --plant brfd --cases 40 --clean 40 --seed 2
     .venv/bin/python -m engine.validation.plant_check --plant backlash_drive --cases 40 --seed 2
     .venv/bin/python -m engine.validation.plant_check --plant engine/plants/fmu/examples/quarter_car/plant.toml \
-        --cases 40 --clean 20 --seed 41
+        --cases 40 --clean 20 --seed 43
 """
 
 from __future__ import annotations
