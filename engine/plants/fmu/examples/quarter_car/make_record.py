@@ -153,4 +153,7 @@ def make_record(path: str | Path = HERE / "record.csv") -> Path:
 
 
 if __name__ == "__main__":
-    print(make_record())
+    import logging
+
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    logging.getLogger("make_record").info("wrote %s", make_record())
