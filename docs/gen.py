@@ -39,6 +39,9 @@ ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 VALIDATION = "docs/validation"
 
+#: An unformatted f-string placeholder that calls a function (``{pooled_rate(``) in a rendered region (a
+#: bare ``{name}`` is not one: route templates such as ``/v1/assets/{a}/history`` are shown so).
+PLACEHOLDER = re.compile(r"\{[A-Za-z_][A-Za-z0-9_.]*\(")
 #: A marked region: the opening marker, the generated body, the closing marker of the same name, each
 #: marker alone on its line (a marker quoted inside a line of text is not one).
 REGION = re.compile(
@@ -1276,6 +1279,21 @@ def render_plant_locus_summary(page: Page) -> str:
     return text + sources(page, paths)
 
 
+def pooled_measures(runs: list[dict[str, Any]]) -> Callable[[str], str]:
+    """A function of a measure's key: its successes over trials pooled over the ``runs``' ``measures``, as a rate."""
+    pooled: dict[str, list[int]] = {}
+    for r in runs:
+        for m in r["measures"]:
+            k, n = pooled.setdefault(m["key"], [0, 0])
+            pooled[m["key"]] = [k + m["k"], n + m["n"]]
+
+    def pooled_rate(key: str) -> str:
+        k, n = pooled.get(key, [0, 0])
+        return rate(k, n)
+
+    return pooled_rate
+
+
 def render_plant_checks_summary(page: Page) -> str:
     """One line for the README: the gate's checks pooled over every plant's runs of the current code."""
     paths = [
@@ -1284,16 +1302,8 @@ def render_plant_checks_summary(page: Page) -> str:
         if n not in PLANT_CHECK_SUPERSEDED and (ROOT / f"docs/real-data/check/{n}.json").exists()
     ]
     runs = [read_json(p) for p in paths]
-    pooled: dict[str, list[int]] = {}
-    for r in runs:
-        for m in r["measures"]:
-            k, n = pooled.setdefault(m["key"], [0, 0])
-            pooled[m["key"]] = [k + m["k"], n + m["n"]]
+    pooled_rate = pooled_measures(runs)
     plants = sorted({r["run"]["plant"] for r in runs})
-
-    def pooled_rate(key: str) -> str:
-        k, n = pooled.get(key, [0, 0])
-        return rate(k, n)
 
     text = (
         f"- **Clean and weak records on every plant** ({', '.join(plants)}; {len(runs)} blind synthetic checks of the "
@@ -1743,20 +1753,12 @@ def render_fmu_summary(page: Page) -> str:
     runs = _fmu_check_runs()
     if not runs:
         return "No committed check yet."
-    pooled: dict[str, list[int]] = {}
-    for _, r in runs:
-        for m in r["measures"]:
-            k, n = pooled.setdefault(m["key"], [0, 0])
-            pooled[m["key"]] = [k + m["k"], n + m["n"]]
-
-    def pooled_rate(key: str) -> str:
-        k, n = pooled.get(key, [0, 0])
-        return rate(k, n)
-
+    pooled_rate = pooled_measures([r for _, r in runs])
     plants = ", ".join(sorted({Path(r["run"]["plant"]).parent.name for _, r in runs}))
     text = (
         f"- **A plant from an FMU** ({plants}; {len(runs)} blind synthetic {'check' if len(runs) == 1 else 'checks'} of its "
-        "catalogue through the plant interface, of the code its report names): an effect beyond 3 noise RMS is named first in {pooled_rate('strong_top1')}; "
+        f"catalogue through the plant interface, of the code its report names): an effect beyond 3 noise RMS is named "
+        f"first in {pooled_rate('strong_top1')}; "
         f"a clean record is answered `no_gap` in {pooled_rate('clean_no_gap')}, with a false alarm in "
         f"{pooled_rate('clean_false_alarm')} ({page.link('docs/fmu-plant.md', 'your own simulator')})."
     )
@@ -1839,6 +1841,9 @@ def render_file(path: Path) -> tuple[str, list[str]]:
             line = text.count("\n", 0, m.start()) + 1
             raise RegionError(f"{path}:{line}: no renderer for region gen:{name} (known: {', '.join(RENDERERS)})")
         body = "\n" + RENDERERS[name](page).rstrip("\n") + "\n\n"
+        left = PLACEHOLDER.search(body)
+        if left is not None:  # an f-string's prefix forgotten: the code would be shown instead of the figure
+            raise RegionError(f"{path}: region gen:{name} shows an unformatted placeholder {left.group(0)!r}")
         if body != m.group("body"):
             changed.append(f"{text.count(chr(10), 0, m.start()) + 1}: gen:{name}")
         return m.group("open") + body + m.group("close")

@@ -98,3 +98,18 @@ def test_a_marker_quoted_in_text_is_not_a_region(tmp_path: Path) -> None:
     page = tmp_path / "quoted.md"
     page.write_text("Tables sit between `<!-- gen:NAME -->` and `<!-- /gen:NAME -->`.\n")
     assert gen.render_file(page) == (page.read_text(), [])
+
+
+def test_a_region_showing_an_unformatted_placeholder_is_an_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A renderer whose f-string lost its prefix would show ``{pooled_rate('...')}`` instead of the figure (as
+    the README's FMU line once did): the page is refused, not written."""
+    gen = load_gen()
+    monkeypatch.setitem(gen.RENDERERS, "fmu-summary", lambda page: "named first in {pooled_rate('strong_top1')}")
+    page = tmp_path / "placeholder.md"
+    page.write_text("<!-- gen:fmu-summary -->\nold\n\n<!-- /gen:fmu-summary -->\n")
+    with pytest.raises(gen.RegionError, match="unformatted placeholder"):
+        gen.render_file(page)
+    monkeypatch.setitem(gen.RENDERERS, "fmu-summary", lambda page: "routes such as GET /v1/assets/{a}/history")
+    assert "{a}" in gen.render_file(page)[0]

@@ -260,7 +260,7 @@ def test_schema_version_pragmas_and_migration_hook(
     kept = store.save(make_set(0))
     conn = sqlite3.connect(db_path)
     assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
-    assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 2
+    assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 3
     conn.close()
 
     def add_note_column(c: sqlite3.Connection) -> None:
@@ -290,10 +290,11 @@ def test_schema_version_pragmas_and_migration_hook(
 
 
 def test_a_version_1_store_gains_the_service_tables_and_keeps_its_sets(db_path: Path) -> None:
-    """A store written before the service's tables existed (schema 1) opens, migrates to 2 and keeps its sets."""
+    """A store written before the service's tables existed (schema 1) opens, migrates to the current schema and
+    keeps its sets."""
     kept = PatternStore(db_path).save(make_set(0))
     conn = sqlite3.connect(db_path, isolation_level=None)
-    for table in ("jobs", "records", "diagnoses", "figures", "identifications"):  # back to what schema 1 wrote
+    for table in ("jobs", "records", "diagnoses", "figures", "identifications", "plants", "fmus"):  # schema 1
         conn.execute(f"DROP TABLE {table}")
     conn.execute("PRAGMA user_version = 1")
     conn.close()
@@ -302,8 +303,8 @@ def test_a_version_1_store_gains_the_service_tables_and_keeps_its_sets(db_path: 
     tables = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
     version = conn.execute("PRAGMA user_version").fetchone()[0]
     conn.close()
-    assert version == 2
-    assert {"pattern_sets", "jobs", "records", "diagnoses", "figures", "identifications"} <= tables
+    assert version == SCHEMA_VERSION
+    assert {"pattern_sets", "jobs", "records", "diagnoses", "figures", "identifications", "plants", "fmus"} <= tables
     assert reopened.get(kept.id) == kept
 
 

@@ -214,8 +214,18 @@ class CSVRecordParams:
                 examples=['{"name": "my drive", "mechanics": {"J2": 0.6}}'],
             ),
         ] = None,
+        plant: Annotated[
+            str | None,
+            Query(
+                description="CSV form of an uploaded plant's record: the plant's id (POST /v1/plants); the CSV is "
+                "then the plant's (docs/fmu-plant.md), its units in its header, and the backlash drive's parameters "
+                "above do not apply.",
+                examples=["fmu-0123456789abcdef"],
+            ),
+        ] = None,
     ) -> None:
         self.sample_interval = sample_interval
+        self.plant = plant
         self.event_index = event_index
         self.units_text = units
         self.asset = asset
@@ -247,6 +257,7 @@ class CSVRecordParams:
             "asset": self.asset,
             "measured_at": self.measured_at,
             "drive": self.drive,
+            **({"plant": self.plant} if self.plant is not None else {}),
         }
 
 
@@ -306,12 +317,14 @@ async def diagnosis_request(request: Request, params: CSVRecordParams) -> Diagno
     """The diagnosis request as sent (JSON body, or CSV body with its query parameters); 415 for other bodies."""
     kind = body_kind(request)
     raw = await request.body()
+    settings: Settings = request.app.state.settings
+    store = str(request.app.state.store.path) if settings.allow_fmu_plants else None  # uploaded plants, if on
     if kind == "csv":
-        return DiagnosisRequest("csv", raw, params.as_params())
-    reject_query(request, CSV_QUERY)
+        return DiagnosisRequest("csv", raw, params.as_params(), store=store)
+    reject_query(request, (*CSV_QUERY, "plant"))
     if not raw.strip():
         raise RequestValidationError([{"type": "missing", "loc": ("body",), "msg": "a JSON body is required"}])
-    return DiagnosisRequest("json", raw, {})
+    return DiagnosisRequest("json", raw, {}, store=store)
 
 
 def body_errors(exc: ValidationError) -> RequestValidationError:

@@ -21,15 +21,20 @@ from starlette.routing import Match
 from app.records_io import RecordFormatError
 from app.services.errors import (
     ConflictError,
+    ForbiddenError,
     IncompatibleError,
     InvalidInputError,
     NotFoundError,
     QueueFullError,
     StorageFullError,
     TimeLimitError,
+    TooLargeError,
 )
 from engine.diagnosis import CalibrationError
 from engine.diagnosis.space import BoundsError
+from engine.plants.fmu.archive import FmuArchiveError
+from engine.plants.fmu.description import DescriptionError
+from engine.plants.fmu.runner import FmuSimulationError
 from engine.records import RecordError
 from engine.simulation import ParameterError, SimulationError, UnknownEffectError
 from engine.storage import (
@@ -54,7 +59,12 @@ USER_ERRORS: dict[type[Exception], int] = {
     InvalidPatternSet: 422,
     InvalidInputError: 422,
     IncompatibleError: 422,
+    DescriptionError: 422,
+    FmuArchiveError: 422,
+    FmuSimulationError: 422,
     NotFoundError: 404,
+    ForbiddenError: 403,
+    TooLargeError: 413,
     PatternSetExists: 409,
     QueueFullError: 429,
     ConflictError: 409,

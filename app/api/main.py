@@ -6,11 +6,13 @@ from app.api.routes import (
     assets,
     diagnose,
     diagnoses,
+    fmus,
     identifications,
     identify,
     jobs,
     maintenance,
     pattern_sets,
+    plants,
     records,
     simulate,
 )
@@ -25,4 +27,6 @@ api_router.include_router(diagnose.router)
 api_router.include_router(diagnoses.router)
 api_router.include_router(records.router)
 api_router.include_router(assets.router)
+api_router.include_router(fmus.router)
+api_router.include_router(plants.router)
 api_router.include_router(maintenance.router)

@@ -31,6 +31,12 @@ environment variable        meaning                                default
                             before training is refused (507)
 ``BACKLASH_HISTORY_POINTS`` points of an asset's history per       1000
                             answer (newest first; ``before`` pages)
+``BACKLASH_ALLOW_FMU_PLANTS`` 1: accept clients' FMUs (native code  0 (FMU uploads refused)
+                            the workers run): trusted clients only
+``BACKLASH_MAX_FMU_BYTES``  largest FMU archive [bytes] (413)      32 MiB
+``BACKLASH_MAX_FMU_UNPACKED_BYTES`` what one may unpack to [bytes]  256 MiB
+``BACKLASH_MAX_PLANTS``     stored plants before more are refused  100
+                            (507)
 =========================  =====================================  ==========================
 
 Retention (:mod:`app.services.retention`) never deletes pattern sets: they are refused beyond
@@ -161,6 +167,23 @@ class Settings(BaseSettings):
         default=1000,
         description="Points of an asset's history one answer holds when the request gives no limit (the newest; "
         "the answer says how to read older ones).",
+    )
+    allow_fmu_plants: bool = Field(
+        default=False,
+        description="Accept the clients' own simulators as FMUs (POST /v1/fmus, POST /v1/plants) and diagnose "
+        "records of them. An FMU is native code that the diagnosis workers load and run with the service's "
+        "rights: turn this on only where every client that can reach the service is trusted (docs/fmu-plant.md).",
+    )
+    max_fmu_bytes: Annotated[int, Field(ge=1024, le=1 << 30)] = Field(
+        default=32 << 20, description="Largest FMU archive accepted [bytes]; a larger one gets 413."
+    )
+    max_fmu_unpacked_bytes: Annotated[int, Field(ge=1024, le=1 << 32)] = Field(
+        default=256 << 20,
+        description="Most bytes an FMU archive's members may unpack to [bytes]; beyond it the archive is refused "
+        "(422) before anything is unpacked.",
+    )
+    max_plants: Annotated[int, Field(ge=1, le=10_000)] = Field(
+        default=100, description="Stored plants beyond which a new one is refused (507): delete one first."
     )
     dask_scheduler: str | None = Field(
         default=None,

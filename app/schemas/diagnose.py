@@ -8,7 +8,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from app.schemas.assets import AssetName, MeasuredAt
-from app.schemas.common import Number, NumberSeries, RecordIn, Sample
+from app.schemas.common import Number, NumberSeries, RecordIn, Sample, Samples
 from app.schemas.drive import DriveIn
 from engine.diagnosis.space import DEFAULT_BOUNDS
 from engine.plants.brfd import BrfdRecord
@@ -131,6 +131,54 @@ class PlantDiagnoseCreate(BaseModel):
     plant: Literal["emps"] = Field(description="The plant the record is of.")
     record: EmpsRecordIn
     calibrate_on: EmpsRecordIn | None = Field(
+        default=None, description="Calibrate on this record of the same plant instead (the cross-record check)."
+    )
+    hold_calibration: StrictBool = Field(
+        default=False, description="Hold the calibrated parameters while fitting effects (default: refit them)."
+    )
+
+
+#: Most columns of an FMU plant's record in JSON (a description's time, driven inputs and channels).
+MAX_FMU_COLUMNS = 256
+
+
+class FmuRecordIn(BaseModel):
+    """One record of a stored FMU plant: its columns as the plant's description names them, in its units."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: str = Field(default="record", max_length=200, description="Name of the record (echoed in the answer).")
+    asset: AssetName | None = None
+    measured_at: MeasuredAt | None = None
+    columns: Annotated[dict[Annotated[str, Field(max_length=200)], Samples], Field(max_length=MAX_FMU_COLUMNS)] = Field(
+        description="Column name -> samples: the description's time column [s], every driven input's column and "
+        "every channel, in the description's units (other columns are ignored).",
+        examples=[{"t": [0.0, 0.001, 0.002], "z_road": [0.0, 0.0, 0.001], "a_body": [0.0, 0.01, 0.02]}],
+    )
+    units: dict[Annotated[str, Field(max_length=200)], Annotated[str, Field(max_length=40)]] | None = Field(
+        default=None,
+        description="Column name -> unit, for checking: a unit other than the description's is refused (the "
+        "record is not converted).",
+    )
+
+    def to_record(self, description: Any) -> Any:
+        """The engine's record of the plant ``description`` (:class:`engine.plants.fmu.PlantDescription`), checked
+        (RecordError, 422, says what to fix)."""
+        from engine.plants.fmu.record import record_from_table
+
+        return record_from_table(description, self.columns, self.units, self.name)
+
+
+class FmuDiagnoseCreate(BaseModel):
+    """Diagnose a record of a stored FMU plant (``"plant": "fmu-..."``, the id POST /v1/plants answered)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    plant: Annotated[str, Field(pattern=r"^fmu-[0-9a-f]{16}$")] = Field(
+        description="The stored plant's id (POST /v1/plants; GET /v1/plants lists them)."
+    )
+    record: FmuRecordIn
+    calibrate_on: FmuRecordIn | None = Field(
         default=None, description="Calibrate on this record of the same plant instead (the cross-record check)."
     )
     hold_calibration: StrictBool = Field(

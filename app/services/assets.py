@@ -64,7 +64,7 @@ def submitted_drive(store: PatternStore, record_id: str) -> str | None:
     if stored is None:
         return None
     try:
-        parsed = parse(DiagnosisRequest(stored.media, stored.body or b"", stored.params))
+        parsed = parse(DiagnosisRequest(stored.media, stored.body or b"", stored.params, store=str(store.path)))
     except (InvalidInputError, IncompatibleError):
         return None
     return (REFERENCE_DRIVE if parsed.drive is None else parsed.drive).fingerprint

@@ -44,7 +44,8 @@ def run_job(db_path: Path, spec: dict[str, Any], progress: ProgressFn) -> JobRes
     stored = RecordRepository(store).get(spec["record_id"])
     if stored is None:
         raise NotFoundError(f"record {spec['record_id']} was deleted before its diagnosis ran")
-    parsed = parse(DiagnosisRequest(stored.media, stored.body or b"", stored.params))
+    # the store is given: a record of an uploaded plant was accepted while FMU plants were on, and reads so again
+    parsed = parse(DiagnosisRequest(stored.media, stored.body or b"", stored.params, store=str(db_path)))
     progress(0.05, f"diagnosing {stored.n_samples} samples")
 
     def stage(fraction: float, what: str) -> None:  # the diagnosis's stages between 5 % and 95 %

@@ -21,13 +21,14 @@ from pydantic_core import from_json
 
 from app.records_io import RecordFormatError, csv_body_lines, parse_units, record_from_csv
 from app.schemas.assets import AssetName, MeasuredAt
-from app.schemas.diagnose import BrfdDiagnoseCreate, DiagnoseCreate, PlantDiagnoseCreate
-from app.services import diagnosis, plant_diagnosis, simulation
-from app.services.errors import InvalidInputError
+from app.schemas.diagnose import BrfdDiagnoseCreate, DiagnoseCreate, FmuDiagnoseCreate, PlantDiagnoseCreate
+from app.services import diagnosis, plant_diagnosis, plants, simulation
+from app.services.errors import ForbiddenError, InvalidInputError
 from app.services.identification import drive_for_record
 from app.services.plant_diagnosis import PlantRecords
 from engine.diagnosis.space import check_bounds
 from engine.plants import DEFAULT_PLANT, get_plant
+from engine.plants.fmu.record import load_record
 from engine.simulation import CATALOGUE
 from engine.simulation.drive import REFERENCE_DRIVE, DriveDescription
 
@@ -55,12 +56,16 @@ class DiagnosisRequest:
         The body as received.
     params : dict
         The CSV form's query parameters (``sample_interval``, ``event_index``, ``units``,
-        ``conditions``, ``asset``, ``measured_at``); empty for JSON.
+        ``conditions``, ``asset``, ``measured_at``, ``drive``, ``plant``); empty for JSON.
+    store : str, optional
+        The store whose uploaded plants (``fmu-...``, :mod:`app.services.plants`) the request may name;
+        ``None`` where FMU plants are off (a request naming one is refused). Not part of what is stored.
     """
 
     media: Literal["json", "csv"]
     body: bytes
     params: dict[str, Any] = field(default_factory=dict)
+    store: str | None = None
 
 
 @dataclass(frozen=True)
@@ -77,6 +82,7 @@ class ParsedDiagnosis:
     measured_at: datetime | None = None
     name: str | None = None
     drive: DriveDescription | None = None
+    resolved: Any = None  # the plant object of a stored (uploaded) plant, loaded while the request was read
 
 
 @dataclass(frozen=True)
@@ -127,9 +133,26 @@ def parse(request: DiagnosisRequest) -> ParsedDiagnosis:
         A record or parameter the diagnosis cannot use; the message says what to fix.
     """
     if request.media == "csv":
+        if request.params.get("plant") is not None:
+            return _parse_stored_csv(request)
         return _parse_csv(request.body, request.params)
     other = named_plant(request.body)
+    if plants.is_stored_plant(other):
+        plant = _stored_plant(request, str(other))
+        fmu_body = FmuDiagnoseCreate.model_validate_json(request.body)
+        return ParsedDiagnosis(
+            plant=fmu_body.plant,
+            record=fmu_body.record.to_record(plant.description),
+            calibrate_on=fmu_body.calibrate_on.to_record(plant.description) if fmu_body.calibrate_on else None,
+            hold=fmu_body.hold_calibration,
+            asset=fmu_body.record.asset,
+            measured_at=fmu_body.record.measured_at,
+            name=fmu_body.record.name,
+            resolved=plant,
+        )
     if other is not None:
+        if other.startswith("fmu") and other not in PLANT_SCHEMAS:  # not a stored plant's id: the id's pattern (422)
+            FmuDiagnoseCreate.model_validate_json(request.body)
         schema = PLANT_SCHEMAS.get(other, PlantDiagnoseCreate)  # an unknown name: the schema's 422
         plant_body = schema.model_validate_json(request.body)
         return ParsedDiagnosis(
@@ -159,6 +182,43 @@ def parse(request: DiagnosisRequest) -> ParsedDiagnosis:
         asset=body.record.asset,
         measured_at=body.record.measured_at,
         drive=drive,
+    )
+
+
+def _stored_plant(request: DiagnosisRequest, plant_id: str) -> Any:
+    """The uploaded plant a request names (:func:`app.services.plants.load`); refused where FMU plants are off."""
+    if request.store is None:
+        raise ForbiddenError(f"plant {plant_id!r}: {plants.OFF_MESSAGE}")
+    return plants.load(request.store, plant_id)
+
+
+#: The CSV form's query parameters that belong to the backlash drive's records (not to an uploaded plant's).
+DRIVE_CSV_PARAMS = ("sample_interval", "event_index", "units", "drive")
+
+
+def _parse_stored_csv(request: DiagnosisRequest) -> ParsedDiagnosis:
+    """A record of an uploaded plant in its CSV form (``plant`` query parameter; the CSV as for ``--plant``)."""
+    params = request.params
+    plant_id = str(params["plant"])
+    if not plants.is_stored_plant(plant_id):
+        raise InvalidInputError(
+            f"query parameter plant {plant_id[:100]!r}: the CSV form names an uploaded plant by its id (fmu- and 16 "
+            "hex digits, POST /v1/plants); the backlash drive's CSV needs no plant, and emps and brfd records are "
+            "sent as JSON"
+        )
+    given = [k for k in DRIVE_CSV_PARAMS if params.get(k) is not None] + (
+        ["J1/c/c1/K"] if params.get("conditions") else []
+    )
+    if given:
+        raise InvalidInputError(
+            f"query parameter(s) {', '.join(given)} belong to the backlash drive's CSV form; a record of plant "
+            f"{plant_id} states its units in its header (e.g. 'a_body [m/s2]') and its time in its time column"
+        )
+    asset, measured_at = named_asset(params.get("asset"), params.get("measured_at"))
+    plant = _stored_plant(request, plant_id)
+    record = load_record(request.body, plant.description, name=asset or "record")
+    return ParsedDiagnosis(
+        plant=plant_id, record=record, asset=asset, measured_at=measured_at, name=record.name, resolved=plant
     )
 
 
@@ -233,7 +293,8 @@ def compute(
             width = shown.get("K") if shown.get("identifiable") else None
             sigma = shown.get("sigma_K") if shown.get("identifiable") else None
         else:
-            records = PlantRecords(get_plant(parsed.plant), parsed.record, parsed.calibrate_on)
+            plant = parsed.resolved if parsed.resolved is not None else get_plant(parsed.plant)
+            records = PlantRecords(plant, parsed.record, parsed.calibrate_on)
             plant_result = plant_diagnosis.run(records, parsed.hold)
             answer = plant_result.to_dict()
             paths = plant_diagnosis.write_plots(plant_result, out_dir) if figures else []

@@ -57,6 +57,15 @@ class StorageFullError(ServiceError):
     message says what to delete or which setting to raise."""
 
 
+class ForbiddenError(ServiceError):
+    """The request asks for something this service is set up not to do (e.g. FMU plants while they are off): 403;
+    the message names the setting an operator changes."""
+
+
+class TooLargeError(ServiceError):
+    """A sent file is larger than the service accepts (e.g. an FMU beyond ``BACKLASH_MAX_FMU_BYTES``): 413."""
+
+
 class TimeLimitError(ServiceError):
     """A synchronous computation ran past its time limit and was stopped (504); the message says what to use."""
 

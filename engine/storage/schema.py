@@ -138,10 +138,43 @@ def _migrate_1_to_2(conn: sqlite3.Connection) -> None:
     conn.execute("CREATE INDEX identifications_asset ON identifications (asset, measured_at)")
 
 
+def _migrate_2_to_3(conn: sqlite3.Connection) -> None:
+    """Add the users' own plants: FMU archives by their SHA-256, and the plant descriptions that use them.
+
+    An FMU is stored once however many descriptions use it (``fmus``, its archive's bytes and
+    what it is as JSON); a plant (``plants``) is a description, as JSON with its ``fmu`` naming an
+    archive of ``fmus`` by hash, under an id derived from both. Neither table is pruned by the
+    retention: the records and diagnoses that name a plant need it to be read again.
+    """
+    conn.execute(
+        """
+        CREATE TABLE fmus (
+            sha256         TEXT PRIMARY KEY,
+            size           INTEGER NOT NULL,
+            summary        TEXT NOT NULL,
+            created_at     TEXT NOT NULL,
+            content        BLOB NOT NULL
+        )
+        """
+    )
+    conn.execute(
+        """
+        CREATE TABLE plants (
+            seq            INTEGER PRIMARY KEY AUTOINCREMENT,
+            id             TEXT NOT NULL UNIQUE,
+            name           TEXT NOT NULL,
+            fmu_sha256     TEXT NOT NULL REFERENCES fmus (sha256),
+            description    TEXT NOT NULL,
+            created_at     TEXT NOT NULL
+        )
+        """
+    )
+
+
 #: Migration hook: ``MIGRATIONS[v]`` upgrades a database from schema version ``v`` to
 #: ``v + 1`` inside the opening transaction. Append a function to change the schema;
 #: :data:`SCHEMA_VERSION` follows.
-MIGRATIONS: list[Callable[[sqlite3.Connection], None]] = [_migrate_0_to_1, _migrate_1_to_2]
+MIGRATIONS: list[Callable[[sqlite3.Connection], None]] = [_migrate_0_to_1, _migrate_1_to_2, _migrate_2_to_3]
 #: Schema version written by this code (``PRAGMA user_version``).
 SCHEMA_VERSION = len(MIGRATIONS)
 

@@ -331,6 +331,49 @@ def test_report_page_diagnoses_uploaded_records(start_server: ServerFactory, bro
         assert shot.stat().st_size > 10_000
 
 
+@needs_browser
+def test_report_page_diagnoses_a_record_of_an_uploaded_fmu_plant(
+    start_server: ServerFactory, browser: Any, tmp_path: Path
+) -> None:
+    """Issue 55: a plant uploaded as an FMU appears in the page's plant choice; its CSV record is diagnosed
+    with the plant's id (no drive parameters), and the report names the effect the record was made with."""
+    from fmukit import OCTET, as_csv, local_plant, small_description, synthetic
+
+    from engine.plants.fmu import EXAMPLES_DIR
+    from engine.plants.fmu.build import build_fmu
+
+    fmu = build_fmu(EXAMPLES_DIR / "quarter_car", tmp_path / "fmu")
+    server = start_server(allow_fmu_plants="1")
+    expect = playwright().expect
+    with server.client() as api:
+        up = api.post("/v1/fmus", content=fmu.read_bytes(), headers=OCTET)
+        assert up.status_code == 201, up.text
+        made = api.post("/v1/plants", json={"description": small_description(up.json()["sha256"])})
+        assert made.status_code == 201, made.text
+    plant_id = made.json()["id"]
+    local = local_plant(fmu)
+    csv_file = tmp_path / "rig-3.csv"
+    csv_file.write_bytes(as_csv(synthetic(local, {"damper_friction": 100.0}, seed=11), local))
+
+    with new_page(browser, "report_page_fmu", server) as page:
+        page.goto(server.base_url + "/")
+        option = page.locator(f'#plant option[value="{plant_id}"]')
+        expect(option).to_have_count(1)
+        assert "quarter_car_small" in option.inner_text()
+        page.select_option("#plant", plant_id)
+        page.set_input_files("#record-file", str(csv_file))
+        page.fill("#asset", "rig-3")
+        page.click("#diagnose-button")
+        wait_for_diagnosis(page, None)
+        expect(page.locator("#verdict-status")).to_have_text("Explained")
+        assert "damper friction" in page.inner_text("#verdict-text")
+        candidates = table_rows(page, "#candidates")
+        assert candidates[0][1] == "damper friction", candidates
+        names = {f["name"] for f in images_loaded(page, "#figures img")}
+        assert "overlay_a_body" in names, names
+        expect(page.locator("#alert-error")).to_have_count(0)
+
+
 @pytest.mark.slow  # 33 s
 @needs_browser
 def test_report_page_shows_errors_and_warnings_at_the_top(

@@ -80,6 +80,11 @@ async def identify(
     """
     # every body is parsed off the event loop (json_body, csv_record, the threads below): a large record must
     # not hold the requests that arrive meanwhile
+    if csv_params.plant is not None:
+        raise InvalidInputError(
+            "query parameter plant: an uploaded plant's records are diagnosed (POST /v1/diagnose, POST /v1/diagnoses), "
+            "not identified with pattern sets"
+        )
     if body_kind(request) == "csv":
         if channel is None:
             raise InvalidInputError("with a CSV body, give the channel to identify from as query parameter ?channel=")

@@ -364,6 +364,10 @@
       const given = Object.assign({}, record.params, record.params.conditions || {});
       delete given.conditions;
       for (const [k, v] of Object.entries(given)) if (v !== null && v !== undefined) p.set(k, String(v));
+    } else if (isUploadedPlant(formValue("plant"))) {
+      // an uploaded plant's CSV: the plant, and the drive's name and instant; its units are in its header
+      const pairs = [["plant", formValue("plant")], ["asset", formValue("asset")], ["measured_at", formValue("measured-at")]];
+      for (const [k, v] of pairs) if (v) p.set(k, v);
     } else {
       const pairs = [
         ["asset", formValue("asset")],
@@ -436,6 +440,25 @@
       select.appendChild(el("option", label, { value: p.id }));
     }
     select.value = keep;
+  }
+
+  // The plants users uploaded as FMUs (GET /plants), added to the plant choice after the built-in ones.
+  async function loadPlants() {
+    const select = $("plant");
+    const keep = select.value;
+    const { items } = await getJSON("/plants");
+    for (const option of [...select.options]) if (option.dataset.uploaded) option.remove();
+    for (const p of items) {
+      const option = el("option", `${p.name} (your FMU, ${p.id})`, { value: p.id });
+      option.dataset.uploaded = "true";
+      select.appendChild(option);
+    }
+    select.value = [...select.options].some((o) => o.value === keep) ? keep : select.options[0].value;
+  }
+
+  // An uploaded plant's id (fmu- and 16 hex digits): its CSV states its own units and time.
+  function isUploadedPlant(plant) {
+    return /^fmu-[0-9a-f]{16}$/.test(plant || "");
   }
 
   async function loadAssets() {
@@ -933,6 +956,7 @@
     loadRecords().catch((e) => fail(e, "The stored records were not listed"));
     loadAssets().catch(() => {});
     loadPatternSets().catch(() => {});
+    loadPlants().catch(() => {});
   }
 
   start();

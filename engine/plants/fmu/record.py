@@ -28,7 +28,7 @@ from engine.records import RecordError
 from engine.records.csv_table import numeric_rows, table_lines
 from engine.records.limits import require_length, require_magnitude
 
-__all__ = ["MIN_SAMPLES", "FmuRecord", "load_record", "record_from_columns"]
+__all__ = ["MIN_SAMPLES", "FmuRecord", "check_units", "load_record", "record_from_columns", "record_from_table"]
 
 #: Fewest samples a record needs.
 MIN_SAMPLES: int = 50
@@ -113,6 +113,53 @@ def record_from_columns(
     return FmuRecord(name, t, MappingProxyType(data))
 
 
+def _expected_units(description: PlantDescription) -> dict[str, str]:
+    """The record's columns (time, driven inputs, channels) -> their units in the description."""
+    expected = {description.time: "s"}
+    expected.update({str(i.column): i.unit for i in description.driven})
+    expected.update({c.name: c.unit for c in description.channels})
+    return expected
+
+
+def check_units(description: PlantDescription, units: Mapping[str, str], name: str = "record") -> None:
+    """Refuse a column whose stated unit differs from the description's (a record is never converted).
+
+    Raises
+    ------
+    RecordError
+        Naming the column, the unit stated and the unit the plant reads it in.
+    """
+    expected = _expected_units(description)
+    for col, unit in units.items():
+        if col in expected and expected[col] and unit != expected[col]:
+            raise RecordError(
+                f"{name}: column {col!r} is in {unit!r}; the plant {description.name!r} reads it in "
+                f"{expected[col]!r}: convert it (the record is not converted, to be never misread)"
+            )
+
+
+def record_from_table(
+    description: PlantDescription,
+    columns: Mapping[str, np.ndarray | list[float]],
+    units: Mapping[str, str] | None = None,
+    name: str = "record",
+) -> FmuRecord:
+    """A checked record from its columns by name (the time column among them), units stated or not.
+
+    Raises
+    ------
+    RecordError
+        A unit other than the description's (:func:`check_units`), no time column, or anything
+        :func:`record_from_columns` refuses.
+    """
+    check_units(description, units or {}, name)
+    if description.time not in columns:
+        raise RecordError(f"{name}: the record lacks the time column {description.time!r}")
+    wanted = _expected_units(description)
+    arrays = {k: np.asarray(v, dtype=float) for k, v in columns.items() if k in wanted}
+    return record_from_columns(description, arrays.pop(description.time), arrays, name)
+
+
 def load_record(path: str | Path | bytes, description: PlantDescription, name: str | None = None) -> FmuRecord:
     """Read a record in the CSV form (module docstring).
 
@@ -143,15 +190,8 @@ def load_record(path: str | Path | bytes, description: PlantDescription, name: s
         header.append(col)
         if m and m.group(2) is not None:
             units[col] = m.group(2)
-    expected = {description.time: "s"}
-    expected.update({str(i.column): i.unit for i in description.driven})
-    expected.update({c.name: c.unit for c in description.channels})
-    for col, unit in units.items():
-        if col in expected and expected[col] and unit != expected[col]:
-            raise RecordError(
-                f"{label}: column {col!r} is in {unit!r}; the plant {description.name!r} reads it in "
-                f"{expected[col]!r}: convert it (the record is not converted, to be never misread)"
-            )
+    check_units(description, units, label)
+    expected = _expected_units(description)
     absent = [c for c in expected if c not in header]
     if absent:
         raise RecordError(f"{label}: the CSV header {header} lacks the column(s) {absent}")
