@@ -74,7 +74,7 @@ CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance,
 def fuzz_settings(db_path: Path) -> Settings:
     """The fuzzed server's settings: its own database, one training thread and one diagnosis process, at most
     two pending jobs (the rest get 429), four cases per batch simulation, one synchronous diagnosis at a time
-    stopped after 20 s (504)."""
+    stopped after 20 s (504), FMU plants on."""
     return Settings(
         db_path=db_path,
         workers=1,
@@ -83,7 +83,8 @@ def fuzz_settings(db_path: Path) -> Settings:
         max_batch_cases=4,
         max_sync_diagnoses=1,
         sync_diagnose_timeout=20.0,
-        log_level="WARNING",
+        allow_fmu_plants=True,  # the FMU routes reach their success paths too (tests/app/test_app_fmu_plants.py
+        log_level="WARNING",  # has them off)
     )
 
 
@@ -131,10 +132,29 @@ def _diagnosis(client: httpx.Client, record: dict[str, Any], measured_at: str) -
     return accepted
 
 
+def _plants(client: httpx.Client, fmu: Path, out: Seeded) -> None:
+    """Upload the quarter car's FMU and store two plants of it (one kept, one for DELETE)."""
+    from fmukit import OCTET, small_description
+
+    up = client.post("/v1/fmus", content=fmu.read_bytes(), headers=OCTET)
+    assert up.status_code == 201, up.text
+    out.kept["sha256"] = [up.json()["sha256"]]
+    ids = []
+    for name in ("fuzz_kept", "fuzz_deleted"):
+        made = client.post("/v1/plants", json={"description": {**small_description(up.json()["sha256"]), "name": name}})
+        assert made.status_code == 201, made.text
+        ids.append(made.json()["id"])
+    out.kept["plant_id"], out.deleted["plant_id"] = [ids[0]], [ids[1]]
+
+
 @pytest.fixture(scope="module")
-def seeded(fuzz_server: InProcessServer) -> Seeded:
-    """Store two small pattern sets, three identifications of :data:`ASSET` over a week and two diagnoses of it
-    (cancelled)."""
+def seeded(fuzz_server: InProcessServer, tmp_path_factory: pytest.TempPathFactory) -> Seeded:
+    """Store two small pattern sets, three identifications of :data:`ASSET` over a week, two diagnoses of it
+    (cancelled), an FMU and two plants of it."""
+    from engine.plants.fmu import EXAMPLES_DIR
+    from engine.plants.fmu.build import build_fmu
+
+    fmu = build_fmu(EXAMPLES_DIR / "quarter_car", tmp_path_factory.mktemp("fuzz_fmu"))
     paths = schema.raw_schema["paths"]
     out = Seeded(kept={"asset": [ASSET], "name": ["overlays", "residual_map_before"]})
     with fuzz_server.client() as client:
@@ -163,6 +183,8 @@ def seeded(fuzz_server: InProcessServer) -> Seeded:
             out.kept["job_id"].append(kept["job_id"])
             for ids, accepted in ((out.kept, kept), (out.deleted, deleted)):
                 ids["diagnosis_id"], ids["record_id"] = [accepted["diagnosis_id"]], [accepted["record_id"]]
+        if "/v1/plants" in paths:
+            _plants(client, fmu, out)
     return out
 
 
