@@ -310,6 +310,7 @@ CSV_QUERY = (
     "asset",
     "measured_at",
     "drive",
+    "plant",
 )
 
 
@@ -321,7 +322,7 @@ async def diagnosis_request(request: Request, params: CSVRecordParams) -> Diagno
     store = str(request.app.state.store.path) if settings.allow_fmu_plants else None  # uploaded plants, if on
     if kind == "csv":
         return DiagnosisRequest("csv", raw, params.as_params(), store=store)
-    reject_query(request, (*CSV_QUERY, "plant"))
+    reject_query(request, CSV_QUERY)
     if not raw.strip():
         raise RequestValidationError([{"type": "missing", "loc": ("body",), "msg": "a JSON body is required"}])
     return DiagnosisRequest("json", raw, {}, store=store)
