@@ -1743,6 +1743,29 @@ def render_fmu_cost(page: Page) -> str:
         head = ["quarter car, one effect", "answer", "seconds, one process", "simulations", "simulation-equivalents"]
         head += [f"seconds on {r['diagnoses'][0]['processes']} processes", "same answer"]
         lines.append("\n\n" + table(head, d_rows))
+    if r.get("model_exchange_diagnoses"):
+        co = {d["effect"]: d for d in r["diagnoses"]}
+        m_rows = [
+            [
+                f"`{d['effect']}` = {d['value']:g}",
+                f"{d['status']} {', '.join(d['named'])}".strip(),
+                f"{d['seconds']:.1f}",
+                str(d["simulations"]),
+                f"{d['simulation_equivalents']:.0f}",
+                f"{d['ratio_to_co_simulation']:.1f}x"
+                + (f" ({co[d['effect']]['seconds_on_processes']:.1f} s)" if d["effect"] in co else ""),
+            ]
+            for d in r["model_exchange_diagnoses"]
+        ]
+        head = [
+            "quarter car by model exchange, one effect",
+            "answer",
+            f"seconds on {r['model_exchange_diagnoses'][0]['processes']} processes",
+            "simulations",
+            "simulation-equivalents",
+            "against co-simulation",
+        ]
+        lines.append("\n\n" + table(head, m_rows))
     code = r["code"]["describe"] if isinstance(r["code"], Mapping) else r["code"]
     lines.append(f"\n\nCode {code}, {r['calls']} timed calls of one simulation per plant; `{r['command']}`.")
     return "".join(lines) + sources(page, [FMU_COST])

@@ -16,6 +16,10 @@ class FmuPublic(BaseModel):
     model_name: str
     fmi_version: str
     platforms: list[str] = Field(description="The platforms it has binaries for.")
+    interfaces: list[str] = Field(
+        description='The FMI 2.0 interfaces it offers ("co-simulation", "model-exchange"); a description\'s '
+        "interface names the one to run."
+    )
     inputs: list[str] = Field(description="Its real inputs (a description's inputs name these).")
     outputs: list[str] = Field(description="Its real outputs (a description's channels name these).")
     parameters: list[str] = Field(description="Its real parameters (calibrated parameters and effects name these).")

@@ -82,5 +82,5 @@ def test_an_fmu_without_a_binary_for_this_machine_is_refused(archive: bytes) -> 
     with zipfile.ZipFile(io.BytesIO(archive)) as z:
         binaries = [n for n in z.namelist() if n.startswith("binaries/")]
     assert binaries
-    with pytest.raises(FmuArchiveError, match="no binary for this machine"):
+    with pytest.raises(FmuArchiveError, match="no co-simulation binary for this machine"):
         inspect_archive(rezip(archive, dict.fromkeys(binaries)), LIMIT)

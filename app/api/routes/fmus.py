@@ -32,6 +32,7 @@ def fmu_public(stored: StoredFmu) -> FmuPublic:
         model_name=s["model_name"],
         fmi_version=s["fmi_version"],
         platforms=list(s["platforms"]),
+        interfaces=list(s.get("interfaces", ["co-simulation"])),  # stored before model exchange: co-simulation only
         inputs=list(s["inputs"]),
         outputs=list(s["outputs"]),
         parameters=list(s["parameters"]),

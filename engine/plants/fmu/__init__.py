@@ -1,4 +1,4 @@
-"""A plant from the user's own simulator: an FMI 2.0 co-simulation FMU and a short description (issue 55).
+"""A plant from the user's own simulator: an FMI 2.0 FMU (co-simulation or model exchange) and a short description (issue 55).
 
 :func:`load_plant` reads a TOML description (:mod:`engine.plants.fmu.description`) and returns an
 :class:`FmuPlant`, a plant of :mod:`engine.plants.base` that the diagnosis reads as any other.

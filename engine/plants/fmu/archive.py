@@ -3,8 +3,8 @@
 An FMU is a zip archive of a ``modelDescription.xml`` and shared libraries, native code that runs
 in the process that instantiates it. A service that accepts FMUs from its clients checks the
 archive as a file first (:func:`inspect_archive`): its size, what it would unpack to, that no
-member would land outside its folder, that it is an FMI 2.0 co-simulation FMU, and that it has a
-binary for this machine's platform. Only an archive that passes is stored and later run (by
+member would land outside its folder, that it is an FMI 2.0 FMU (co-simulation, model exchange or
+both), and that it has a binary for this machine's platform for each interface it offers. Only an archive that passes is stored and later run (by
 :class:`~engine.plants.fmu.runner.FmuModel`, in the service's worker processes).
 """
 
@@ -39,7 +39,11 @@ class FmuSummary:
     unpacked : int
         What its members unpack to [bytes].
     model_name, fmi_version, guid, identifier : str
-        From its ``modelDescription.xml`` (``identifier``: the co-simulation model identifier).
+        From its ``modelDescription.xml`` (``identifier``: the model identifier of its first interface
+        of ``interfaces``).
+    interfaces : tuple of str
+        The FMI 2.0 interfaces it offers, by a plant description's names for them
+        (``co-simulation``, ``model-exchange``).
     platforms : tuple of str
         The platforms it has binaries for (FMPy's names, e.g. ``linux64``).
     inputs, outputs, parameters : tuple of str
@@ -54,6 +58,7 @@ class FmuSummary:
     guid: str
     identifier: str
     platforms: tuple[str, ...]
+    interfaces: tuple[str, ...]
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
     parameters: tuple[str, ...]
@@ -74,7 +79,7 @@ def inspect_archive(content: bytes, max_unpacked: int) -> FmuSummary:
     FmuArchiveError
         Not a zip archive; more than :data:`MAX_MEMBERS` members or more than ``max_unpacked`` bytes
         unpacked; a member with an absolute path or ``..``; no or an unreadable ``modelDescription.xml``;
-        not FMI 2.0 with a co-simulation interface; no binary for this machine's platform.
+        not FMI 2.0, or with neither interface; no binary for this machine's platform.
     """
     import fmpy
     from fmpy import read_model_description
@@ -105,20 +110,25 @@ def inspect_archive(content: bytes, max_unpacked: int) -> FmuSummary:
         md = read_model_description(io.BytesIO(content))
     except Exception as exc:  # FMPy raises several kinds for a malformed or invalid model description
         raise FmuArchiveError(f"the FMU's modelDescription.xml cannot be read: {exc}") from None
-    if md.fmiVersion != "2.0" or md.coSimulation is None:
+    offered = {
+        name: kind.modelIdentifier
+        for name, kind in (("co-simulation", md.coSimulation), ("model-exchange", md.modelExchange))
+        if kind is not None
+    }
+    if md.fmiVersion != "2.0" or not offered:
         raise FmuArchiveError(
-            f"the plant needs an FMI 2.0 co-simulation FMU; this is FMI {md.fmiVersion}"
-            f"{' without a co-simulation interface' if md.coSimulation is None else ''}: export it as FMI 2.0 "
-            "co-simulation"
+            f"the plant needs an FMI 2.0 FMU (co-simulation or model exchange); this is FMI {md.fmiVersion}"
+            f"{' with neither interface' if not offered else ''}: export it as FMI 2.0"
         )
-    identifier = md.coSimulation.modelIdentifier
     platforms = tuple(fmpy.supported_platforms(io.BytesIO(content)))
-    binary = f"binaries/{fmpy.platform}/{identifier}{fmpy.sharedLibraryExtension}"
-    if binary not in names:
-        raise FmuArchiveError(
-            f"the FMU has no binary for this machine ({binary}; it has {', '.join(platforms) or 'none'}): export "
-            f"it with a {fmpy.platform} binary, or as a source FMU built on the service's machine"
-        )
+    for interface, identifier in offered.items():
+        binary = f"binaries/{fmpy.platform}/{identifier}{fmpy.sharedLibraryExtension}"
+        if binary not in names:
+            raise FmuArchiveError(
+                f"the FMU has no {interface} binary for this machine ({binary}; its platforms: "
+                f"{', '.join(platforms) or 'none'}): export it with a {fmpy.platform} binary, or as a source "
+                "FMU built on the service's machine"
+            )
     real = [v for v in md.modelVariables if v.type == "Real"]
     return FmuSummary(
         sha256=hashlib.sha256(content).hexdigest(),
@@ -127,8 +137,9 @@ def inspect_archive(content: bytes, max_unpacked: int) -> FmuSummary:
         model_name=md.modelName,
         fmi_version=md.fmiVersion,
         guid=md.guid,
-        identifier=identifier,
+        identifier=next(iter(offered.values())),
         platforms=platforms,
+        interfaces=tuple(offered),
         inputs=tuple(v.name for v in real if v.causality == "input"),
         outputs=tuple(v.name for v in real if v.causality == "output"),
         parameters=tuple(v.name for v in real if v.causality == "parameter"),

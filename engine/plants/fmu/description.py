@@ -1,12 +1,13 @@
 """A plant from an FMU: the short description that says what the FMU is to the diagnosis (issue 55).
 
-A user's simulator, exported as an FMI 2.0 co-simulation FMU (Simulink, Simscape, Dymola,
+A user's simulator, exported as an FMI 2.0 FMU, co-simulation or model exchange (Simulink, Simscape, Dymola,
 OpenModelica, a vendor's tool), becomes a plant of :mod:`engine.plants.base` with a TOML file
 beside it::
 
     name = "quarter_car"
     description = "a car's corner on a road-simulator rig"
     fmu = "quarter_car.fmu"           # relative to this file; a folder is a source FMU, built on load
+    interface = "co-simulation"       # or "model-exchange": its derivatives, integrated on the record's grid
     loci = ["body", "suspension", "wheel", "rig"]
     time = "t"                        # the record's time column [s], on the FMU's time axis
 
@@ -53,6 +54,8 @@ from pathlib import Path
 from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from engine.plants.fmu.runner import Interface
 
 __all__ = [
     "ACTUATOR_LOCUS",
@@ -223,6 +226,10 @@ class PlantDescription(_Strict):
     fmu : str
         The FMU: a ``.fmu`` file, or a source FMU's folder (``modelDescription.xml`` and
         ``sources/``, built on load with the system C compiler), relative to the description's folder.
+    interface : {"co-simulation", "model-exchange"}
+        The FMU's FMI 2.0 interface to run: its own solver's communication steps (co-simulation, the
+        default), or its derivatives integrated by the plant's solver, chosen for the record's grid
+        (model exchange; :mod:`engine.plants.fmu.runner`).
     loci : list of str
         The parts of the machine the inputs and effects belong to.
     time : str
@@ -250,6 +257,7 @@ class PlantDescription(_Strict):
     name: _Name
     description: str = ""
     fmu: str
+    interface: Interface = "co-simulation"
     loci: list[_Name] = Field(min_length=1)
     time: _Name = "t"
     start_time: _Finite = 0.0

@@ -89,7 +89,7 @@ class FmuPlant:
                 f"plant {description.name!r}: fmu = {description.fmu!r}: no such file or folder in {self.base_dir}"
             )
         try:
-            self.model = FmuModel(fmu_path)
+            self.model = FmuModel(fmu_path, interface=description.interface)
         except ValueError as e:
             raise DescriptionError(f"plant {description.name!r}: {e}") from None
         self._check_variables()

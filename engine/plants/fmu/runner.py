@@ -1,4 +1,4 @@
-"""Running an FMI 2.0 co-simulation FMU on a record's grid, through FMPy.
+"""Running an FMI 2.0 FMU on a record's grid, through FMPy: co-simulation, or model exchange with SciPy's solver.
 
 :class:`FmuModel` opens an FMU once (its model description read, the archive extracted into a
 temporary folder that lives as long as the object) and simulates it as often as a diagnosis asks:
@@ -11,6 +11,14 @@ parameters set in initialization mode, the inputs of the first sample set, one s
 sample, then a communication step per sample interval, each input held at its sample's value over
 the interval that sample starts (zero-order hold), the outputs read at every sample. A step the FMU
 refuses raises :class:`FmuSimulationError` with the FMU's own message.
+
+A model-exchange FMU (``interface="model-exchange"``) has no solver of its own: the simulation
+integrates its derivatives with SciPy's LSODA (:func:`scipy.integrate.solve_ivp`, which switches
+between a non-stiff and a stiff method as the model needs), chosen for the record's grid: at most one
+sample interval per step, the states' output at every sample, each input linear between its samples
+(a model-exchange FMU sees the input between samples, where co-simulation holds it). Tolerances:
+:data:`ME_RTOL` relative, :data:`ME_ATOL` times each state's nominal value absolute. An FMU with event
+indicators is refused (its events would need an event-locating solver; export it as co-simulation).
 """
 
 from __future__ import annotations
@@ -21,14 +29,26 @@ import shutil
 import tempfile
 import threading
 import weakref
+from bisect import bisect_right
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 import numpy as np
 
-__all__ = ["FmuModel", "FmuSimulationError", "FmuVariable"]
+__all__ = ["INTERFACES", "ME_ATOL", "ME_RTOL", "FmuModel", "FmuSimulationError", "FmuVariable", "Interface"]
+
+#: An FMI 2.0 interface a plant can run, by the description's name for it.
+Interface = Literal["co-simulation", "model-exchange"]
+#: The FMI 2.0 interfaces a plant can run.
+INTERFACES: tuple[str, ...] = get_args(Interface)
+#: Relative tolerance of the model-exchange integration.
+ME_RTOL: float = 1e-6
+#: Most iterations of a model-exchange FMU's event iteration after its initialisation.
+ME_EVENT_ITERATIONS: int = 100
+#: Absolute tolerance of the model-exchange integration, as a share of each state's nominal value.
+ME_ATOL: float = 1e-8
 
 log = logging.getLogger(__name__)
 
@@ -126,30 +146,50 @@ class FmuModel:
     Parameters
     ----------
     path : str or Path
-        The ``.fmu`` file (FMI 2.0 with a co-simulation interface).
+        The ``.fmu`` file (FMI 2.0).
+    interface : {"co-simulation", "model-exchange"}
+        The FMU's interface to run (module docstring).
 
     Raises
     ------
     ValueError
-        Not an FMI 2.0 co-simulation FMU, or a file FMPy cannot read (the message says which).
+        Not an FMI 2.0 FMU with that interface, a model-exchange FMU with event indicators, or a file
+        FMPy cannot read (the message says which).
     """
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, interface: str = "co-simulation") -> None:
         from fmpy import extract, read_model_description
 
         self.path = Path(path)
+        if interface not in INTERFACES:
+            raise ValueError(f"interface {interface!r}: one of {', '.join(INTERFACES)}")
         try:
             md = read_model_description(str(self.path))
         except Exception as e:  # FMPy raises several kinds for a bad archive or XML
             raise ValueError(f"{self.path}: not an FMU FMPy can read: {e}") from None
-        if md.fmiVersion != "2.0" or md.coSimulation is None:
+        exchange = interface == "model-exchange"
+        offered = md.modelExchange if exchange else md.coSimulation
+        if md.fmiVersion != "2.0" or offered is None:
+            have = [n for n, x in zip(INTERFACES, (md.coSimulation, md.modelExchange), strict=True) if x is not None]
             raise ValueError(
-                f"{self.path}: the plant needs an FMI 2.0 co-simulation FMU; this is FMI {md.fmiVersion}"
-                f"{' without a co-simulation interface' if md.coSimulation is None else ''}"
+                f"{self.path}: the plant needs an FMI 2.0 FMU with a {interface} interface; this is FMI "
+                f"{md.fmiVersion} with {', '.join(have) or 'no interface the plant runs'} (set interface = "
+                f"{have[0]!r} in the description)"
+                if have and md.fmiVersion == "2.0"
+                else f"{self.path}: the plant needs an FMI 2.0 FMU with a {interface} interface; this is FMI "
+                f"{md.fmiVersion}"
             )
+        if exchange and md.numberOfEventIndicators:
+            raise ValueError(
+                f"{self.path}: the model-exchange FMU has {md.numberOfEventIndicators} event indicators; the plant "
+                "integrates model exchange without event location: export it as co-simulation (its own solver "
+                "handles its events)"
+            )
+        self.interface: str = interface
         self.model_description = md
         self.guid: str = md.guid
-        self.identifier: str = md.coSimulation.modelIdentifier
+        self.identifier: str = offered.modelIdentifier
+        self.n_states: int = len(md.derivatives) if exchange else 0
         self.variables: dict[str, FmuVariable] = {}
         for v in md.modelVariables:
             if v.type != "Real":
@@ -189,7 +229,7 @@ class FmuModel:
         inst = getattr(self._local, "fmu", None)
         if inst is not None:
             return inst, self._local.messages
-        from fmpy.fmi2 import FMU2Slave
+        from fmpy.fmi2 import FMU2Model, FMU2Slave
 
         with self._lock:
             name = f"{self.identifier}-{id(self):x}-{len(self._instances)}"
@@ -197,9 +237,8 @@ class FmuModel:
         _MESSAGES[name] = messages
         self._names.append(name)
         callbacks = _callbacks()
-        inst = FMU2Slave(
-            guid=self.guid, unzipDirectory=self._unzipdir, modelIdentifier=self.identifier, instanceName=name
-        )
+        kind = FMU2Model if self.interface == "model-exchange" else FMU2Slave
+        inst = kind(guid=self.guid, unzipDirectory=self._unzipdir, modelIdentifier=self.identifier, instanceName=name)
         inst.instantiate(callbacks=callbacks)
         inst._backlash_callbacks = callbacks  # the FMU keeps a pointer to it: alive as long as the instance
         with self._lock:
@@ -227,7 +266,8 @@ class FmuModel:
         parameters : mapping
             FMU parameter name -> value, set in initialization mode (others keep their start values).
         inputs : mapping
-            FMU input name -> one value per sample, held over the interval the sample starts.
+            FMU input name -> one value per sample, held over the interval the sample starts
+            (co-simulation) or linear between samples (model exchange).
         outputs : sequence of str
             FMU output names.
 
@@ -243,6 +283,8 @@ class FmuModel:
         """
         from fmpy.fmi1 import FMICallException
 
+        if self.interface == "model-exchange":
+            return self._simulate_me(times, start_time, parameters, inputs, outputs)
         t = np.asarray(times, dtype=float)
         n = t.size
         inst, messages = self._instance()
@@ -301,6 +343,133 @@ class FmuModel:
             now = times[k]
             if get_real(comp, y_vr, ny, y_buf) > 1:
                 raise failed(f"reading the outputs at t = {now:.6g} s")
+            out[k] = y_buf
+        if not np.all(np.isfinite(out)):
+            bad = int(np.argmax(~np.all(np.isfinite(out), axis=1)))
+            raise FmuSimulationError(f"FMU {self.identifier}: non-finite outputs from t = {t[bad]:.6g} s on")
+        return out.T.copy()
+
+    def _simulate_me(
+        self,
+        times: np.ndarray,
+        start_time: float,
+        parameters: Mapping[str, float],
+        inputs: Mapping[str, np.ndarray],
+        outputs: Sequence[str],
+    ) -> np.ndarray:
+        """:meth:`simulate` of a model-exchange FMU: its derivatives integrated by LSODA (module docstring)."""
+        from fmpy.fmi1 import FMICallException
+        from scipy.integrate import odeint
+
+        t = np.asarray(times, dtype=float)
+        n, nx = t.size, self.n_states
+        inst, messages = self._instance()
+        _route_messages()
+        messages.clear()
+        fn, comp = inst._functions, inst.component
+        set_real, get_real = fn["fmi2SetReal"], fn["fmi2GetReal"]
+        set_time, set_states, get_derivatives = (
+            fn["fmi2SetTime"],
+            fn["fmi2SetContinuousStates"],
+            fn["fmi2GetDerivatives"],
+        )
+        p_names = list(parameters)
+        p_vr = (ctypes.c_uint * len(p_names))(*(self.variables[k].value_reference for k in p_names))
+        p_val = (ctypes.c_double * len(p_names))(*(float(parameters[k]) for k in p_names))
+        u_names = list(inputs)
+        nu, ny = len(u_names), len(outputs)
+        u = np.vstack([np.asarray(inputs[k], dtype=float) for k in u_names]) if nu else np.empty((0, n))
+        slope = np.diff(u, axis=1) / np.diff(t) if n > 1 else np.zeros((nu, 0))
+        u_vr = (ctypes.c_uint * nu)(*(self.variables[k].value_reference for k in u_names))
+        u_buf = (ctypes.c_double * nu)()
+        x_buf, dx_buf = (ctypes.c_double * nx)(), (ctypes.c_double * nx)()
+        y_vr = (ctypes.c_uint * ny)(*(self.variables[k].value_reference for k in outputs))
+        y_buf = (ctypes.c_double * ny)()
+
+        def failed(what: str) -> FmuSimulationError:
+            said = "; ".join(m for m in messages if m) or "the FMU gave no message"
+            return FmuSimulationError(f"FMU {self.identifier}: {what} failed: {said}")
+
+        t_list = t.tolist()
+        u_rows = [row.tolist() for row in u]
+        slope_rows = [row.tolist() for row in slope]
+        last = max(n - 2, 0)
+
+        def put(now: float, x: Any) -> None:
+            """Time, inputs (linear between samples; the first sample's before it) and states into the FMU."""
+            if set_time(comp, ctypes.c_double(now)) > 1:
+                raise failed(f"setting the time t = {now:.6g} s")
+            if nu:
+                if n > 1:
+                    k = min(max(bisect_right(t_list, now) - 1, 0), last)
+                    h = max(now - t_list[k], 0.0)
+                    u_buf[:] = [row[k] + s_row[k] * h for row, s_row in zip(u_rows, slope_rows, strict=True)]
+                else:
+                    u_buf[:] = [row[0] for row in u_rows]
+                if set_real(comp, u_vr, nu, u_buf) > 1:
+                    raise failed(f"setting the inputs at t = {now:.6g} s")
+            if x is not None:
+                x_buf[:] = x.tolist()
+                if set_states(comp, x_buf, nx) > 1:
+                    raise failed(f"setting the states at t = {now:.6g} s")
+
+        try:
+            inst.reset()
+            inst.setupExperiment(startTime=float(start_time))
+            inst.enterInitializationMode()
+            if p_names and set_real(comp, p_vr, len(p_names), p_val) > 1:
+                raise failed("setting the parameters")
+            if nu:
+                u_buf[:] = u[:, 0].tolist()
+                if set_real(comp, u_vr, nu, u_buf) > 1:
+                    raise failed("setting the inputs")
+            inst.exitInitializationMode()
+            for _ in range(ME_EVENT_ITERATIONS):  # the event iteration that follows initialisation
+                needed, terminate, *_ = inst.newDiscreteStates()
+                if terminate:
+                    raise failed("the event iteration after initialisation (the FMU asked to terminate)")
+                if not needed:
+                    break
+            else:
+                raise failed(f"the event iteration after initialisation ({ME_EVENT_ITERATIONS} iterations)")
+            inst.enterContinuousTimeMode()
+            x0, nominal = np.zeros(nx), np.ones(nx)
+            if nx:
+                if fn["fmi2GetContinuousStates"](comp, x_buf, nx) > 1:
+                    raise failed("reading the initial states")
+                x0 = np.array(x_buf[:], dtype=float)
+                if fn["fmi2GetNominalsOfContinuousStates"](comp, dx_buf, nx) <= 1:
+                    nominal = np.abs(np.array(dx_buf[:], dtype=float))
+        except FMICallException:
+            raise failed("initialisation") from None
+
+        def rhs(now: float, x: np.ndarray) -> np.ndarray:
+            put(now, x)
+            if get_derivatives(comp, dx_buf, nx) > 1:
+                raise failed(f"the derivatives at t = {now:.6g} s")
+            return np.array(dx_buf[:], dtype=float)
+
+        states = np.empty((nx, n))
+        if nx and n > 1:
+            span = (float(start_time), float(t[-1]))
+            if t[0] < span[0]:
+                raise FmuSimulationError(f"FMU {self.identifier}: the first sample precedes the start time")
+            step = float(np.min(np.diff(t)))
+            grid = t if t[0] == span[0] else np.concatenate([[span[0]], t])
+            y, info = odeint(
+                rhs, x0, grid, tfirst=True, hmax=step, rtol=ME_RTOL,
+                atol=ME_ATOL * np.where(nominal > 0.0, nominal, 1.0), tcrit=grid[-1:], full_output=True,
+            )  # fmt: skip
+            if info["message"] != "Integration successful.":
+                raise FmuSimulationError(f"FMU {self.identifier}: the integration failed: {info['message']}")
+            states = y[-n:].T
+        elif nx:
+            states[:, 0] = x0
+        out = np.empty((n, ny))
+        for k in range(n):  # the outputs at each sample, at its states and inputs
+            put(float(t[k]), states[:, k] if nx else None)
+            if get_real(comp, y_vr, ny, y_buf) > 1:
+                raise failed(f"reading the outputs at t = {t[k]:.6g} s")
             out[k] = y_buf
         if not np.all(np.isfinite(out)):
             bad = int(np.argmax(~np.all(np.isfinite(out), axis=1)))

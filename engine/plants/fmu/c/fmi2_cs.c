@@ -1,8 +1,10 @@
 /*
  * The project's FMI 2.0 co-simulation framework: every function of fmi2Functions.h around one
  * model of the contract in model.h (model_n_reals, model_start_values, model_initialize,
- * model_do_step). Reals only; no integers, booleans or strings; no FMU state, no directional
- * derivatives, no model exchange (those calls return fmi2Error with a message).
+ * model_do_step), and the model-exchange interface around a model that also defines
+ * model_n_states and model_derivatives (model.h). Reals only; no integers, booleans or strings; no
+ * FMU state, no directional derivatives, no event indicators (those calls return fmi2Error with a
+ * message; a model-exchange model has no events: its right-hand side is continuous in time).
  *
  * States of an instance: instantiated -> (fmi2SetupExperiment) -> initialization mode
  * (fmi2EnterInitializationMode; parameters and inputs may be set) -> stepping
@@ -21,6 +23,7 @@ typedef struct {
     Instance m;
     int in_init;  /* between fmi2EnterInitializationMode and fmi2ExitInitializationMode */
     int failed;   /* a step failed: only fmi2Reset and fmi2FreeInstance are allowed */
+    int exchange; /* instantiated as fmi2ModelExchange */
     double start_time;
     char name[128]; /* the instance's name, copied: the host's string need not outlive fmi2Instantiate */
 } Component;
@@ -72,13 +75,16 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                               fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
                               fmi2Boolean visible, fmi2Boolean loggingOn) {
     (void)fmuGUID; (void)fmuResourceLocation; (void)visible; (void)loggingOn;
-    if (fmuType != fmi2CoSimulation) return NULL;
+    int exchange = fmuType == fmi2ModelExchange;
+    if (!exchange && fmuType != fmi2CoSimulation) return NULL;
+    if (exchange && !(model_n_states && model_derivatives && model_n_states() <= MAX_STATES)) return NULL;
     if (model_n_reals() > MAX_REALS) return NULL;
     Component *c = (Component *)calloc(1, sizeof(Component));
     if (!c) return NULL;
     c->m.callbacks = functions;
     snprintf(c->name, sizeof c->name, "%s", instanceName ? instanceName : "");
     c->m.instance_name = c->name;
+    c->exchange = exchange;
     start(c);
     return (fmi2Component)c;
 }
@@ -142,6 +148,14 @@ static int bad_vr(Component *c, const fmi2ValueReference vr[], size_t nvr) {
 fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
     Component *c = (Component *)comp;
     if (!c || bad_vr(c, vr, nvr)) return fmi2Error;
+    if (c->exchange && c->m.initialized && !c->failed) { /* the outputs at the states and time set last */
+        double dx[MAX_STATES];
+        if (model_derivatives(&c->m, dx) != 0) {
+            c->failed = 1;
+            fail(c, NULL);
+            return fmi2Error;
+        }
+    }
     for (size_t i = 0; i < nvr; i++) value[i] = c->m.r[vr[i]];
     return fmi2OK;
 }
@@ -207,27 +221,108 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
     return unsupported(c, "fmi2GetDirectionalDerivative");
 }
 
-/* model exchange: not provided (the FMU is co-simulation only) */
-fmi2Status fmi2EnterEventMode(fmi2Component c) { return unsupported(c, "model exchange"); }
-fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *e) { (void)e; return unsupported(c, "model exchange"); }
-fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) { return unsupported(c, "model exchange"); }
+/* model exchange: around model_n_states and model_derivatives (refused where the model has neither) */
+static int me_ready(Component *c, const char *what) {
+    if (!c) return 0;
+    if (!c->exchange) {
+        snprintf(c->m.message, MESSAGE_SIZE, "%s: the instance is not a model-exchange instance", what);
+        fail(c, NULL);
+        return 0;
+    }
+    if (c->failed) {
+        fail(c, "an earlier call failed: reset the FMU (fmi2Reset) first");
+        return 0;
+    }
+    return 1;
+}
+static int me_size(Component *c, size_t n, const char *what) {
+    if (n != (size_t)model_n_states()) {
+        snprintf(c->m.message, MESSAGE_SIZE, "%s: %u states given, the model has %d", what, (unsigned)n,
+                 model_n_states());
+        fail(c, NULL);
+        return 0;
+    }
+    return 1;
+}
+fmi2Status fmi2EnterEventMode(fmi2Component c) { return me_ready((Component *)c, "fmi2EnterEventMode") ? fmi2OK : fmi2Error; }
+fmi2Status fmi2NewDiscreteStates(fmi2Component comp, fmi2EventInfo *e) {
+    if (!me_ready((Component *)comp, "fmi2NewDiscreteStates") || !e) return fmi2Error;
+    e->newDiscreteStatesNeeded = fmi2False;
+    e->terminateSimulation = fmi2False;
+    e->nominalsOfContinuousStatesChanged = fmi2False;
+    e->valuesOfContinuousStatesChanged = fmi2False;
+    e->nextEventTimeDefined = fmi2False;
+    e->nextEventTime = 0.0;
+    return fmi2OK;
+}
+fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
+    return me_ready((Component *)c, "fmi2EnterContinuousTimeMode") ? fmi2OK : fmi2Error;
+}
 fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean n, fmi2Boolean *e, fmi2Boolean *t) {
-    (void)n; (void)e; (void)t;
-    return unsupported(c, "model exchange");
+    (void)n;
+    if (!me_ready((Component *)c, "fmi2CompletedIntegratorStep")) return fmi2Error;
+    if (e) *e = fmi2False;
+    if (t) *t = fmi2False;
+    return fmi2OK;
 }
-fmi2Status fmi2SetTime(fmi2Component c, fmi2Real t) { (void)t; return unsupported(c, "model exchange"); }
-fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx) {
-    (void)x; (void)nx;
-    return unsupported(c, "model exchange");
+fmi2Status fmi2SetTime(fmi2Component comp, fmi2Real t) {
+    Component *c = (Component *)comp;
+    if (!me_ready(c, "fmi2SetTime")) return fmi2Error;
+    if (!isfinite(t)) {
+        fail(c, "fmi2SetTime: the time must be finite");
+        return fmi2Error;
+    }
+    c->m.time = t;
+    return fmi2OK;
 }
-fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real d[], size_t nx) { (void)d; (void)nx; return unsupported(c, "model exchange"); }
-fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real e[], size_t ni) { (void)e; (void)ni; return unsupported(c, "model exchange"); }
-fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx) { (void)x; (void)nx; return unsupported(c, "model exchange"); }
-fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x[], size_t nx) {
-    (void)x; (void)nx;
-    return unsupported(c, "model exchange");
+fmi2Status fmi2SetContinuousStates(fmi2Component comp, const fmi2Real x[], size_t nx) {
+    Component *c = (Component *)comp;
+    if (!me_ready(c, "fmi2SetContinuousStates") || !me_size(c, nx, "fmi2SetContinuousStates")) return fmi2Error;
+    for (size_t i = 0; i < nx; i++) {
+        if (!isfinite(x[i])) {
+            snprintf(c->m.message, MESSAGE_SIZE, "fmi2SetContinuousStates: state %u is not finite (%g): the "
+                     "solver diverged; check the parameters", (unsigned)i, x[i]);
+            c->failed = 1;
+            fail(c, NULL);
+            return fmi2Error;
+        }
+        c->m.x[i] = x[i];
+    }
+    return fmi2OK;
 }
-
+fmi2Status fmi2GetDerivatives(fmi2Component comp, fmi2Real d[], size_t nx) {
+    Component *c = (Component *)comp;
+    if (!me_ready(c, "fmi2GetDerivatives") || !me_size(c, nx, "fmi2GetDerivatives")) return fmi2Error;
+    if (!c->m.initialized) {
+        fail(c, "fmi2GetDerivatives before fmi2ExitInitializationMode");
+        return fmi2Error;
+    }
+    double dx[MAX_STATES];
+    if (model_derivatives(&c->m, dx) != 0) {
+        c->failed = 1;
+        fail(c, NULL);
+        return fmi2Error;
+    }
+    for (size_t i = 0; i < nx; i++) d[i] = dx[i];
+    return fmi2OK;
+}
+fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real e[], size_t ni) {
+    (void)e;
+    return ni == 0 ? fmi2OK : unsupported(c, "fmi2GetEventIndicators (the model has no event indicators)");
+}
+fmi2Status fmi2GetContinuousStates(fmi2Component comp, fmi2Real x[], size_t nx) {
+    Component *c = (Component *)comp;
+    if (!me_ready(c, "fmi2GetContinuousStates") || !me_size(c, nx, "fmi2GetContinuousStates")) return fmi2Error;
+    for (size_t i = 0; i < nx; i++) x[i] = c->m.x[i];
+    return fmi2OK;
+}
+fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component comp, fmi2Real x[], size_t nx) {
+    Component *c = (Component *)comp;
+    if (!me_ready(c, "fmi2GetNominalsOfContinuousStates") || !me_size(c, nx, "fmi2GetNominalsOfContinuousStates"))
+        return fmi2Error;
+    for (size_t i = 0; i < nx; i++) x[i] = 1.0;
+    return fmi2OK;
+}
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                        const fmi2Integer order[], const fmi2Real value[]) {
     (void)vr; (void)order; (void)value;
@@ -244,6 +339,10 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real currentCommunicationPoint, fm
     (void)noSetFMUStatePriorToCurrentPoint;
     Component *c = (Component *)comp;
     if (!c) return fmi2Error;
+    if (c->exchange) {
+        fail(c, "fmi2DoStep on a model-exchange instance: instantiate it as fmi2CoSimulation to step it");
+        return fmi2Error;
+    }
     if (c->failed) {
         fail(c, "an earlier step failed: reset the FMU (fmi2Reset) before stepping again");
         return fmi2Error;

@@ -47,4 +47,16 @@ int model_initialize(Instance *m);
  * Return 0, or non-zero with m->message set (solver failure: non-finite state, no convergence). */
 int model_do_step(Instance *m, double h);
 
+/* Model exchange (optional). A model that also offers the FMI 2.0 model-exchange interface defines
+ * both functions below; its continuous states are m->x[0 .. model_n_states() - 1], in the order of
+ * modelDescription.xml's <Derivatives>. The framework declares them weak: a model that defines
+ * neither is a co-simulation FMU only (fmi2Instantiate refuses fmi2ModelExchange). */
+
+/* Number of continuous states (at most MAX_STATES). */
+int model_n_states(void) __attribute__((weak));
+
+/* The states' derivatives dx at m->x, m->time and the inputs in m->r, and the outputs at that point
+ * written into m->r. Return 0, or non-zero with m->message set (an impossible parameter). */
+int model_derivatives(Instance *m, double dx[]) __attribute__((weak));
+
 #endif

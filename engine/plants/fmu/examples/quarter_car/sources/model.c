@@ -304,3 +304,18 @@ int model_do_step(Instance *m, double h) {
     write_outputs(m, &p);
     return 0;
 }
+
+/* Model exchange: the four continuous states (z_s, v_s, z_u, v_u) and their derivatives at the inputs
+ * as the host sets them. The post's velocity is not an input here (FMI 2.0 model exchange has no input
+ * derivatives without fmi2SetRealInputDerivatives), so the tyre's damper acts on the wheel's velocity
+ * alone, c_t v_u, where the co-simulation step passes the staircase's impulse c_t dz_r as well: the
+ * two interfaces agree where the post moves slowly against c_t / k_t (0.25 ms at the nominal values). */
+int model_n_states(void) { return N_CONT; }
+
+int model_derivatives(Instance *m, double dx[]) {
+    if (check_params(m)) return 1;
+    Params p = read_params(m);
+    rhs(&p, m->x, m->r[VR_Z_R], m->r[VR_F_BODY], m->r[VR_F_WHEEL], dx);
+    write_outputs(m, &p);
+    return 0;
+}
