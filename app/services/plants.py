@@ -91,7 +91,7 @@ def add_fmu(store: PatternStore, settings: Settings, content: bytes) -> tuple[St
     TooLargeError
         The archive is larger than ``BACKLASH_MAX_FMU_BYTES`` (413).
     engine.plants.fmu.archive.FmuArchiveError
-        Not an FMI 2.0 co-simulation FMU with a binary for this machine, or one that would unpack beyond
+        Not an FMI 2.0 FMU (either interface) with a binary for this machine, or one that would unpack beyond
         ``BACKLASH_MAX_FMU_UNPACKED_BYTES`` or outside its folder (422); the message says what to send.
     """
     require_enabled(settings)

@@ -56,12 +56,12 @@ def fmu_public(stored: StoredFmu) -> FmuPublic:
         200: {"model": FmuPublic, "description": "This archive was stored already"},
         403: {"model": ErrorPublic, "description": "FMU plants are turned off on this service"},
         413: {"model": ErrorPublic, "description": "Larger than BACKLASH_MAX_FMU_BYTES"},
-        422: {"model": ErrorPublic, "description": "Not an FMI 2.0 co-simulation FMU with a binary for this machine"},
+        422: {"model": ErrorPublic, "description": "Not an FMI 2.0 FMU (co-simulation or model exchange) with a binary for this machine"},
     },
 )
 async def upload_fmu(request: Request, response: Response, store: StoreDep, settings: SettingsDep) -> Any:
     """The body is the ``.fmu`` file as it was exported (``Content-Type: application/octet-stream``). It is checked
-    as a file (its size, what it unpacks to, that it is FMI 2.0 co-simulation with a binary for this machine) and
+    as a file (its size, what it unpacks to, that it is FMI 2.0, co-simulation or model exchange, with a binary for this machine) and
     stored; nothing of it runs. The answer's ``sha256`` names it in a plant description (``POST /v1/plants``).
     Sending the same archive again stores nothing and answers 200."""
     plants.require_enabled(settings)

@@ -1,6 +1,6 @@
 """Build a source FMU (``modelDescription.xml`` and ``sources/``) into a ``.fmu`` with the system C compiler.
 
-The project's example FMUs are shipped as C sources of the project's FMI 2.0 co-simulation framework
+The project's example FMUs are shipped as C sources of the project's FMI 2.0 framework
 (``engine/plants/fmu/c``: :file:`model.h`, the contract a model implements, and :file:`fmi2_cs.c`,
 every FMI function around it). :func:`build_fmu` copies a model's folder and the framework into a
 temporary folder, compiles the platform binary with FMPy's CMake project
@@ -64,8 +64,8 @@ def build_fmu(source_dir: str | Path, out_dir: str | Path) -> Path:
     Parameters
     ----------
     source_dir : str or Path
-        A folder with ``modelDescription.xml`` (FMI 2.0, co-simulation, whose ``<SourceFiles>`` list
-        the model's C files and ``fmi2_cs.c``) and ``sources/`` (the model's C files).
+        A folder with ``modelDescription.xml`` (FMI 2.0, co-simulation or model exchange or both under
+        one model identifier, whose ``<SourceFiles>`` list the model's C files and ``fmi2_cs.c``) and ``sources/`` (the model's C files).
     out_dir : str or Path
         Where the ``.fmu`` is written (created if absent), as ``<modelIdentifier>-<digest>.fmu``.
 
@@ -86,9 +86,13 @@ def build_fmu(source_dir: str | Path, out_dir: str | Path) -> Path:
     source_dir = Path(source_dir)
     digest = source_digest(source_dir)
     description = read_model_description(str(source_dir / "modelDescription.xml"))
-    if description.coSimulation is None:
-        raise FmuBuildError(f"{source_dir}: modelDescription.xml declares no <CoSimulation> interface")
-    identifier = description.coSimulation.modelIdentifier
+    interfaces = [i for i in (description.coSimulation, description.modelExchange) if i is not None]
+    if not interfaces:
+        raise FmuBuildError(f"{source_dir}: modelDescription.xml declares neither <CoSimulation> nor <ModelExchange>")
+    identifiers = {i.modelIdentifier for i in interfaces}
+    if len(identifiers) > 1:  # the framework builds one library that serves both
+        raise FmuBuildError(f"{source_dir}: the interfaces' modelIdentifiers differ ({sorted(identifiers)}); use one")
+    (identifier,) = identifiers
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     target = out_dir / f"{identifier}-{digest[:16]}.fmu"
