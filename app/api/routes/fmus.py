@@ -56,7 +56,10 @@ def fmu_public(stored: StoredFmu) -> FmuPublic:
         200: {"model": FmuPublic, "description": "This archive was stored already"},
         403: {"model": ErrorPublic, "description": "FMU plants are turned off on this service"},
         413: {"model": ErrorPublic, "description": "Larger than BACKLASH_MAX_FMU_BYTES"},
-        422: {"model": ErrorPublic, "description": "Not an FMI 2.0 FMU (co-simulation or model exchange) with a binary for this machine"},
+        422: {
+            "model": ErrorPublic,
+            "description": "Not an FMI 2.0 FMU (co-simulation or model exchange) with a binary for this machine",
+        },
     },
 )
 async def upload_fmu(request: Request, response: Response, store: StoreDep, settings: SettingsDep) -> Any:
