@@ -11,7 +11,7 @@ values (``--calls`` timed calls after one warm-up), for
   record from the switch-on to 0.2 s after the event, 2325 samples at 0.1 ms);
 - the **quarter car** FMU (``engine/plants/fmu/examples/quarter_car``: 2001 samples at 1 ms), run by
   its co-simulation interface (its own fixed-step solver in C) and by its **model-exchange** interface
-  (its derivatives integrated by SciPy's LSODA on the record's grid, :mod:`engine.plants.fmu.runner`);
+  (its derivatives integrated by SUNDIALS' CVode on the record's grid, :mod:`engine.plants.fmu.runner`);
 
 each also per sample, and the FMU's against the native's as a ratio. Per diagnosis: ``--diagnoses``
 synthetic records of the quarter car with one catalogue effect (drawn from a fixed seed), diagnosed

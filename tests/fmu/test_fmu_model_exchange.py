@@ -4,9 +4,10 @@ The quarter car of ``engine/plants/fmu/examples/quarter_car`` offers both FMI 2.
 model-exchange form is checked against an independent reference: SciPy's exact first-order-hold
 simulation (:func:`scipy.signal.lsim` with ``interp=True``: the input linear between samples, as the
 runner gives it) of the linear quarter car, written here from the equations of motion. Then: the
-plant interface runs it when its description says ``interface = "model-exchange"``, an FMU without
-that interface or with event indicators is refused with a message, and an archive that offers only
-model exchange is accepted as a file.
+plant interface runs it when its description says ``interface = "model-exchange"``; the tyre's
+lift-off, an event indicator, is located by the solver and agrees with a fine-stepped reference; a
+failure inside the solver reaches the caller; an FMU without that interface is refused with a
+message; and an archive that offers only model exchange is accepted as a file.
 """
 
 from __future__ import annotations
@@ -20,12 +21,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy import signal
+from scipy.integrate import solve_ivp
 
 from engine.plants.fmu.archive import inspect_archive
 from engine.plants.fmu.build import build_fmu
 from engine.plants.fmu.description import load_description, parse_description
 from engine.plants.fmu.plant import FmuPlant
-from engine.plants.fmu.runner import FmuModel
+from engine.plants.fmu.runner import FmuModel, FmuSimulationError
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "engine" / "plants" / "fmu" / "examples"
 QUARTER_CAR = EXAMPLES / "quarter_car"
@@ -150,14 +152,60 @@ def _rewritten(fmu: Path, edit: re.Pattern[str], to: str, into: Path) -> Path:
     return into
 
 
-def test_event_indicators_are_refused(fmu: Path, tmp_path: Path) -> None:
-    """An FMU with event indicators needs event location: refused, saying to export it as co-simulation."""
-    marked = _rewritten(
-        fmu, re.compile(r'numberOfEventIndicators="0"'), 'numberOfEventIndicators="2"', tmp_path / "e.fmu"
-    )
-    with pytest.raises(ValueError, match=r"2 event indicators.*export it as co-simulation"):
-        FmuModel(marked, interface="model-exchange")
-    assert FmuModel(marked).interface == "co-simulation"  # its co-simulation interface still runs
+def tyre_lift_reference(t: np.ndarray, z_r: np.ndarray, p: Mapping[str, float], f_static: float) -> np.ndarray:
+    """``a_body, x_susp, a_wheel`` of the quarter car whose tyre cannot pull (tyre_lift = 1), post linear.
+
+    The tyre's force on the wheel about its static load is ``max(0, f_static + f) - f_static`` with
+    ``f = k_t (z_r - z_u) - c_t v_u``: a kink where the contact opens. :func:`scipy.integrate.solve_ivp`
+    (RK45, steps of at most 20 us, tolerance 1e-10) steps across the kinks by small steps, with no
+    event location: an independent reference of the FMU's located events.
+    """
+    m_s, m_u, k_s, c_s, k_t, c_t = (p[n] for n in ("m_s", "m_u", "k_s", "c_s", "k_t", "c_t"))
+
+    def forces(time: float | np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        z_s, v_s, z_u, v_u = x
+        f_s = -k_s * (z_s - z_u) - c_s * (v_s - v_u)
+        f_t = np.maximum(0.0, f_static + k_t * (np.interp(time, t, z_r) - z_u) - c_t * v_u) - f_static
+        return f_s, f_t
+
+    def rhs(time: float, x: np.ndarray) -> list[float]:
+        f_s, f_t = forces(time, x)
+        return [x[1], f_s / m_s, x[3], (-f_s + f_t) / m_u]
+
+    sol = solve_ivp(rhs, (t[0], t[-1]), np.zeros(4), t_eval=t, max_step=2e-5, rtol=1e-10, atol=1e-12)
+    f_s, f_t = forces(t, sol.y)
+    return np.column_stack([f_s / m_s, sol.y[0] - sol.y[2], (-f_s + f_t) / m_u])
+
+
+def test_state_events_are_located(fmu: Path, record: dict[str, np.ndarray]) -> None:
+    """The tyre leaves the post (its contact force an event indicator): CVode stops at each lift-off and
+    landing, and the response agrees with a fine-stepped reference within 1e-3; with the tyre allowed
+    to pull there is no event."""
+    t, z = record["t"][:1001], 3.0 * record["z_road"][:1001]  # 1 s of the record, tripled: the tyre lifts
+    model = FmuModel(fmu, interface="model-exchange")
+    assert model.n_event_indicators == 2
+    force = model.simulate(t, 0.0, {"tyre_lift": 1.0}, {"z_r": z}, ["F_tyre"])[0]
+    lifted = model.events_
+    y = model.simulate(t, 0.0, {"tyre_lift": 1.0}, {"z_r": z}, OUTPUTS).T
+    assert force.min() >= -1e-6 * force[0] and np.mean(force < 1e-6 * force[0]) > 0.01  # off the post at times
+    assert lifted >= 2  # at least one lift-off and one landing, located
+    rel = _rel_rms(y, tyre_lift_reference(t, z, NOMINAL, f_static=force[0]))
+    assert np.all(rel < 1e-3), dict(zip(OUTPUTS, rel, strict=True))
+    model.simulate(t, 0.0, {}, {"z_r": z}, OUTPUTS)
+    assert model.events_ == 0  # the indicators are constants while the effects are off
+
+
+def test_a_failure_inside_the_solver_is_raised_with_the_fmus_words(fmu: Path, record: dict[str, np.ndarray]) -> None:
+    """A refusal inside CVode's right-hand side reaches the caller (not lost in the ctypes callback), and a
+    state that diverges stops the integration with CVode's reason and what to check."""
+    t, z = record["t"][:400], record["z_road"][:400].copy()
+    model = FmuModel(fmu, interface="model-exchange")
+    z[200] = np.nan  # the FMU refuses it when the solver sets the post between samples 199 and 200
+    with pytest.raises(FmuSimulationError, match=r"setting the inputs at t = 0\.19\d* s failed: .*non-finite"):
+        model.simulate(t, 0.0, {}, {"z_r": z}, OUTPUTS)
+    with pytest.raises(FmuSimulationError, match=r"integration failed after t = .* CVode: .*check the parameters"):
+        model.simulate(t, 0.0, {"k3": -1e9}, {"z_r": 5.0 * record["z_road"][:400]}, OUTPUTS)
+    assert model.simulate(t, 0.0, {}, {"z_r": record["z_road"][:400]}, OUTPUTS).shape == (3, 400)  # and runs again
 
 
 def test_an_archive_with_model_exchange_only_is_accepted(fmu: Path, tmp_path: Path) -> None:

@@ -13,18 +13,23 @@ the interval that sample starts (zero-order hold), the outputs read at every sam
 refuses raises :class:`FmuSimulationError` with the FMU's own message.
 
 A model-exchange FMU (``interface="model-exchange"``) has no solver of its own: the simulation
-integrates its derivatives with SciPy's LSODA (:func:`scipy.integrate.solve_ivp`, which switches
-between a non-stiff and a stiff method as the model needs), chosen for the record's grid: at most one
-sample interval per step, the states' output at every sample, each input linear between its samples
-(a model-exchange FMU sees the input between samples, where co-simulation holds it). Tolerances:
-:data:`ME_RTOL` relative, :data:`ME_ATOL` times each state's nominal value absolute. An FMU with event
-indicators is refused (its events would need an event-locating solver; export it as co-simulation).
+integrates its derivatives with SUNDIALS' CVode (BDF, the solver FMPy ships and runs model exchange
+with, :class:`fmpy.sundials.CVodeSolver`), set for the record's grid: at most one sample interval per
+step, the solver stopped at every sample to read the outputs there, each input linear between its
+samples (a model-exchange FMU sees the input between samples, where co-simulation holds it).
+Tolerances: :data:`ME_RTOL` relative, :data:`ME_ATOL` times each state's nominal value absolute.
+Events are handled as FMI 2.0 describes: CVode locates a zero crossing of the FMU's event indicators
+(a state event), the solver stops at the FMU's next time event, and the FMU is asked after each step
+when it needs it (``completedIntegratorStep``); at each, the event iteration runs and the solver
+restarts from the FMU's states if it changed them.
 """
 
 from __future__ import annotations
 
 import ctypes
+import functools
 import logging
+import math
 import shutil
 import tempfile
 import threading
@@ -49,6 +54,8 @@ ME_RTOL: float = 1e-6
 ME_EVENT_ITERATIONS: int = 100
 #: Absolute tolerance of the model-exchange integration, as a share of each state's nominal value.
 ME_ATOL: float = 1e-8
+#: Most internal CVode steps between two samples (or a sample and an event).
+ME_MAX_STEPS: int = 5000
 
 log = logging.getLogger(__name__)
 
@@ -153,8 +160,7 @@ class FmuModel:
     Raises
     ------
     ValueError
-        Not an FMI 2.0 FMU with that interface, a model-exchange FMU with event indicators, or a file
-        FMPy cannot read (the message says which).
+        Not an FMI 2.0 FMU with that interface, or a file FMPy cannot read (the message says which).
     """
 
     def __init__(self, path: str | Path, interface: str = "co-simulation") -> None:
@@ -179,17 +185,15 @@ class FmuModel:
                 else f"{self.path}: the plant needs an FMI 2.0 FMU with a {interface} interface; this is FMI "
                 f"{md.fmiVersion}"
             )
-        if exchange and md.numberOfEventIndicators:
-            raise ValueError(
-                f"{self.path}: the model-exchange FMU has {md.numberOfEventIndicators} event indicators; the plant "
-                "integrates model exchange without event location: export it as co-simulation (its own solver "
-                "handles its events)"
-            )
         self.interface: str = interface
         self.model_description = md
         self.guid: str = md.guid
         self.identifier: str = offered.modelIdentifier
         self.n_states: int = len(md.derivatives) if exchange else 0
+        self.n_event_indicators: int = int(md.numberOfEventIndicators or 0) if exchange else 0
+        self._completed_step: bool = bool(exchange and md.modelExchange.needsCompletedIntegratorStep)
+        #: Events (state, time and step events) of the last model-exchange simulation of this object.
+        self.events_: int = 0
         self.variables: dict[str, FmuVariable] = {}
         for v in md.modelVariables:
             if v.type != "Real":
@@ -357,32 +361,29 @@ class FmuModel:
         inputs: Mapping[str, np.ndarray],
         outputs: Sequence[str],
     ) -> np.ndarray:
-        """:meth:`simulate` of a model-exchange FMU: its derivatives integrated by LSODA (module docstring)."""
+        """:meth:`simulate` of a model-exchange FMU: its derivatives integrated by CVode (module docstring)."""
         from fmpy.fmi1 import FMICallException
-        from scipy.integrate import odeint
 
         t = np.asarray(times, dtype=float)
-        n, nx = t.size, self.n_states
+        n, nx, nz = t.size, self.n_states, self.n_event_indicators
+        if n and t[0] < start_time:
+            raise FmuSimulationError(f"FMU {self.identifier}: the first sample precedes the start time")
         inst, messages = self._instance()
         _route_messages()
         messages.clear()
         fn, comp = inst._functions, inst.component
-        set_real, get_real = fn["fmi2SetReal"], fn["fmi2GetReal"]
-        set_time, set_states, get_derivatives = (
-            fn["fmi2SetTime"],
-            fn["fmi2SetContinuousStates"],
-            fn["fmi2GetDerivatives"],
-        )
+        set_real, get_real, set_time_fmu = fn["fmi2SetReal"], fn["fmi2GetReal"], fn["fmi2SetTime"]
         p_names = list(parameters)
         p_vr = (ctypes.c_uint * len(p_names))(*(self.variables[k].value_reference for k in p_names))
         p_val = (ctypes.c_double * len(p_names))(*(float(parameters[k]) for k in p_names))
         u_names = list(inputs)
         nu, ny = len(u_names), len(outputs)
         u = np.vstack([np.asarray(inputs[k], dtype=float) for k in u_names]) if nu else np.empty((0, n))
-        slope = np.diff(u, axis=1) / np.diff(t) if n > 1 else np.zeros((nu, 0))
+        u_rows = [row.tolist() for row in u]
+        slope_rows = [row.tolist() for row in (np.diff(u, axis=1) / np.diff(t) if n > 1 else np.zeros((nu, 0)))]
+        t_list, last = t.tolist(), max(n - 2, 0)
         u_vr = (ctypes.c_uint * nu)(*(self.variables[k].value_reference for k in u_names))
         u_buf = (ctypes.c_double * nu)()
-        x_buf, dx_buf = (ctypes.c_double * nx)(), (ctypes.c_double * nx)()
         y_vr = (ctypes.c_uint * ny)(*(self.variables[k].value_reference for k in outputs))
         y_buf = (ctypes.c_double * ny)()
 
@@ -390,15 +391,14 @@ class FmuModel:
             said = "; ".join(m for m in messages if m) or "the FMU gave no message"
             return FmuSimulationError(f"FMU {self.identifier}: {what} failed: {said}")
 
-        t_list = t.tolist()
-        u_rows = [row.tolist() for row in u]
-        slope_rows = [row.tolist() for row in slope]
-        last = max(n - 2, 0)
+        def call(name: str, *args: Any) -> None:
+            if fn[name](comp, *args) > 1:
+                raise failed(name)
 
-        def put(now: float, x: Any) -> None:
-            """Time, inputs (linear between samples; the first sample's before it) and states into the FMU."""
-            if set_time(comp, ctypes.c_double(now)) > 1:
-                raise failed(f"setting the time t = {now:.6g} s")
+        def set_time(now: float) -> None:
+            """The time and the inputs there (linear between samples; the first sample's before it)."""
+            if set_time_fmu(comp, ctypes.c_double(now)) > 1:
+                raise failed(f"fmi2SetTime at t = {now:.6g} s")
             if nu:
                 if n > 1:
                     k = min(max(bisect_right(t_list, now) - 1, 0), last)
@@ -408,10 +408,18 @@ class FmuModel:
                     u_buf[:] = [row[0] for row in u_rows]
                 if set_real(comp, u_vr, nu, u_buf) > 1:
                     raise failed(f"setting the inputs at t = {now:.6g} s")
-            if x is not None:
-                x_buf[:] = x.tolist()
-                if set_states(comp, x_buf, nx) > 1:
-                    raise failed(f"setting the states at t = {now:.6g} s")
+
+        def event_iteration(when: str) -> tuple[bool, float | None]:
+            """The FMU's event iteration; whether its states changed, and its next time event [s]."""
+            changed = False
+            for _ in range(ME_EVENT_ITERATIONS):
+                needed, terminate, nominals, values, defined, next_time = inst.newDiscreteStates()
+                changed = changed or bool(nominals) or bool(values)
+                if terminate:
+                    raise failed(f"the event iteration {when} (the FMU asked to terminate)")
+                if not needed:
+                    return changed, float(next_time) if defined else None
+            raise failed(f"the event iteration {when} ({ME_EVENT_ITERATIONS} iterations)")
 
         try:
             inst.reset()
@@ -419,59 +427,106 @@ class FmuModel:
             inst.enterInitializationMode()
             if p_names and set_real(comp, p_vr, len(p_names), p_val) > 1:
                 raise failed("setting the parameters")
-            if nu:
-                u_buf[:] = u[:, 0].tolist()
-                if set_real(comp, u_vr, nu, u_buf) > 1:
-                    raise failed("setting the inputs")
+            set_time(float(start_time))
             inst.exitInitializationMode()
-            for _ in range(ME_EVENT_ITERATIONS):  # the event iteration that follows initialisation
-                needed, terminate, *_ = inst.newDiscreteStates()
-                if terminate:
-                    raise failed("the event iteration after initialisation (the FMU asked to terminate)")
-                if not needed:
-                    break
-            else:
-                raise failed(f"the event iteration after initialisation ({ME_EVENT_ITERATIONS} iterations)")
+            _, next_event = event_iteration("after initialisation")
             inst.enterContinuousTimeMode()
-            x0, nominal = np.zeros(nx), np.ones(nx)
-            if nx:
-                if fn["fmi2GetContinuousStates"](comp, x_buf, nx) > 1:
-                    raise failed("reading the initial states")
-                x0 = np.array(x_buf[:], dtype=float)
-                if fn["fmi2GetNominalsOfContinuousStates"](comp, dx_buf, nx) <= 1:
-                    nominal = np.abs(np.array(dx_buf[:], dtype=float))
+            solver = _cvode_solver()(
+                nx=nx,
+                nz=nz,
+                get_x=lambda x, k: call("fmi2GetContinuousStates", x, k),
+                set_x=lambda x, k: call("fmi2SetContinuousStates", x, k),
+                get_dx=lambda dx, k: call("fmi2GetDerivatives", dx, k),
+                get_z=lambda z, k: call("fmi2GetEventIndicators", z, k),
+                # CVode's absolute tolerance is its relative one times this: ME_ATOL times each nominal
+                get_nominals=lambda x, k: _scaled(fn["fmi2GetNominalsOfContinuousStates"](comp, x, k), x, k),
+                set_time=set_time,
+                input=_NoInput(),
+                startTime=float(start_time),
+                maxStep=float(np.min(np.diff(t))) if n > 1 else np.inf,
+                relativeTolerance=ME_RTOL,
+                maxNumSteps=ME_MAX_STEPS,
+            )
+            now = float(start_time)
+            out = np.empty((n, ny))
+            self.events_ = 0
+            for k in range(n):
+                while now < t_list[k] and not math.isclose(now, t_list[k], rel_tol=1e-12, abs_tol=1e-15):
+                    target = t_list[k] if next_event is None else min(t_list[k], next_event)
+                    try:
+                        state_event, _, now = solver.step(now, target)
+                    except RuntimeError as exc:
+                        said = solver.error_info[3] if solver.error_info else str(exc)
+                        raise solver.failure or FmuSimulationError(
+                            f"FMU {self.identifier}: the integration failed after t = {now:.6g} s: CVode: {said} "
+                            "(a state that diverges, or dynamics far faster than the record's sampling: check the "
+                            "parameters)"
+                        ) from None
+                    set_time(now)
+                    step_event, terminate = inst.completedIntegratorStep() if self._completed_step else (False, False)
+                    if terminate:
+                        raise failed(f"the step to t = {now:.6g} s (the FMU asked to terminate)")
+                    time_event = next_event is not None and math.isclose(now, next_event, rel_tol=1e-12)
+                    if state_event or time_event or step_event:
+                        self.events_ += 1
+                        inst.enterEventMode()
+                        changed, next_event = event_iteration(f"at t = {now:.6g} s")
+                        inst.enterContinuousTimeMode()
+                        if changed:
+                            solver.reset(now)
+                if now != t_list[k]:  # the first sample (at the start), or a step that ended within rounding
+                    set_time(t_list[k])
+                if get_real(comp, y_vr, ny, y_buf) > 1:
+                    raise failed(f"reading the outputs at t = {t_list[k]:.6g} s")
+                out[k] = y_buf
         except FMICallException:
-            raise failed("initialisation") from None
-
-        def rhs(now: float, x: np.ndarray) -> np.ndarray:
-            put(now, x)
-            if get_derivatives(comp, dx_buf, nx) > 1:
-                raise failed(f"the derivatives at t = {now:.6g} s")
-            return np.array(dx_buf[:], dtype=float)
-
-        states = np.empty((nx, n))
-        if nx and n > 1:
-            span = (float(start_time), float(t[-1]))
-            if t[0] < span[0]:
-                raise FmuSimulationError(f"FMU {self.identifier}: the first sample precedes the start time")
-            step = float(np.min(np.diff(t)))
-            grid = t if t[0] == span[0] else np.concatenate([[span[0]], t])
-            y, info = odeint(
-                rhs, x0, grid, tfirst=True, hmax=step, rtol=ME_RTOL,
-                atol=ME_ATOL * np.where(nominal > 0.0, nominal, 1.0), tcrit=grid[-1:], full_output=True,
-            )  # fmt: skip
-            if info["message"] != "Integration successful.":
-                raise FmuSimulationError(f"FMU {self.identifier}: the integration failed: {info['message']}")
-            states = y[-n:].T
-        elif nx:
-            states[:, 0] = x0
-        out = np.empty((n, ny))
-        for k in range(n):  # the outputs at each sample, at its states and inputs
-            put(float(t[k]), states[:, k] if nx else None)
-            if get_real(comp, y_vr, ny, y_buf) > 1:
-                raise failed(f"reading the outputs at t = {t[k]:.6g} s")
-            out[k] = y_buf
+            raise failed("an FMI call") from None
         if not np.all(np.isfinite(out)):
             bad = int(np.argmax(~np.all(np.isfinite(out), axis=1)))
             raise FmuSimulationError(f"FMU {self.identifier}: non-finite outputs from t = {t[bad]:.6g} s on")
         return out.T.copy()
+
+
+class _NoInput:
+    """FMPy's solver applies an ``input`` object in its root function; here :func:`set_time` sets the inputs."""
+
+    def apply(self, time: float) -> None:
+        """Nothing: the inputs were set with the time."""
+
+
+def _scaled(status: int, x: Any, k: int) -> int:
+    """The FMU's nominal state values in ``x`` scaled by ME_ATOL / ME_RTOL (1 where it has none)."""
+    for i in range(k):
+        nominal = abs(x[i]) if status <= 1 and math.isfinite(x[i]) and x[i] != 0.0 else 1.0
+        x[i] = nominal * ME_ATOL / ME_RTOL
+    return 0
+
+
+@functools.cache
+def _cvode_solver() -> type:
+    """FMPy's CVode solver whose callbacks report a failure to CVode instead of dropping it.
+
+    An exception raised in a ctypes callback is printed and lost, and CVode goes on with what the
+    buffer held; this subclass keeps the first one (:attr:`failure`) and returns -1 (unrecoverable),
+    so that :meth:`step` raises and the simulation raises the FMU's own message.
+    """
+    from fmpy.sundials import CVodeSolver
+
+    class _Solver(CVodeSolver):
+        failure: Exception | None = None
+
+        def f(self, t: float, y: Any, ydot: Any, user_data: Any) -> int:
+            try:
+                return int(super().f(t, y, ydot, user_data))
+            except Exception as exc:  # the FMU refused: CVode stops, the step raises
+                self.failure = self.failure or exc
+                return -1
+
+        def g(self, t: float, y: Any, gout: Any, user_data: Any) -> int:
+            try:
+                return int(super().g(t, y, gout, user_data))
+            except Exception as exc:
+                self.failure = self.failure or exc
+                return -1
+
+    return _Solver

@@ -2,9 +2,10 @@
  * The project's FMI 2.0 co-simulation framework: every function of fmi2Functions.h around one
  * model of the contract in model.h (model_n_reals, model_start_values, model_initialize,
  * model_do_step), and the model-exchange interface around a model that also defines
- * model_n_states and model_derivatives (model.h). Reals only; no integers, booleans or strings; no
- * FMU state, no directional derivatives, no event indicators (those calls return fmi2Error with a
- * message; a model-exchange model has no events: its right-hand side is continuous in time).
+ * model_n_states and model_derivatives (model.h), with event indicators where it also defines
+ * model_n_event_indicators and model_event_indicators. Reals only; no integers, booleans or strings;
+ * no FMU state, no directional derivatives (those calls return fmi2Error with a message); no discrete
+ * states (an event changes nothing: the indicators only make the host's solver stop at a kink).
  *
  * States of an instance: instantiated -> (fmi2SetupExperiment) -> initialization mode
  * (fmi2EnterInitializationMode; parameters and inputs may be set) -> stepping
@@ -306,9 +307,27 @@ fmi2Status fmi2GetDerivatives(fmi2Component comp, fmi2Real d[], size_t nx) {
     for (size_t i = 0; i < nx; i++) d[i] = dx[i];
     return fmi2OK;
 }
-fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real e[], size_t ni) {
-    (void)e;
-    return ni == 0 ? fmi2OK : unsupported(c, "fmi2GetEventIndicators (the model has no event indicators)");
+fmi2Status fmi2GetEventIndicators(fmi2Component comp, fmi2Real z[], size_t ni) {
+    Component *c = (Component *)comp;
+    if (!me_ready(c, "fmi2GetEventIndicators")) return fmi2Error;
+    int nz = model_n_event_indicators ? model_n_event_indicators() : 0;
+    if (ni != (size_t)nz) {
+        snprintf(c->m.message, MESSAGE_SIZE, "fmi2GetEventIndicators: %u indicators asked, the model has %d",
+                 (unsigned)ni, nz);
+        fail(c, NULL);
+        return fmi2Error;
+    }
+    if (ni == 0) return fmi2OK;
+    if (!model_event_indicators || !c->m.initialized) {
+        fail(c, "fmi2GetEventIndicators before fmi2ExitInitializationMode");
+        return fmi2Error;
+    }
+    if (model_event_indicators(&c->m, z) != 0) {
+        c->failed = 1;
+        fail(c, NULL);
+        return fmi2Error;
+    }
+    return fmi2OK;
 }
 fmi2Status fmi2GetContinuousStates(fmi2Component comp, fmi2Real x[], size_t nx) {
     Component *c = (Component *)comp;

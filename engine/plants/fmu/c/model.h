@@ -59,4 +59,14 @@ int model_n_states(void) __attribute__((weak));
  * written into m->r. Return 0, or non-zero with m->message set (an impossible parameter). */
 int model_derivatives(Instance *m, double dx[]) __attribute__((weak));
 
+/* Event indicators of a model-exchange model (optional; none if it defines neither): functions of
+ * the states, time and inputs whose zero crossings are where its right-hand side has a kink or a
+ * switch (a contact that opens, a stop that engages), so that the host's solver stops there rather
+ * than stepping across it. Their number must equal modelDescription.xml's numberOfEventIndicators. */
+int model_n_event_indicators(void) __attribute__((weak));
+
+/* The event indicators z at m->x, m->time and the inputs in m->r. Return 0, or non-zero with
+ * m->message set. */
+int model_event_indicators(Instance *m, double z[]) __attribute__((weak));
+
 #endif

@@ -1,6 +1,6 @@
 /*
  * A quarter-car suspension on a road-simulator rig (a four-poster's one post), for the framework
- * of model.h (FMI 2.0 co-simulation).
+ * of model.h (FMI 2.0 co-simulation and model exchange).
  *
  * A hydraulic post moves the tyre's foot by z_r(t) [m] (the input). Two masses: the sprung mass
  * (body, m_s + m_extra [kg]) at z_s [m] and the unsprung mass (wheel, m_u [kg]) at z_u [m]. The
@@ -317,5 +317,20 @@ int model_derivatives(Instance *m, double dx[]) {
     Params p = read_params(m);
     rhs(&p, m->x, m->r[VR_Z_R], m->r[VR_F_BODY], m->r[VR_F_WHEEL], dx);
     write_outputs(m, &p);
+    return 0;
+}
+
+/* Event indicators of the model-exchange form: where the right-hand side has a kink. z[0] is the
+ * tyre's contact force (f_static + the linear tyre force), which lifts the tyre at 0 when tyre_lift
+ * is on; z[1] is how far the suspension's compression passes the bump stop's gap, which engages it
+ * at 0 when k_bump is on. Off, each is a constant that never crosses zero. */
+int model_n_event_indicators(void) { return 2; }
+
+int model_event_indicators(Instance *m, double z[]) {
+    if (check_params(m)) return 1;
+    Params p = read_params(m);
+    const double *s = m->x;
+    z[0] = p.lift > 0.0 ? p.f_static + p.k_t * (m->r[VR_Z_R] - s[X_Z_U]) - p.c_t * s[X_V_U] : 1.0;
+    z[1] = p.k_bump > 0.0 ? -(s[X_Z_S] - s[X_Z_U]) - p.gap : -1.0;
     return 0;
 }
