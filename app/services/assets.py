@@ -7,9 +7,10 @@ diagnosis of the same record as an identification would count that record twice,
 record with an unexplained gap biases its calibrated width. The method itself is
 :func:`engine.history.trend.fit_trend` (docs/trend.md).
 
-An asset is one drive: its measurements are of one drive description (issue 52). A measurement of another
-drive than the asset's newest one is refused before it is stored (:func:`check_asset_drive`), so that a
-history and its trend never mix the widths of two drives.
+An asset is one machine: its measurements are of one drive description (issue 52), or of one other plant
+(EMPS, the BRFD, an uploaded plant: :func:`machine_key`). A measurement of another machine than the asset's
+newest one is refused before it is stored (:func:`check_asset_drive`), so that a history and its trend
+never mix the measurements of two machines.
 """
 
 from __future__ import annotations
@@ -25,8 +26,12 @@ from app.db.diagnoses import DiagnosisRepository
 from app.db.identifications import IdentificationRepository
 from app.services.errors import IncompatibleError, InvalidInputError, NotFoundError
 from engine.history.trend import Trend, TrendError, WidthPoint, fit_trend
+from engine.plants import DEFAULT_PLANT
 from engine.simulation.drive import REFERENCE_DRIVE
 from engine.storage import PatternStore
+
+#: Prefix of the machine key of a plant other than the backlash drive (then its registry name or uploaded id).
+PLANT_KEY = "plant:"
 
 #: Newest diagnoses of an asset looked through for one whose drive is known (the newest one's record may be gone).
 MAX_PENDING_LOOKUP = 20
@@ -41,6 +46,19 @@ __all__ = [
     "trend",
     "trend_figure",
 ]
+
+
+def machine_key(plant: str, drive: str | None = None) -> str:
+    """What an asset's measurements must all be of: a backlash drive (its description's fingerprint ``drive``;
+    MODEL.md's reference drive when None), or another plant, by its name or uploaded id (``plant:<plant>``)."""
+    if plant != DEFAULT_PLANT:
+        return PLANT_KEY + plant
+    return REFERENCE_DRIVE.fingerprint if drive is None else drive
+
+
+def _machine(key: str) -> str:
+    """A machine key as a message names it."""
+    return f"plant {key.removeprefix(PLANT_KEY)}" if key.startswith(PLANT_KEY) else f"drive {key[:12]}"
 
 
 def measurement_drive(answer: dict[str, Any] | None) -> str:
@@ -67,11 +85,11 @@ def submitted_drive(store: PatternStore, record_id: str) -> str | None:
         parsed = parse(DiagnosisRequest(stored.media, stored.body or b"", stored.params, store=str(store.path)))
     except (InvalidInputError, IncompatibleError):
         return None
-    return (REFERENCE_DRIVE if parsed.drive is None else parsed.drive).fingerprint
+    return machine_key(parsed.plant, None if parsed.drive is None else parsed.drive.fingerprint)
 
 
 def asset_drive(store: PatternStore, asset: str) -> str | None:
-    """The fingerprint of the drive of ``asset``'s newest measurement (None: it has none yet).
+    """The machine (:func:`machine_key`) of ``asset``'s newest measurement (None: it has none yet).
 
     A diagnosis counts from its submission: one still queued or running (or one that ended without an answer) is of
     the drive its stored request names (:func:`submitted_drive`), so two measurements of different drives submitted
@@ -86,7 +104,12 @@ def asset_drive(store: PatternStore, asset: str) -> str | None:
         stored = DiagnosisRepository(store).get(d.id)
         if stored is None:
             continue
-        drive = measurement_drive(stored.result) if stored.result is not None else submitted_drive(store, d.record_id)
+        if stored.plant != DEFAULT_PLANT:
+            drive: str | None = machine_key(stored.plant)
+        else:
+            drive = (
+                measurement_drive(stored.result) if stored.result is not None else submitted_drive(store, d.record_id)
+            )
         if drive is not None:
             newest.append((d.measured_at or d.created_at, drive))
             break
@@ -95,21 +118,21 @@ def asset_drive(store: PatternStore, asset: str) -> str | None:
     return max(newest, key=lambda p: p[0])[1]
 
 
-def check_asset_drive(store: PatternStore, asset: str | None, fingerprint: str) -> None:
-    """Refuse a measurement of ``asset`` made on another drive than the asset's newest one.
+def check_asset_drive(store: PatternStore, asset: str | None, machine: str) -> None:
+    """Refuse a measurement of ``asset`` made on another machine (:func:`machine_key`) than the asset's newest one.
 
     Raises
     ------
     IncompatibleError
-        The asset's newest measurement is of another drive (422): the message names both and what to do.
+        The asset's newest measurement is of another machine (422): the message names both and what to do.
     """
     if asset is None:
         return
     known = asset_drive(store, asset)
-    if known is not None and known != fingerprint:
+    if known is not None and known != machine:
         raise IncompatibleError(
-            f"asset {asset!r} holds measurements of drive {known[:12]}, and this one is of drive {fingerprint[:12]}: "
-            "an asset's history is one drive's; give the asset's own drive description, or another asset name"
+            f"asset {asset!r} holds measurements of {_machine(known)}, and this one is of {_machine(machine)}: an "
+            "asset's history is one machine's; give the asset's own drive description or plant, or another asset name"
         )
 
 

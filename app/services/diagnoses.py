@@ -22,10 +22,9 @@ from app.db.jobs import JobState
 from app.db.records import NewRecord, RecordRepository, StoredRecord
 from app.jobs import Job, JobKind, JobManager, JobResult, ProgressFn
 from app.jobs.manager import RowsFn
-from app.services.assets import check_asset_drive
+from app.services.assets import check_asset_drive, machine_key
 from app.services.diagnosis_requests import DiagnosisRequest, compute, n_samples, parse
 from app.services.errors import NotFoundError
-from engine.simulation.drive import REFERENCE_DRIVE
 from engine.storage import PatternStore
 
 logger = logging.getLogger(__name__)
@@ -88,8 +87,8 @@ JOB_KIND = JobKind(DIAGNOSE_JOB, "process", run_job, pool=POOL, stored=stored_re
 def new_record(store: PatternStore, request: DiagnosisRequest) -> NewRecord:
     """Read and check the request (raises with what to fix); its record as it will be stored, not stored yet."""
     parsed = parse(request)
-    drive = REFERENCE_DRIVE if parsed.drive is None else parsed.drive
-    check_asset_drive(store, parsed.asset, drive.fingerprint)  # an asset's history is one drive's
+    drive = None if parsed.drive is None else parsed.drive.fingerprint
+    check_asset_drive(store, parsed.asset, machine_key(parsed.plant, drive))  # an asset's history is one machine's
     return RecordRepository.new(
         request.body,
         media=request.media,

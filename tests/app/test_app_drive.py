@@ -302,7 +302,7 @@ def test_an_asset_history_holds_one_drive(tmp_path: Path) -> None:
     store_identification(store, "line-1", day, "v2", {"drive": conveyor, "width": 0.004})
     assert asset_drive(store, "line-1") == conveyor
     store_identification(store, "line-1", day + timedelta(days=1), "v2", {"drive": conveyor, "width": 0.0041})
-    with pytest.raises(IncompatibleError, match="an asset's history is one drive's"):  # a reference identification
+    with pytest.raises(IncompatibleError, match="an asset's history is one machine's"):  # a reference identification
         store_identification(store, "line-1", day + timedelta(days=2), "v2", {"drive": REFERENCE_DRIVE.fingerprint})
     assert len(IdentificationRepository(store).newest("line-1", limit=10)) == 2  # nothing stored
     # a diagnosis request of the reference plant for that asset: refused before its record is stored
@@ -313,6 +313,39 @@ def test_an_asset_history_holds_one_drive(tmp_path: Path) -> None:
     assert DiagnosisRepository(store).newest("line-1", limit=5) == []
     # another asset is free
     check_asset_drive(store, "line-2", REFERENCE_DRIVE.fingerprint)
+
+
+def test_an_asset_history_holds_one_plant(tmp_path: Path) -> None:
+    """An asset measured on another plant (EMPS, the BRFD, an uploaded plant) is not the backlash drive's: a
+    drive's record for it is refused, and another plant's for a drive's asset, each naming both machines."""
+    from app.db.diagnoses import DiagnosisRepository
+    from app.db.records import RecordRepository
+    from app.services.assets import asset_drive, check_asset_drive, machine_key
+    from app.services.diagnoses import new_record
+    from app.services.diagnosis_requests import DiagnosisRequest
+    from app.services.errors import IncompatibleError
+    from engine.storage import PatternStore
+
+    store = PatternStore(tmp_path / "plants.sqlite3")
+    DiagnosisRepository(store).create(job_id="j1", record_id="r1", plant="emps", asset="axis-1", measured_at=None)
+    assert asset_drive(store, "axis-1") == machine_key("emps") == "plant:emps"
+    v2 = np.sin(np.arange(2048) / 100.0).tolist()
+    body = {"record": {"sample_interval": 1e-4, "event_index": 48, "channels": {"v2": v2}, "asset": "axis-1"}}
+    with pytest.raises(IncompatibleError, match="holds measurements of plant emps, and this one is of drive "):
+        new_record(store, DiagnosisRequest("json", json.dumps(body).encode()))
+    check_asset_drive(store, "axis-1", machine_key("emps"))  # the same plant again is taken
+    with pytest.raises(IncompatibleError, match="of plant emps, and this one is of plant fmu-0123456789abcdef"):
+        check_asset_drive(store, "axis-1", machine_key("fmu-0123456789abcdef"))
+    body["record"]["asset"] = "line-9"  # a drive's asset (queued, as submit() stores it): another plant's refused
+    queued = new_record(store, DiagnosisRequest("json", json.dumps(body).encode()))
+    with store.writing() as conn:
+        RecordRepository.insert(conn, queued)
+    DiagnosisRepository(store).create(
+        job_id="j2", record_id=queued.record.id, plant="backlash_drive", asset="line-9", measured_at=None
+    )
+    assert asset_drive(store, "line-9") == machine_key("backlash_drive") == REFERENCE_DRIVE.fingerprint
+    with pytest.raises(IncompatibleError, match=r"holds measurements of drive \w{12}, and this one is of plant brfd"):
+        check_asset_drive(store, "line-9", machine_key("brfd"))
 
 
 def test_a_diagnosis_on_a_drive_refuses_omega1_in_pu(client: httpx.Client, example: dict[str, Any]) -> None:
