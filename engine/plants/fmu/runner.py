@@ -395,9 +395,14 @@ class FmuModel:
             if fn[name](comp, *args) > 1:
                 raise failed(name)
 
+        last_time = [math.nan]  # the time (and inputs) the FMU holds: CVode often asks twice at one instant
+
         def set_time(now: float) -> None:
             """The time and the inputs there (linear between samples; the first sample's before it)."""
-            if set_time_fmu(comp, ctypes.c_double(now)) > 1:
+            if now == last_time[0]:
+                return
+            last_time[0] = now
+            if set_time_fmu(comp, now) > 1:
                 raise failed(f"fmi2SetTime at t = {now:.6g} s")
             if nu:
                 if n > 1:
@@ -408,6 +413,14 @@ class FmuModel:
                     u_buf[:] = [row[0] for row in u_rows]
                 if set_real(comp, u_vr, nu, u_buf) > 1:
                     raise failed(f"setting the inputs at t = {now:.6g} s")
+
+        enter, stop = ctypes.c_int(0), ctypes.c_int(0)  # fmi2Boolean outputs of fmi2CompletedIntegratorStep
+
+        def completed_step() -> tuple[bool, bool]:
+            """fmi2CompletedIntegratorStep: whether the FMU asks for an event now, or to terminate."""
+            if fn["fmi2CompletedIntegratorStep"](comp, 1, ctypes.byref(enter), ctypes.byref(stop)) > 1:
+                raise failed("fmi2CompletedIntegratorStep")
+            return bool(enter.value), bool(stop.value)
 
         def event_iteration(when: str) -> tuple[bool, float | None]:
             """The FMU's event iteration; whether its states changed, and its next time event [s]."""
@@ -447,6 +460,8 @@ class FmuModel:
                 relativeTolerance=ME_RTOL,
                 maxNumSteps=ME_MAX_STEPS,
             )
+            solver.bind(set_time, fn["fmi2SetContinuousStates"], fn["fmi2GetDerivatives"], fn["fmi2GetEventIndicators"])
+            solver.comp, solver.failed = comp, failed
             now = float(start_time)
             out = np.empty((n, ny))
             self.events_ = 0
@@ -463,7 +478,7 @@ class FmuModel:
                             "parameters)"
                         ) from None
                     set_time(now)
-                    step_event, terminate = inst.completedIntegratorStep() if self._completed_step else (False, False)
+                    step_event, terminate = completed_step() if self._completed_step else (False, False)
                     if terminate:
                         raise failed(f"the step to t = {now:.6g} s (the FMU asked to terminate)")
                     time_event = next_event is not None and math.isclose(now, next_event, rel_tol=1e-12)
@@ -508,23 +523,48 @@ def _cvode_solver() -> type:
 
     An exception raised in a ctypes callback is printed and lost, and CVode goes on with what the
     buffer held; this subclass keeps the first one (:attr:`failure`) and returns -1 (unrecoverable),
-    so that :meth:`step` raises and the simulation raises the FMU's own message.
+    so that :meth:`step` raises and the simulation raises the FMU's own message. Once bound
+    (``bind``), its right-hand side and root functions call the FMU's C functions directly rather
+    than through FMPy's wrappers, and the time and inputs only when the instant changes.
     """
-    from fmpy.sundials import CVodeSolver
+    from fmpy.sundials import NV_DATA_S, CVodeSolver
 
     class _Solver(CVodeSolver):
         failure: Exception | None = None
+        comp: Any = None
+        failed: Any = None
+        _fast: tuple[Any, ...] | None = None
+
+        def bind(self, set_time: Any, set_x: Any, get_dx: Any, get_z: Any) -> None:
+            """The right-hand side and root functions straight on the FMU's functions (not FMPy's wrappers)."""
+            self._fast = (set_time, set_x, get_dx, get_z)
 
         def f(self, t: float, y: Any, ydot: Any, user_data: Any) -> int:
             try:
-                return int(super().f(t, y, ydot, user_data))
+                if self._fast is None or self.discrete:
+                    return int(super().f(t, y, ydot, user_data))
+                set_time, set_x, get_dx, _ = self._fast
+                set_time(t)
+                if set_x(self.comp, NV_DATA_S(y), self.nx) > 1:
+                    raise self.failed(f"fmi2SetContinuousStates at t = {t:.6g} s")
+                if get_dx(self.comp, NV_DATA_S(ydot), self.nx) > 1:
+                    raise self.failed(f"fmi2GetDerivatives at t = {t:.6g} s")
+                return 0
             except Exception as exc:  # the FMU refused: CVode stops, the step raises
                 self.failure = self.failure or exc
                 return -1
 
         def g(self, t: float, y: Any, gout: Any, user_data: Any) -> int:
             try:
-                return int(super().g(t, y, gout, user_data))
+                if self._fast is None or self.discrete:
+                    return int(super().g(t, y, gout, user_data))
+                set_time, set_x, _, get_z = self._fast
+                set_time(t)
+                if set_x(self.comp, NV_DATA_S(y), self.nx) > 1:
+                    raise self.failed(f"fmi2SetContinuousStates at t = {t:.6g} s")
+                if get_z(self.comp, gout, self.nz) > 1:
+                    raise self.failed(f"fmi2GetEventIndicators at t = {t:.6g} s")
+                return 0
             except Exception as exc:
                 self.failure = self.failure or exc
                 return -1
