@@ -26,6 +26,7 @@ from app.services import diagnosis, plant_diagnosis, plants, simulation
 from app.services.errors import ForbiddenError, InvalidInputError
 from app.services.identification import drive_for_record
 from app.services.plant_diagnosis import PlantRecords
+from engine.diagnosis.plant_plausibility import check_channels
 from engine.diagnosis.space import check_bounds
 from engine.plants import DEFAULT_PLANT, get_plant
 from engine.plants.fmu.record import load_record
@@ -130,8 +131,20 @@ def parse(request: DiagnosisRequest) -> ParsedDiagnosis:
     pydantic.ValidationError
         A JSON body that does not fit its schema (the HTTP layer answers 422 with the fields).
     RecordFormatError, engine.records.RecordError, InvalidInputError, UnknownEffectError, BoundsError
-        A record or parameter the diagnosis cannot use; the message says what to fix.
+        A record or parameter the diagnosis cannot use (a plant's record with a channel that never
+        changes among them); the message says what to fix.
     """
+    parsed = _parse(request)
+    if parsed.plant != DEFAULT_PLANT:  # what the diagnosis would refuse, refused before anything is stored
+        plant = parsed.resolved if parsed.resolved is not None else get_plant(parsed.plant)
+        for record in (parsed.record, parsed.calibrate_on):
+            if record is not None:
+                check_channels(plant, record)
+    return parsed
+
+
+def _parse(request: DiagnosisRequest) -> ParsedDiagnosis:
+    """:func:`parse` before the plant's channel check."""
     if request.media == "csv":
         if request.params.get("plant") is not None:
             return _parse_stored_csv(request)

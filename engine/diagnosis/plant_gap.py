@@ -60,6 +60,7 @@ from engine.diagnosis.plant_locus import (
     PlantLocusReport,
     estimate_plant_locus,
 )
+from engine.diagnosis.plant_plausibility import check_channels, check_fit
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.parallel import MapLike, thread_map
 from engine.plants.base import CalibratedParameter, Plant, difference_step, free_parameters
@@ -379,7 +380,7 @@ class PlantGapReport:
             "record": self.record,
             "status": self.status,
             "width": self.width(plant),
-            "warnings": [],
+            "warnings": [w.to_dict() for w in self.extra.get("warnings", ())],
             "verdict": {
                 "effects": effects,
                 "effect": effects[0]["effect"] if effects else None,
@@ -1029,6 +1030,7 @@ def _diagnose(
     plant: Plant, record: Any, obj: PlantObjective, calibration: Fit | None, refit: bool, calibrated_on: str | None
 ) -> PlantGapReport:
     """:func:`diagnose_plant` on the objective ``obj`` (whose workers run the simulations)."""
+    check_channels(plant, record)
     if calibration is None:
         calibration = calibrate(plant, record, objective=obj)
     else:
@@ -1060,6 +1062,14 @@ def _diagnose(
             set_aside, named, reason = named, None, stand_in
             gate = noise_gate(plant, record, calibration, None, obj)
     after_values = named.fit.values if named else calibration.values
+    warnings = check_fit(
+        plant,
+        obj.residuals(after_values),
+        obj.residuals({}),  # the nominal model: a scale read from a fit to a mis-scaled channel is distorted
+        obj.y,
+        plant.noise(record),
+        f"the model with {'+'.join(named.effects)}" if named else "the calibrated model",
+    )
     budget = gap_budget(named) if named else {}
     before_share, samples = event_shares(plant, record, calibration.values, objective=obj)
     after_share, _ = event_shares(plant, record, after_values, objective=obj)
@@ -1091,5 +1101,6 @@ def _diagnose(
             **({"stand_in_test": stand_in_test} if stand_in_test else {}),
             **({"calibrated_on": calibrated_on} if calibrated_on else {}),
             **({"set_aside": set_aside} if set_aside is not None else {}),
+            "warnings": warnings,
         },
     )

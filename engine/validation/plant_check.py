@@ -131,6 +131,7 @@ class CheckRow:
     noise_strength: float = 0.0
     locus: str | None = None
     locus_confidence: float | None = None
+    warnings: tuple[str, ...] = ()  # the answer's warnings, as "code:channel"
 
     @property
     def catalogue(self) -> bool:
@@ -278,7 +279,8 @@ def run_check(plant: Plant, record: Any, cases: Sequence[CheckCase], seed: int) 
         share = report.named.share if report.named else 0.0
         levels = report.gate.levels if report.gate is not None else plant.noise(synthetic)
         strength = _noise_strength(plant, synthetic, case, levels)
-        verdict = report.to_dict(plant)["verdict"]
+        answer = report.to_dict(plant)
+        verdict = answer["verdict"]
         rows.append(
             CheckRow(
                 case,
@@ -291,6 +293,7 @@ def run_check(plant: Plant, record: Any, cases: Sequence[CheckCase], seed: int) 
                 strength,
                 verdict["locus"],
                 verdict["locus_confidence"],
+                tuple(f"{w['code']}:{w['channel']}" for w in answer["warnings"]),
             )
         )
         logger.info(
@@ -345,6 +348,20 @@ def measures(rows: Sequence[CheckRow]) -> list[Measure]:
             "clean",
             clean,
             lambda r: r.false_alarm,
+        ),
+        (
+            "clean_warned",
+            "clean: a plausibility warning (a record of the model itself)",
+            "clean",
+            clean,
+            lambda r: r.warnings,
+        ),
+        (
+            "scale_warned",
+            "a `channel_scale` warning (every record is in its declared units)",
+            "every case",
+            list(rows),
+            lambda r: any(w.startswith("channel_scale:") for w in r.warnings),
         ),
         ("strong_top1", "strong: first named effect is the true one", "strong, not absorbed", strong, lambda r: r.top1),
         (
@@ -487,6 +504,7 @@ def report(rows: Sequence[CheckRow], run: dict[str, Any]) -> dict[str, Any]:
                 "absorbed": list(r.absorbed),
                 "locus": r.locus,
                 "locus_confidence": r.locus_confidence,
+                "warnings": list(r.warnings),
                 "seconds": r.seconds,
             }
             for r in rows

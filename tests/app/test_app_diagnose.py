@@ -148,6 +148,10 @@ def test_diagnose_refuses_an_emps_record_it_cannot_read(client: httpx.Client) ->
     short["qm"] = short["qm"][:-1]
     r = client.post("/v1/diagnose", json={"plant": "emps", "record": short})
     assert r.status_code == 422 and "qm has 999 samples but t has 1000" in r.json()["detail"]
+    stuck = _emps_body(1000)
+    stuck["qm"] = [0.25] * 1000  # a stuck encoder: refused before any fit, naming it
+    r = client.post("/v1/diagnose", json={"plant": "emps", "record": stuck})
+    assert r.status_code == 422 and "channel position is 0.25 m at every one of its" in r.json()["detail"], r.text
     r = client.post("/v1/diagnose", json={"plant": "mars_rover", "record": _emps_body(1000)})
     assert r.status_code == 422 and "emps" in r.text
     assert client.get("/healthz").status_code == 200  # the server stays up

@@ -1,0 +1,153 @@
+"""Is the record what the plant can produce? The plant interface's warnings, for any plant.
+
+The backlash drive's checks (:mod:`engine.diagnosis.plausibility`) read its own channels, units and
+plausible box. A plant of :mod:`engine.plants.base` (EMPS, the BRFD, a user's FMU) declares its
+channels with a unit and a noise model, nothing more, so these checks read only that, after the
+diagnosis, on the model the answer ends with (the named set's fit, or the calibrated model):
+
+- ``channel_scale``: a channel the answer's model does not reproduce (chi2 per sample above
+  :data:`~engine.diagnosis.plausibility.MISFIT_CHI2`) whose least-squares scale against the plant's
+  nominal simulation (record = a x simulation; the nominal one, since a fit to a mis-scaled channel
+  distorts every fitted value) lies outside 1/:data:`~engine.diagnosis.plausibility.SCALE_FAR` to
+  :data:`~engine.diagnosis.plausibility.SCALE_FAR`, and scaled it fits
+  :data:`~engine.diagnosis.plausibility.EVIDENCE` times better: the record is probably in another
+  unit than the one declared (a factor of :data:`UNIT_FACTORS` is named when ``a`` matches it within
+  :data:`~engine.diagnosis.plausibility.UNIT_MATCH`), or a sensor's gain is far from the model's.
+- ``misfit``: chi2 per sample above ``MISFIT_CHI2`` on a channel no scale explains: the model does
+  not reproduce the record there, and every number fitted to it carries model error.
+
+:func:`check_channels` runs before any fit: a channel without a single change over the scored
+window (``constant_channel``: a stuck sensor, a placeholder column) is refused, since no noise level
+and no fit can be read from it. What these checks do not do for a generic plant: a wrong sample
+interval (the drive's check re-reads the record at other intervals, which needs the plant's own
+record type) and a peak outside the plant's plausible range (a generic plant declares no box of
+its own beyond its calibrated parameters).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any, Final
+
+import numpy as np
+
+from engine.diagnosis.plausibility import EVIDENCE, MISFIT_CHI2, SCALE_FAR, UNIT_MATCH, PlausibilityWarning
+from engine.plants.base import Plant
+from engine.plants.noise import NoiseLevel
+from engine.records import RecordError
+
+__all__ = ["UNIT_FACTORS", "ConstantChannelError", "check_channels", "check_fit"]
+
+#: Factors between a record's values and the model's that a unit mistake makes [-], with what to ask:
+#: the record in milli-units (mm for m), in kilo-units (kN for N), in centi-units (cm for m), an
+#: acceleration in g for m/s^2 (or the reverse), a speed in rpm for rad/s, an angle in degrees for radians.
+UNIT_FACTORS: Final[dict[float, str]] = {
+    1e3: "is it in milli-units (mm for m, mm/s for m/s, mN for N)?",
+    1e-3: "is it in kilo-units (kN for N, km for m) or in base units where milli-units are declared?",
+    1e2: "is it in centi-units (cm for m)?",
+    1.0 / 9.80665: "is it in g where m/s^2 is declared?",
+    9.80665: "is it in m/s^2 where g is declared?",
+    60.0 / (2.0 * math.pi): "is it in rpm where rad/s is declared?",
+    180.0 / math.pi: "is it in degrees where radians are declared?",
+}
+
+
+class ConstantChannelError(RecordError):
+    """A channel of the record does not change over the scored window: nothing can be read from it."""
+
+
+def check_channels(plant: Plant, record: Any) -> None:
+    """Refuse a record with a channel that never changes over the scored window.
+
+    Raises
+    ------
+    ConstantChannelError
+        Naming the channel and its value: a stuck or disconnected sensor, or a placeholder column;
+        the message says to check the sensor or leave the channel out.
+    """
+    window = plant.scored(record)
+    measured = plant.measured(record)
+    for c in plant.channels:
+        y = np.asarray(measured[c.name], dtype=float)[window]
+        if y.size and float(np.ptp(y)) == 0.0:
+            raise ConstantChannelError(
+                f"channel {c.name} is {y[0]:.6g} {c.unit} at every one of its {y.size} scored samples: a stuck or "
+                "disconnected sensor, or a placeholder column? Check the sensor, or leave the channel out of the "
+                "record"
+            )
+
+
+def _unit_question(a: float) -> str | None:
+    """What to ask when a channel is ``a`` times the model's, if a unit mistake makes that factor."""
+    for f, question in UNIT_FACTORS.items():
+        if 1.0 / UNIT_MATCH <= a / f <= UNIT_MATCH:
+            return question
+    return None
+
+
+def check_fit(
+    plant: Plant,
+    residuals: Mapping[str, np.ndarray],
+    nominal: Mapping[str, np.ndarray],
+    measured: Mapping[str, np.ndarray],
+    levels: Mapping[str, NoiseLevel],
+    model: str,
+) -> list[PlausibilityWarning]:
+    """The warnings of the answer's model (module docstring): ``channel_scale`` and ``misfit``.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant (its channels' names and units).
+    residuals, nominal : mapping
+        Channel -> simulated minus measured over the scored samples, at the answer's model and at the
+        plant's nominal values.
+    measured : mapping
+        Channel -> the measured samples over the same window.
+    levels : mapping
+        Channel -> its noise (:meth:`~engine.plants.base.Plant.noise`).
+    model : str
+        The answer's model as the message names it ("the calibrated model", "the model with X").
+
+    Returns
+    -------
+    list of PlausibilityWarning
+        In the plant's channel order; empty when the model reproduces every channel to within
+        ``MISFIT_CHI2``.
+    """
+    out: list[PlausibilityWarning] = []
+    for c in plant.channels:
+        y = np.asarray(measured[c.name], dtype=float)
+        var = levels[c.name].sigma ** 2
+        chi2 = float(np.mean(np.asarray(residuals[c.name], dtype=float) ** 2)) / var
+        if not math.isfinite(chi2) or chi2 <= MISFIT_CHI2:
+            continue
+        sim = y + np.asarray(nominal[c.name], dtype=float)
+        ss = float(sim @ sim)
+        a = float(sim @ y) / ss if ss > 0.0 else math.nan
+        as_is = float(np.mean((sim - y) ** 2)) / var
+        scaled = float(np.mean((a * sim - y) ** 2)) / var if math.isfinite(a) else math.inf
+        if math.isfinite(a) and not (1.0 / SCALE_FAR <= abs(a) <= SCALE_FAR) and scaled * EVIDENCE < as_is:
+            question = _unit_question(abs(a)) or "is its unit, or the sensor's gain, the one declared?"
+            out.append(
+                PlausibilityWarning(
+                    "channel_scale",
+                    f"channel {c.name} is {a:.3g} times the plant's nominal simulation (scaled by that it fits "
+                    f"{as_is / scaled:.3g} times better), and {model} leaves a residual of {math.sqrt(chi2):.3g} "
+                    f"times the noise there: {question} It is declared in {c.unit or 'the model unit'}; the "
+                    "numbers fitted to the record are not to be trusted until it is.",
+                    c.name,
+                )
+            )
+        else:
+            out.append(
+                PlausibilityWarning(
+                    "misfit",
+                    f"{model} leaves a residual on {c.name} of {math.sqrt(chi2):.3g} times its noise: it does not "
+                    "reproduce the record there, and every value fitted to the record carries that model error "
+                    "(its uncertainty does not).",
+                    c.name,
+                )
+            )
+    return out
