@@ -1776,6 +1776,34 @@ def render_fmu_cost(page: Page) -> str:
     return "".join(lines) + sources(page, [FMU_COST])
 
 
+#: Synthetic checks that count the plausibility warnings of ``engine.diagnosis.plant_plausibility`` (one per
+#: plant, each run once on the code its report names).
+PLANT_WARNING_RUNS: tuple[str, ...] = (
+    "docs/validation/fmu/quarter_car-seed47.json",
+    "docs/real-data/check/brfd-seed37.json",
+    "docs/real-data/check/emps-seed38.json",
+)
+
+
+def render_plant_warnings(page: Page) -> str:
+    """The plausibility warnings on synthetic records of each plant (all in their declared units)."""
+    paths = [p for p in PLANT_WARNING_RUNS if (ROOT / p).exists()]
+    if not paths:
+        return "No committed check yet."
+    runs = [read_json(p) for p in paths]
+    head = [
+        "measure",
+        *(f"{Path(r['run']['plant']).parent.name or r['run']['plant']}, seed {r['run']['seed']}" for r in runs),
+    ]
+    rows = check_measure_rows(runs, ("clean_warned", "scale_warned", "clean_no_gap", "strong_top1"))
+    codes = ", ".join(f"`{r['run']['code']['describe']}`" for r in runs)
+    note = (
+        f"\n\nCode {codes} (in order); Wilson 95 % intervals; each run once, on a seed not used before, "
+        "nothing changed after it."
+    )
+    return table(head, rows) + note + sources(page, paths)
+
+
 def render_fmu_summary(page: Page) -> str:
     """One line for the README: the FMU checks pooled (the catalogue named first, clean records answered)."""
     runs = _fmu_check_runs()
@@ -1830,6 +1858,7 @@ RENDERERS: dict[str, Callable[[Page], str]] = {
     "fmu-checks": render_fmu_checks,
     "fmu-cost": render_fmu_cost,
     "fmu-summary": render_fmu_summary,
+    "plant-warnings": render_plant_warnings,
 }
 
 
