@@ -17,7 +17,7 @@ def plant(tmp_path_factory: pytest.TempPathFactory) -> FmuPlant:
     return load_plant(EXAMPLES_DIR / "quarter_car" / "plant.toml", tmp_path_factory.mktemp("plaus"), processes=1)
 
 
-def _rig_test(plant: FmuPlant, seconds: float = 1.2) -> FmuRecord:
+def _rig_test(plant: FmuPlant, seconds: float = 0.6) -> FmuRecord:
     """A synthetic rig test of the model itself (calibrated parameters off nominal), its first ``seconds``."""
     record = plant.synthesize(plant.example(), {"m_s": 320.0}, np.random.default_rng(11))
     keep = record.t < seconds
