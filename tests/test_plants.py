@@ -23,6 +23,7 @@ from engine.diagnosis.plant_gap import (
     integrated_time,
     rank_effects,
 )
+from engine.diagnosis.plant_plausibility import interval_evidence
 from engine.plants import Plant, get_plant, relative_error
 from engine.plants.backlash_drive import BacklashDrivePlant
 from engine.plants.emps import PUBLISHED, EmpsPlant, EmpsRecord, load_csv, load_mat
@@ -290,3 +291,21 @@ def test_the_synthetic_check_draws_visible_effects_and_keeps_the_truth_apart(rec
     np.testing.assert_allclose(steps, np.round(steps), atol=1e-6)
     row = CheckRow(cases[0], (cases[0].effect,), cases[0].value, "explained", 0.95, 1.0)
     assert row.top1 and row.found and "1/1 = 100 %" in summary([row])
+
+
+def test_each_plant_reads_a_record_at_another_interval_or_says_why_not(
+    emps: EmpsPlant, records: dict[str, EmpsRecord], drive_record: Record
+) -> None:
+    """Plant.retimed, which the sample-interval check reads: the drive's record at 10x its interval is its
+    samples on the longer grid, an interval outside the accepted range is refused, and an EMPS record (the
+    controller's grid only) is never re-read, so the check has nothing to compare there."""
+    drive = BacklashDrivePlant()
+    slow = drive.retimed(drive_record, 10.0)
+    assert slow.sample_interval == pytest.approx(10 * drive_record.sample_interval)
+    assert np.array_equal(slow["a1"], drive_record["a1"])
+    with pytest.raises(ValueError):
+        drive.retimed(drive_record, 1e3)
+    record = next(iter(records.values())).head(2.0)
+    with pytest.raises(ValueError, match="1 ms grid"):
+        emps.retimed(record, 0.1)
+    assert interval_evidence(emps, record, [{}], emps.noise(record)) == (0.0, 1.0)

@@ -60,7 +60,7 @@ from engine.diagnosis.plant_locus import (
     PlantLocusReport,
     estimate_plant_locus,
 )
-from engine.diagnosis.plant_plausibility import check_channels, check_fit
+from engine.diagnosis.plant_plausibility import check_channels, check_fit, check_interval
 from engine.diagnosis.settings import DiagnosisSettings
 from engine.parallel import MapLike, thread_map
 from engine.plants.base import CalibratedParameter, Plant, difference_step, free_parameters
@@ -1062,14 +1062,21 @@ def _diagnose(
             set_aside, named, reason = named, None, stand_in
             gate = noise_gate(plant, record, calibration, None, obj)
     after_values = named.fit.values if named else calibration.values
+    levels = plant.noise(record)
     warnings = check_fit(
         plant,
         obj.residuals(after_values),
         obj.residuals({}),  # the nominal model: a scale read from a fit to a mis-scaled channel is distorted
         obj.y,
-        plant.noise(record),
+        levels,
         f"the model with {'+'.join(named.effects)}" if named else "the calibrated model",
     )
+    if warnings:  # a poor fit: is it the sample interval? (not on the channels a unit mistake explains)
+        scaled = {w.channel for w in warnings if w.code == "channel_scale"}
+        compared = [c.name for c in plant.channels if c.name not in scaled]
+        timing = check_interval(plant, record, [after_values, {}], levels, compared) if compared else []
+        first = [w for w in warnings if w.code == "channel_scale"]
+        warnings = [*first, *timing, *(w for w in warnings if w.code != "channel_scale")]
     budget = gap_budget(named) if named else {}
     before_share, samples = event_shares(plant, record, calibration.values, objective=obj)
     after_share, _ = event_shares(plant, record, after_values, objective=obj)

@@ -18,26 +18,46 @@ diagnosis, on the model the answer ends with (the named set's fit, or the calibr
 
 :func:`check_channels` runs before any fit: a channel without a single change over the scored
 window (``constant_channel``: a stuck sensor, a placeholder column) is refused, since no noise level
-and no fit can be read from it. What these checks do not do for a generic plant: a wrong sample
-interval (the drive's check re-reads the record at other intervals, which needs the plant's own
-record type) and a peak outside the plant's plausible range (a generic plant declares no box of
-its own beyond its calibrated parameters).
+and no fit can be read from it.
+
+:func:`check_interval` runs after them when the answer's model leaves a misfit:
+
+- ``sample_interval``: the record read with its sample interval multiplied by a factor of
+  :data:`~engine.diagnosis.plausibility.TIME_FACTORS` (the plant's own reading,
+  :meth:`~engine.plants.base.Plant.retimed`) fits the plant ``EVIDENCE`` times better than as declared
+  (the best of the answer's model and the nominal one at each reading): a time column in ms declared
+  in s, a decimation or a sample rate misread. A plant whose records have one fixed grid, which its
+  reader enforces (EMPS), has nothing to check.
+
+What these checks do not do for a generic plant: a peak outside the plant's plausible range (a
+generic plant declares no box of its own beyond its calibrated parameters).
 """
 
 from __future__ import annotations
 
+import logging
 import math
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping, Sequence
 from typing import Any, Final
 
 import numpy as np
 
-from engine.diagnosis.plausibility import EVIDENCE, MISFIT_CHI2, SCALE_FAR, UNIT_MATCH, PlausibilityWarning
+from engine.diagnosis.plausibility import (
+    EVIDENCE,
+    MISFIT_CHI2,
+    SCALE_FAR,
+    TIME_FACTORS,
+    UNIT_MATCH,
+    PlausibilityWarning,
+    interval_message,
+)
 from engine.plants.base import Plant
 from engine.plants.noise import NoiseLevel
 from engine.records import RecordError
 
-__all__ = ["UNIT_FACTORS", "ConstantChannelError", "check_channels", "check_fit"]
+__all__ = ["UNIT_FACTORS", "ConstantChannelError", "check_channels", "check_fit", "check_interval", "interval_evidence"]
+
+logger = logging.getLogger(__name__)
 
 #: Factors between a record's values and the model's that a unit mistake makes [-], with what to ask:
 #: the record in milli-units (mm for m), in kilo-units (kN for N), in centi-units (cm for m), an
@@ -151,3 +171,111 @@ def check_fit(
                 )
             )
     return out
+
+
+def _scored_mask(plant: Plant, record: Any, n: int) -> np.ndarray:
+    mask = np.zeros(n, dtype=bool)
+    mask[plant.scored(record)] = True
+    return mask
+
+
+def _best_chi2(
+    plant: Plant,
+    record: Any,
+    cases: Sequence[Mapping[str, float]],
+    sigma: Mapping[str, float],
+    mask: np.ndarray,
+) -> float:
+    """The lowest chi2 per compared sample over ``cases`` on ``record`` [noise variances]; inf if none simulates."""
+    y = plant.measured(record)
+    best = math.inf
+    for values in cases:
+        try:
+            sim = plant.simulate(record, values)
+        except (ValueError, RuntimeError, ArithmeticError) as exc:  # a reading the plant cannot simulate is moot
+            logger.debug("sample-interval check: %s does not simulate (%s)", dict(values), exc)
+            continue
+        with np.errstate(over="ignore", invalid="ignore"):
+            chi2 = sum(float(np.mean((np.asarray(sim[c]) - y[c])[mask] ** 2)) / s**2 for c, s in sigma.items())
+        if math.isfinite(chi2):
+            best = min(best, chi2)
+    return best
+
+
+def interval_evidence(
+    plant: Plant,
+    record: Any,
+    cases: Sequence[Mapping[str, float]],
+    levels: Mapping[str, NoiseLevel],
+    channels: Collection[str] | None = None,
+) -> tuple[float, float]:
+    """How much better the record fits the plant read at another sample interval: ``(evidence, factor)``.
+
+    For each factor ``a`` of :data:`~engine.diagnosis.plausibility.TIME_FACTORS` at which the plant can
+    read the record (:meth:`~engine.plants.base.Plant.retimed`), every one of ``cases`` is simulated on
+    the record read at ``a`` times its interval; the best chi2 per sample (over the compared channels,
+    each against its noise level, on the samples scored at both readings) as declared, divided by the
+    best at ``a``, is that reading's evidence.
+
+    Parameters
+    ----------
+    plant, record
+        The plant and the record diagnosed.
+    cases : sequence of mapping
+        Parameter and effect values to simulate (the answer's model, the nominal one ``{}``).
+    levels : mapping
+        Channel -> its noise (:meth:`~engine.plants.base.Plant.noise` of the record as declared).
+    channels : collection of str, optional
+        The channels compared (default every channel; a channel in a wrong unit fits no reading).
+
+    Returns
+    -------
+    (evidence, factor) : (float, float)
+        The largest evidence and its factor; (0, 1) when the plant reads the record at no other
+        interval, no channel is compared, or the record as declared does not simulate.
+    """
+    sigma = {c.name: levels[c.name].sigma for c in plant.channels if channels is None or c.name in channels}
+    sigma = {c: s for c, s in sigma.items() if s > 0.0 and math.isfinite(s)}
+    if not sigma:
+        return 0.0, 1.0
+    n = len(plant.time(record))
+    declared_mask = _scored_mask(plant, record, n)
+    best = (0.0, 1.0)
+    for a in TIME_FACTORS:
+        try:
+            reading = plant.retimed(record, a)
+        except ValueError as exc:
+            logger.debug("sample-interval check: no reading at %gx (%s)", a, exc)
+            continue
+        mask = declared_mask & _scored_mask(plant, reading, n)
+        if not mask.any():
+            continue
+        declared = _best_chi2(plant, record, cases, sigma, mask)
+        if not math.isfinite(declared):
+            return 0.0, 1.0
+        scaled = _best_chi2(plant, reading, cases, sigma, mask)
+        evidence = declared / scaled if scaled > 0.0 else math.inf
+        logger.debug("sample-interval check: %gx fits %.4g, as declared %.4g", a, scaled, declared)
+        if evidence > best[0]:
+            best = (evidence, a)
+    return best
+
+
+def check_interval(
+    plant: Plant,
+    record: Any,
+    cases: Sequence[Mapping[str, float]],
+    levels: Mapping[str, NoiseLevel],
+    channels: Collection[str] | None = None,
+) -> list[PlausibilityWarning]:
+    """``sample_interval`` when the record read at another interval fits the plant ``EVIDENCE`` times better.
+
+    Parameters as :func:`interval_evidence`, which it runs (a dozen simulations or so: run it on a poor
+    fit only). Returns one warning or none.
+    """
+    evidence, a = interval_evidence(plant, record, cases, levels, channels)
+    if evidence < EVIDENCE:
+        return []
+    t = np.asarray(plant.time(record), dtype=float)
+    ts = float(np.median(np.diff(t)))
+    return [PlausibilityWarning("sample_interval", interval_message(ts, a, evidence, "its scored samples"))]

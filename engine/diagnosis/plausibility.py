@@ -95,6 +95,7 @@ __all__ = [
     "PlausibilityWarning",
     "check_calibration",
     "check_record",
+    "interval_message",
     "merge_warnings",
     "peak_envelope",
     "rise_envelope",
@@ -468,6 +469,15 @@ def _read_at(sample_interval: float, *factors: float) -> str:
     return f"read with a sample interval of {intervals} s instead of the declared {sample_interval:.3g} s"
 
 
+def interval_message(sample_interval: float, factor: float, evidence: float, what: str) -> str:
+    """The ``sample_interval`` warning of a fit: ``what`` (the part of the record compared), read with its
+    interval multiplied by ``factor``, fits the plant ``evidence`` times better (chi2) than as declared."""
+    return (
+        f"the record's dynamics fit {_pace(factor)} than the model's: {_read_at(sample_interval, factor)}, "
+        f"{what} fit the plant {min(evidence, 1e6):.3g} times better; {_INTERVAL_QUESTION}"
+    )
+
+
 def _rise_times(record: Record, sample_interval: float, channels: Collection[str]) -> dict[str, float]:
     """:func:`rise_time` of the record's ``channels`` over the test window, read at ``sample_interval``.
 
@@ -729,9 +739,12 @@ def check_calibration(record: Record, calibration: CalibrationResult) -> list[Pl
         timing.append(
             PlausibilityWarning(
                 "sample_interval",
-                f"the event's dynamics fit {_pace(a)} than the model's: {_read_at(window.sample_interval, a)}, "
-                f"the record's first {CalibrationSettings().horizons_ms[0]:g} ms after the event fit the plant "
-                f"{min(evidence, 1e6):.3g} times better; {_INTERVAL_QUESTION}",
+                interval_message(
+                    window.sample_interval,
+                    a,
+                    evidence,
+                    f"the record's first {CalibrationSettings().horizons_ms[0]:g} ms after the event",
+                ),
             )
         )
     misfit = [

@@ -114,6 +114,13 @@ class BacklashDrivePlant:
         """Sample instants [s] relative to the event."""
         return record.time
 
+    def retimed(self, record: Record, factor: float) -> Record:
+        """The record read with its sample interval multiplied by ``factor`` (see :meth:`Plant.retimed`).
+
+        Raises :class:`~engine.records.GridError` (a ``ValueError``) outside the accepted intervals.
+        """
+        return record.replace(sample_interval=factor * record.sample_interval)
+
     def events(self, record: Record) -> np.ndarray:
         """The record's event instant t_e (MODEL.md's backlash test; 0 on the record's time axis)."""
         return np.array([record.time[record.event_index]])

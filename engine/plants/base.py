@@ -48,6 +48,7 @@ __all__ = [
     "free_parameters",
     "relative_error",
     "relative_errors",
+    "retimed_instants",
     "within_span",
 ]
 
@@ -326,6 +327,21 @@ class Plant(Protocol):
         """Instants [s] on the record's time axis where a known input changes abruptly (may be empty)."""
         ...
 
+    def retimed(self, record: Any, factor: float) -> Any:
+        """The record read with its sample interval multiplied by ``factor``, the samples unchanged.
+
+        The reading a record with a wrongly declared interval would have had (``factor`` 0.1: the
+        declared interval was 10x too long), for the plausibility check of the sample interval
+        (:func:`engine.diagnosis.plant_plausibility.check_interval`); the first instant stays where it is.
+
+        Raises
+        ------
+        ValueError
+            When the plant cannot read the record at that interval (its records have one fixed grid,
+            which its reader enforces, or the interval leaves the range its simulation accepts).
+        """
+        ...
+
     def time(self, record: Any) -> np.ndarray:
         """The record's sample instants [s]."""
         ...
@@ -365,6 +381,15 @@ def within_span(t: np.ndarray, events: np.ndarray, span: tuple[float, float]) ->
     for te in np.asarray(events, dtype=float):
         near |= (t >= te + span[0]) & (t < te + span[1])
     return near
+
+
+def retimed_instants(t: np.ndarray, factor: float) -> np.ndarray:
+    """Sample instants ``t`` [s] read with their interval multiplied by ``factor``, the first instant kept.
+
+    What :meth:`Plant.retimed` does to a record's time axis.
+    """
+    t = np.asarray(t, dtype=float)
+    return t[0] + factor * (t - t[0])
 
 
 def free_parameters(plant: Plant, record: Any) -> tuple[CalibratedParameter, ...]:

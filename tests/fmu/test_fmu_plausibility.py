@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from engine.diagnosis.plant_gap import diagnose_plant
-from engine.diagnosis.plant_plausibility import ConstantChannelError
+from engine.diagnosis.plant_plausibility import ConstantChannelError, interval_evidence
 from engine.plants.fmu import EXAMPLES_DIR, FmuPlant, load_plant
 from engine.plants.fmu.record import FmuRecord
 
@@ -48,3 +48,18 @@ def test_a_constant_channel_is_refused_before_any_fit(plant: FmuPlant) -> None:
     columns = {**clean.columns, "a_wheel": np.full(clean.n, 0.5)}
     with pytest.raises(ConstantChannelError, match=r"channel a_wheel is 0\.5 m/s2 at every one of its"):
         diagnose_plant(plant, FmuRecord("stuck", clean.t, columns), jobs=1)
+
+
+def test_a_sample_interval_declared_ten_times_too_long_is_named(plant: FmuPlant) -> None:
+    """The rig test's time column read as 10 ms for its 1 ms samples: the answer warns `sample_interval`, names
+    the reading that fits (1 ms) and still warns of the misfit; as declared rightly, the statistic is far below it."""
+    clean = _rig_test(plant, seconds=0.3)
+    wrong = plant.retimed(clean, 10.0)
+    assert np.allclose(np.diff(wrong.t), 10 * np.diff(clean.t)) and wrong.t[0] == clean.t[0]
+    answer = diagnose_plant(plant, wrong, jobs=1).to_dict(plant)
+    codes = [w["code"] for w in answer["warnings"]]
+    assert "sample_interval" in codes and "misfit" in codes, codes
+    message = next(w["message"] for w in answer["warnings"] if w["code"] == "sample_interval")
+    assert "10x slower" in message and "0.001 s instead of the declared 0.01 s" in message
+    evidence, _ = interval_evidence(plant, clean, [{"m_s": 320.0}, {}], plant.noise(clean))
+    assert evidence < 1.0  # the right reading: no other fits better

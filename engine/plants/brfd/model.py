@@ -27,7 +27,14 @@ from types import MappingProxyType
 
 import numpy as np
 
-from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, LocusSignal, checked_inputs
+from engine.plants.base import (
+    CalibratedParameter,
+    CandidateEffect,
+    Channel,
+    LocusSignal,
+    checked_inputs,
+    retimed_instants,
+)
 from engine.plants.brfd import _kernel as k
 from engine.plants.brfd.catalogue import (
     CATALOGUE,
@@ -235,6 +242,12 @@ class BrfdPlant:
     def time(self, record: BrfdRecord) -> np.ndarray:
         """The record's sample instants [s]."""
         return record.t
+
+    def retimed(self, record: BrfdRecord, factor: float) -> BrfdRecord:
+        """The record read with its sample interval multiplied by ``factor`` (see :meth:`Plant.retimed`)."""
+        if not factor > 0.0:
+            raise ValueError(f"a sample interval's factor must be positive, got {factor}")
+        return dataclasses.replace(record, t=retimed_instants(record.t, factor))
 
     def events(self, record: BrfdRecord) -> np.ndarray:
         """The reversals of the imposed displacement [s] (the backlash regime follows each)."""

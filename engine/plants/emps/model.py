@@ -53,7 +53,7 @@ from engine.plants.emps.catalogue import (
     SEALED_FIELDS,
 )
 from engine.plants.emps.channels import N_BORDER, measured_channels, process
-from engine.plants.emps.record import EmpsRecord, load_mat, load_record
+from engine.plants.emps.record import SAMPLE_INTERVAL, EmpsRecord, load_mat, load_record
 from engine.plants.noise import NoiseLevel, finest_level_sigma, integrated_time, white_noise_level
 
 __all__ = [
@@ -372,6 +372,13 @@ class EmpsPlant:
     def time(self, record: EmpsRecord) -> np.ndarray:
         """The record's sample instants [s]."""
         return record.t
+
+    def retimed(self, record: EmpsRecord, factor: float) -> EmpsRecord:
+        """Never: an EMPS record is on the controller's 1 kHz grid, which its reader enforces."""
+        raise ValueError(
+            f"an EMPS record is read on the controller's {SAMPLE_INTERVAL * 1e3:g} ms grid only (the reader refuses "
+            "any other interval)"
+        )
 
     def events(self, record: EmpsRecord) -> np.ndarray:
         """The instants [s] where the pulse signal switches (none in a record without pulses)."""

@@ -26,7 +26,14 @@ from typing import Any
 import numba
 import numpy as np
 
-from engine.plants.base import CalibratedParameter, CandidateEffect, Channel, LocusSignal, checked_inputs
+from engine.plants.base import (
+    CalibratedParameter,
+    CandidateEffect,
+    Channel,
+    LocusSignal,
+    checked_inputs,
+    retimed_instants,
+)
 from engine.plants.fmu.build import build_fmu
 from engine.plants.fmu.description import DescriptionError, PlantDescription, load_description
 from engine.plants.fmu.generic import GenericEffect, apply_actuators, apply_sensors, generic_effects
@@ -202,6 +209,12 @@ class FmuPlant:
     def fixed_by(self, record: FmuRecord) -> dict[str, float]:
         """None: a record of an FMU plant fixes no calibrated parameter."""
         return {}
+
+    def retimed(self, record: FmuRecord, factor: float) -> FmuRecord:
+        """The record read with its sample interval multiplied by ``factor`` (see :meth:`Plant.retimed`)."""
+        if not factor > 0.0:
+            raise ValueError(f"a sample interval's factor must be positive, got {factor}")
+        return FmuRecord(record.name, retimed_instants(record.t, factor), record.columns)
 
     def events(self, record: FmuRecord) -> np.ndarray:
         """No known input events (an FMU plant's inputs are the record's columns)."""
