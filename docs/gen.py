@@ -1065,7 +1065,16 @@ def render_plant_locus_real(page: Page) -> str:
             where = f"{loc['locus'] or 'none'}" + (f" ({loc['confidence']:.2f})" if loc["locus"] else "")
             explained = ", ".join(f"{k} {100 * v:.0f} %" for k, v in loc["explained"].items())
             term = (loc["term"] or "-") + (" (first guess)" if "first guess" in (loc["note"] or "") else "")
-        rows.append([f"{r['plant']} {r['record']}", r["status"], named, where, explained, term, f"{r['seconds']:.0f}"])
+        if "warnings" in r:  # answers before the plausibility warnings did not record them
+            codes: dict[str, list[str]] = {}
+            for code, channel in r["warnings"]:
+                codes.setdefault(code, []).append(channel or "record")
+            warned = "; ".join(f"`{c}` ({', '.join(chs)})" for c, chs in codes.items()) or "none"
+        else:
+            warned = "(not recorded)"
+        rows.append(
+            [f"{r['plant']} {r['record']}", r["status"], named, where, explained, term, warned, f"{r['seconds']:.0f}"]
+        )
     head = [
         "record",
         "answer",
@@ -1073,6 +1082,7 @@ def render_plant_locus_real(page: Page) -> str:
         "locus of what is left (confidence)",
         "gap explained by each locus's term",
         "term",
+        "warnings (channels)",
         "s",
     ]
     code = (data.get("code") or {}).get("describe") or "-"

@@ -4,7 +4,7 @@
 
 Every shipped real record of the EMPS and BRFD plants, calibrated on itself, through
 :func:`engine.diagnosis.plant_gap.diagnose_plant` (the CLI's ``backlash diagnose --plant P FILE``):
-the status, the named set, and the ``locus`` block (the part of the machine the gap the answer's
+the status, the named set, the plausibility warnings (code and channel), and the ``locus`` block (the part of the machine the gap the answer's
 model leaves lies at, its confidence, each locus's share of the gap explained, the term). The
 table in ``docs/real-data.md`` section 7 is generated from the JSON this writes.
 """
@@ -47,6 +47,7 @@ def main(argv: list[str] | None = None) -> int:
                     "named": [(e["effect"], e["share"]) for e in answer["verdict"]["effects"]],
                     "verdict_locus": answer["verdict"]["locus"],
                     "reason": answer["verdict"]["reason"],
+                    "warnings": [(w["code"], w["channel"]) for w in answer["warnings"]],
                     "locus": None
                     if locus is None
                     else {
