@@ -179,22 +179,26 @@ def _scored_mask(plant: Plant, record: Any, n: int) -> np.ndarray:
     return mask
 
 
+def _simulations(plant: Plant, record: Any, cases: Sequence[Mapping[str, float]]) -> list[dict[str, np.ndarray]]:
+    """The channels of each of ``cases`` simulated on ``record``; a case the plant cannot simulate there is left out."""
+    out = []
+    for values in cases:
+        try:
+            out.append(plant.simulate(record, values))
+        except (ValueError, RuntimeError, ArithmeticError) as exc:  # a reading the plant cannot simulate is moot
+            logger.debug("sample-interval check: %s does not simulate (%s)", dict(values), exc)
+    return out
+
+
 def _best_chi2(
-    plant: Plant,
-    record: Any,
-    cases: Sequence[Mapping[str, float]],
+    sims: Sequence[Mapping[str, np.ndarray]],
+    y: Mapping[str, np.ndarray],
     sigma: Mapping[str, float],
     mask: np.ndarray,
 ) -> float:
-    """The lowest chi2 per compared sample over ``cases`` on ``record`` [noise variances]; inf if none simulates."""
-    y = plant.measured(record)
+    """The lowest chi2 per compared sample over ``sims`` against ``y`` [noise variances]; inf if none is finite."""
     best = math.inf
-    for values in cases:
-        try:
-            sim = plant.simulate(record, values)
-        except (ValueError, RuntimeError, ArithmeticError) as exc:  # a reading the plant cannot simulate is moot
-            logger.debug("sample-interval check: %s does not simulate (%s)", dict(values), exc)
-            continue
+    for sim in sims:
         with np.errstate(over="ignore", invalid="ignore"):
             chi2 = sum(float(np.mean((np.asarray(sim[c]) - y[c])[mask] ** 2)) / s**2 for c, s in sigma.items())
         if math.isfinite(chi2):
@@ -240,6 +244,8 @@ def interval_evidence(
         return 0.0, 1.0
     n = len(plant.time(record))
     declared_mask = _scored_mask(plant, record, n)
+    y = plant.measured(record)  # the samples, the same at every reading
+    as_declared = _simulations(plant, record, cases)
     best = (0.0, 1.0)
     for a in TIME_FACTORS:
         try:
@@ -250,10 +256,10 @@ def interval_evidence(
         mask = declared_mask & _scored_mask(plant, reading, n)
         if not mask.any():
             continue
-        declared = _best_chi2(plant, record, cases, sigma, mask)
+        declared = _best_chi2(as_declared, y, sigma, mask)
         if not math.isfinite(declared):
             return 0.0, 1.0
-        scaled = _best_chi2(plant, reading, cases, sigma, mask)
+        scaled = _best_chi2(_simulations(plant, reading, cases), y, sigma, mask)
         evidence = declared / scaled if scaled > 0.0 else math.inf
         logger.debug("sample-interval check: %gx fits %.4g, as declared %.4g", a, scaled, declared)
         if evidence > best[0]:

@@ -194,6 +194,11 @@ class SetSettings:
         diagnosis; on a development triple (seed 239 case0139, first pairs at 208 against singles at
         5817) it found the answer though no single improved, hence the second condition.
         ``min_escalation_gain`` None: always search again.
+    min_triple_progress : float or None
+        With ``before_escalation``, the search ends after the first triples, their sets standing (no
+        exchange, no escalation of the singles, no second search), when the best set so far closed less
+        than this share of the best single's excess chi2 (:func:`engine.diagnosis.staged.set_progress`).
+        None: never (the default while it is measured, issue 54).
     n_swap : int
         Swap: once the best set fits to the noise, each of its members is replaced by this many of the
         effects the profiled screen ranks best beside the others, each such set fitted from the others'
@@ -253,6 +258,7 @@ class SetSettings:
     first_exchange: bool = True
     min_escalation_gain: float | None = 0.1
     min_set_progress: float = 0.5
+    min_triple_progress: float | None = None
 
     def escalation(self, candidates: CandidateSettings, early: bool = False) -> CandidateSettings:
         """The candidate settings of the singles' escalation in the staged order (``before_escalation``).

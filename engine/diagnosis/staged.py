@@ -168,6 +168,17 @@ def staged_search(
         fitted = _merge_sets(fitted, triples)
         sets = fitted[: ss.n_report]
         stage("first triples")
+        progress = set_progress(cands, sets)
+        logger.info(
+            "after the first triples: best set %s at chi2/n %.4g, best single at %.4g; progress %.3g",
+            "+".join(sets[0].effects) if sets else "-",
+            sets[0].calibration.reduced_chi2 if sets and sets[0].calibration is not None else math.nan,
+            min((c.calibration.reduced_chi2 for c in cands if c.calibration is not None), default=math.nan),
+            progress,
+        )
+        if ss.min_triple_progress is not None and progress < ss.min_triple_progress:
+            logger.info("the first search's sets stand (progress %.3g < %g)", progress, ss.min_triple_progress)
+            return cands, sets
     triples_so_far = any(len(s.effects) == 3 for s in fitted)
     if ss.first_exchange and ss.n_exchange > 0 and triples_so_far and not any(explains(s, settings) for s in sets):
         # the sets fitted so far are kept as they are (n_extend 0: no triple is built or fitted
