@@ -197,8 +197,11 @@ class SetSettings:
     min_triple_progress : float or None
         With ``before_escalation``, the search ends after the first triples, their sets standing (no
         exchange, no escalation of the singles, no second search), when the best set so far closed less
-        than this share of the best single's excess chi2 (:func:`engine.diagnosis.staged.set_progress`).
-        None: never (the default while it is measured, issue 54).
+        than this share of the best single's excess chi2 (:func:`engine.diagnosis.staged.set_progress`):
+        two and three catalogue effects together leave almost all of the gap one leaves (issue 54).
+        0.25 from development records of seed 223 (docs/diagnosis.md 8b, *The set search ends after the
+        first triples*): out-of-catalogue records at 0.003-0.28 (4 of 6 below 0.25), the compound
+        records that a later stage found right at 0.36-0.98. None: never.
     n_swap : int
         Swap: once the best set fits to the noise, each of its members is replaced by this many of the
         effects the profiled screen ranks best beside the others, each such set fitted from the others'
@@ -258,7 +261,7 @@ class SetSettings:
     first_exchange: bool = True
     min_escalation_gain: float | None = 0.1
     min_set_progress: float = 0.5
-    min_triple_progress: float | None = None
+    min_triple_progress: float | None = 0.25
 
     def escalation(self, candidates: CandidateSettings, early: bool = False) -> CandidateSettings:
         """The candidate settings of the singles' escalation in the staged order (``before_escalation``).
