@@ -194,14 +194,16 @@ class SetSettings:
         diagnosis; on a development triple (seed 239 case0139, first pairs at 208 against singles at
         5817) it found the answer though no single improved, hence the second condition.
         ``min_escalation_gain`` None: always search again.
-    min_triple_progress : float or None
-        With ``before_escalation``, the search ends after the first triples, their sets standing (no
-        exchange, no escalation of the singles, no second search), when the best set so far closed less
-        than this share of the best single's excess chi2 (:func:`engine.diagnosis.staged.set_progress`):
-        two and three catalogue effects together leave almost all of the gap one leaves (issue 54).
-        0.25 from development records of seed 223 (docs/diagnosis.md 8b, *The set search ends after the
-        first triples*): out-of-catalogue records at 0.003-0.28 (4 of 6 below 0.25), the compound
-        records that a later stage found right at 0.36-0.98. None: never.
+    min_exchange_progress : float or None
+        With ``before_escalation``, the exchange from the best first triple (``first_exchange``) runs
+        only when the best set so far closed at least this share of the best single's excess chi2
+        (:func:`engine.diagnosis.staged.set_progress`); below it, two and three catalogue effects
+        together leave almost all of the gap one leaves, and replacing one member of the triple will
+        not close it (issue 54). The escalation of the singles runs as before: a single effect its
+        seeded fits missed leaves such a record too (seed-229 case0280, a rotor drift at chi2/n 7.0,
+        progress 0.12, found by that escalation). 0.25 from development records of seed 223
+        (``lab/validation/triple-progress``): out-of-catalogue records at 0.003-0.82 (4 of 6 below
+        0.25), the compound records a later stage found right at 0.36-0.98. None: always exchange.
     n_swap : int
         Swap: once the best set fits to the noise, each of its members is replaced by this many of the
         effects the profiled screen ranks best beside the others, each such set fitted from the others'
@@ -261,7 +263,7 @@ class SetSettings:
     first_exchange: bool = True
     min_escalation_gain: float | None = 0.1
     min_set_progress: float = 0.5
-    min_triple_progress: float | None = 0.25
+    min_exchange_progress: float | None = 0.25
 
     def escalation(self, candidates: CandidateSettings, early: bool = False) -> CandidateSettings:
         """The candidate settings of the singles' escalation in the staged order (``before_escalation``).

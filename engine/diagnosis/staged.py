@@ -116,7 +116,8 @@ def staged_search(
     have had: ``fit_candidates(..., reseed=False)``) and the early escalation of the best two
     after it that were not escalated yet; the first pairs from the seeded singles, the best with
     a global search in their joint space; the first triples (``first_triples``: seeded fits only);
-    the exchange from the best first triple (``first_exchange``); the escalation of the singles
+    the exchange from the best first triple (``first_exchange``, unless the sets so far closed less
+    than ``min_exchange_progress`` of the best single's excess); the escalation of the singles
     (``n_escalate_singles``); the search of sets of up to three from the escalated singles. The
     first triples start from every first pair as fitted, the exchange from every set so far; the
     last search keeps the ``n_report`` best sets so far unless the escalation moved a member's
@@ -176,11 +177,14 @@ def staged_search(
             min((c.calibration.reduced_chi2 for c in cands if c.calibration is not None), default=math.nan),
             progress,
         )
-        if ss.min_triple_progress is not None and progress < ss.min_triple_progress:
-            logger.info("the first search's sets stand (progress %.3g < %g)", progress, ss.min_triple_progress)
-            return cands, sets
     triples_so_far = any(len(s.effects) == 3 for s in fitted)
-    if ss.first_exchange and ss.n_exchange > 0 and triples_so_far and not any(explains(s, settings) for s in sets):
+    exchange = (
+        ss.first_exchange and ss.n_exchange > 0 and triples_so_far and not any(explains(s, settings) for s in sets)
+    )
+    if exchange and ss.min_exchange_progress is not None and set_progress(cands, sets) < ss.min_exchange_progress:
+        logger.info("no exchange: the sets so far closed %.3g of the best single's excess", set_progress(cands, sets))
+        exchange = False
+    if exchange:
         # the sets fitted so far are kept as they are (n_extend 0: no triple is built or fitted
         # again); only the exchange from the best triple, and the finish of the best sets, run
         exchange_only = replace(everything, escalate=False, n_extend=0)
