@@ -593,6 +593,7 @@ DIAGNOSIS_COST = [
     "docs/validation/diagnosis-cost/cost.json",
     "docs/validation/diagnosis-cost/left-out-37/cost.json",
     "docs/validation/diagnosis-cost/kernel-53b8207/cost.json",
+    "docs/validation/diagnosis-cost/exchange-a571475/cost.json",
 ]
 
 
