@@ -26,6 +26,7 @@ from engine.diagnosis.plant_gap import (
 from engine.diagnosis.plant_plausibility import interval_evidence
 from engine.plants import Plant, get_plant, relative_error
 from engine.plants.backlash_drive import BacklashDrivePlant
+from engine.plants.base import retimed_instants
 from engine.plants.emps import PUBLISHED, EmpsPlant, EmpsRecord, load_csv, load_mat
 from engine.plants.emps.reproduction import PUBLISHED_ERRORS, TOLERANCE, reproduce
 from engine.records import Record, RecordError
@@ -309,3 +310,12 @@ def test_each_plant_reads_a_record_at_another_interval_or_says_why_not(
     with pytest.raises(ValueError, match="1 ms grid"):
         emps.retimed(record, 0.1)
     assert interval_evidence(emps, record, [{}], emps.noise(record)) == (0.0, 1.0)
+
+
+def test_a_record_is_re_read_only_at_a_positive_interval_factor() -> None:
+    """retimed_instants, behind every plant's retimed: the first instant kept, a factor <= 0 or not finite refused."""
+    t = np.array([2.0, 2.5, 3.0])
+    assert np.array_equal(retimed_instants(t, 10.0), [2.0, 7.0, 12.0])
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="positive number"):
+            retimed_instants(t, bad)

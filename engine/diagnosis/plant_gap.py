@@ -1072,11 +1072,10 @@ def _diagnose(
         f"the model with {'+'.join(named.effects)}" if named else "the calibrated model",
     )
     if warnings:  # a poor fit: is it the sample interval? (not on the channels a unit mistake explains)
-        scaled = {w.channel for w in warnings if w.code == "channel_scale"}
-        compared = [c.name for c in plant.channels if c.name not in scaled]
+        scale = [w for w in warnings if w.code == "channel_scale"]
+        compared = [c.name for c in plant.channels if c.name not in {w.channel for w in scale}]
         timing = check_interval(plant, record, [after_values, {}], levels, compared) if compared else []
-        first = [w for w in warnings if w.code == "channel_scale"]
-        warnings = [*first, *timing, *(w for w in warnings if w.code != "channel_scale")]
+        warnings = [*scale, *timing, *(w for w in warnings if w.code != "channel_scale")]
     budget = gap_budget(named) if named else {}
     before_share, samples = event_shares(plant, record, calibration.values, objective=obj)
     after_share, _ = event_shares(plant, record, after_values, objective=obj)

@@ -245,7 +245,7 @@ def interval_evidence(
     n = len(plant.time(record))
     declared_mask = _scored_mask(plant, record, n)
     y = plant.measured(record)  # the samples, the same at every reading
-    as_declared = _simulations(plant, record, cases)
+    as_declared: list[dict[str, np.ndarray]] | None = None  # simulated once a reading exists (none on EMPS)
     best = (0.0, 1.0)
     for a in TIME_FACTORS:
         try:
@@ -256,6 +256,8 @@ def interval_evidence(
         mask = declared_mask & _scored_mask(plant, reading, n)
         if not mask.any():
             continue
+        if as_declared is None:
+            as_declared = _simulations(plant, record, cases)
         declared = _best_chi2(as_declared, y, sigma, mask)
         if not math.isfinite(declared):
             return 0.0, 1.0

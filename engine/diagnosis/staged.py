@@ -163,6 +163,7 @@ def staged_search(
     fitted = search_sets(record, nominal, space, library, cands, cs, replace(everything, max_size=2), (), screens)
     sets = fitted[: ss.n_report]
     stage("first pairs")
+    progress: float | None = None  # the share of the best single's excess the sets closed, after the first triples
     if ss.first_triples and ss.max_size >= 3 and not any(explains(s, settings) for s in sets):
         seeded_only = replace(everything, escalate=False, n_exchange=0)
         triples = search_sets(record, nominal, space, library, cands, cs, seeded_only, fitted, screens)
@@ -181,9 +182,11 @@ def staged_search(
     exchange = (
         ss.first_exchange and ss.n_exchange > 0 and triples_so_far and not any(explains(s, settings) for s in sets)
     )
-    if exchange and ss.min_exchange_progress is not None and set_progress(cands, sets) < ss.min_exchange_progress:
-        logger.info("no exchange: the sets so far closed %.3g of the best single's excess", set_progress(cands, sets))
-        exchange = False
+    if exchange and ss.min_exchange_progress is not None:
+        progress = set_progress(cands, sets) if progress is None else progress
+        if progress < ss.min_exchange_progress:
+            logger.info("no exchange: the sets so far closed %.3g of the best single's excess", progress)
+            exchange = False
     if exchange:
         # the sets fitted so far are kept as they are (n_extend 0: no triple is built or fitted
         # again); only the exchange from the best triple, and the finish of the best sets, run

@@ -386,8 +386,11 @@ def within_span(t: np.ndarray, events: np.ndarray, span: tuple[float, float]) ->
 def retimed_instants(t: np.ndarray, factor: float) -> np.ndarray:
     """Sample instants ``t`` [s] read with their interval multiplied by ``factor``, the first instant kept.
 
-    What :meth:`Plant.retimed` does to a record's time axis.
+    What :meth:`Plant.retimed` does to a record's time axis. Raises ``ValueError`` for a factor that
+    is not a positive finite number.
     """
+    if not (math.isfinite(factor) and factor > 0.0):
+        raise ValueError(f"a sample interval's factor must be a positive number, got {factor}")
     t = np.asarray(t, dtype=float)
     return t[0] + factor * (t - t[0])
 
