@@ -221,6 +221,10 @@ CHANNEL_UNITS: Final[dict[str, str]] = {
     "a2": "m/s^2",
     "v2": "m/s",
 }
+#: Channels that are the time derivative of another, times a scale (MODEL.md section 3): a1 is r
+#: times d(omega1)/dt, a2 is d(v2)/dt. (derivative, channel, scale: a plant parameter's name or None
+#: for 1.) A periodic component that two such channels carry with this ratio is a motion of the plant.
+DERIVATIVE_CHANNELS: Final[tuple[tuple[str, str, str | None], ...]] = (("a1", "omega1", "r"), ("a2", "v2", None))
 #: Paper's wavelet for each channel.
 CHANNEL_WAVELETS: Final[dict[str, str]] = {
     "a1": "sym5",

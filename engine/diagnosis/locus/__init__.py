@@ -46,7 +46,10 @@ estimation around the calibrated trajectory, one locus at a time:
    any channel into any other (channel i reads ``g_ij`` times channel j besides
    its own signal): forward selection of at most two such columns, each taken
    only when it lowers the residual by more than ``ln n + 2 ln p`` (p candidate
-   columns: the risk-inflation criterion, so noise alone picks none).
+   columns: the risk-inflation criterion, so noise alone picks none); and a periodic
+   interference, channels reading a sinusoid of one fixed frequency besides their signal,
+   taken only on channels where it keeps its amplitude and phase over the window
+   (``_interference``).
 6. **Evidence.** Posterior weights ``exp(-BIC / 2)``, with the BIC differences
    divided by the best fit's dispersion (chi2 per degree of freedom, at least
    1: a best fit far above the noise means the model is still wrong somewhere),
@@ -62,7 +65,7 @@ estimation around the calibrated trajectory, one locus at a time:
 The package, one module per idea: ``_report`` (settings and results), ``_cases`` (the calibrated
 case with an input, a friction or its parameters moved), ``_responses`` (step 1, and the record as
 the fits see it), ``_linear`` (the fits of step 2), ``_starts`` (step 3), ``_refine`` (step 4),
-``_term`` (steps 5 and 7), ``_estimate`` (:func:`estimate_locus`: the steps in order, and step 6).
+``_term`` (steps 5 and 7), ``_interference`` (the sensors' periodic interference), ``_estimate`` (:func:`estimate_locus`: the steps in order, and step 6).
 
 Assumptions, limits and measured accuracy: ``docs/diagnosis.md`` ("Locus of a
 gap outside the catalogue").

@@ -13,8 +13,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from engine.constants import CHANNELS
+from engine.constants import CHANNELS, DERIVATIVE_CHANNELS
 from engine.diagnosis.calibration import CalibrationError, CalibrationResult
+from engine.diagnosis.locus._interference import periodic_extension
 from engine.diagnosis.locus._linear import orth, penalised_fit, project, sparse_extension
 from engine.diagnosis.locus._refine import Estimate, refine
 from engine.diagnosis.locus._report import LocusError, LocusReport, LocusScore, LocusSettings
@@ -75,6 +76,18 @@ def estimate_locus(
         return _estimate(record, calibration, settings, space, known_drifts)
 
 
+def _motions(names: list[str], sigma: np.ndarray, cal: CalibrationResult) -> list[tuple[int, int, float]]:
+    """The record's pairs of a channel and its time derivative (:data:`DERIVATIVE_CHANNELS`), whitened scale."""
+    assert cal.case is not None
+    out = []
+    for deriv, chan, scale in DERIVATIVE_CHANNELS:
+        if deriv in names and chan in names:
+            i, j = names.index(deriv), names.index(chan)
+            factor = 1.0 if scale is None else float(getattr(cal.case.plant, scale))
+            out.append((i, j, factor * float(sigma[j] / sigma[i])))
+    return out
+
+
 def _estimate(
     record: Record,
     calibration: CalibrationResult,
@@ -125,6 +138,22 @@ def _estimate(
         project(Q, resp.sensors), project(Q, resp.crosstalk), rp, k
     )
     s_dof = float(resp.sensors.shape[1] + len(s_cross))
+    # and a periodic interference at one fixed frequency, if the residual asks for one
+    hum = periodic_extension(
+        np.hstack([project(Q, resp.sensors), project(Q, resp.crosstalk[:, s_cross])]),
+        rp,
+        record.grid.time,
+        len(rows),
+        k,
+        Q,
+        settings.interference_min_periods,
+        motions=_motions(names, sigma, cal),
+    )
+    if hum is not None:
+        s_bic += hum.rss - s_rss + hum.penalty
+        s_rss = hum.rss
+        s_coef, s_cross_coef = hum.design_coef[: len(s_coef)], hum.design_coef[len(s_coef) :]
+        s_dof += 1 + 2 * len(hum.channels)
     bic_none = rr + k * ln_n
 
     # 2. a scan of a constant input per locus: a global start where a term is too strong to
@@ -199,6 +228,10 @@ def _estimate(
     if best == SENSORS:
         values = dict(zip(resp.sensor_names, (float(v) for v in s_coef), strict=True))
         values |= {resp.crosstalk_names[j]: float(v) for j, v in zip(s_cross, s_cross_coef, strict=True)}
+        if hum is not None:
+            values["interference_hz"] = hum.frequency_hz
+            for j, (a, b) in zip(hum.channels, hum.coef, strict=True):
+                values[f"interference_{names[j]}"] = float(math.hypot(a, b) * sigma[j])
         term = sensor_term(values, names, settings)
     else:
         est = estimates[best]

@@ -60,6 +60,10 @@ class LocusSettings:
         Delay whose response column stands for a sensor delay [s].
     max_frequency_hz : float
         Highest frequency searched in the term [Hz] (at most 0.4 / knot_spacing is used).
+    interference_min_periods : float
+        Fewest periods over the test window of a periodic interference of the measurement chain
+        (:mod:`engine.diagnosis.locus._interference`) [-]: a slower sinusoid is a drift, which the
+        loci's inputs hold as well.
     friction_fits : bool
         Fit the Coulomb friction of every part (:data:`COULOMB_FIELDS`) jointly with the
         calibrated parameters by a global search (a candidate's escalated fit,
@@ -96,6 +100,7 @@ class LocusSettings:
     lowpass_probe_hz: float = 2000.0
     delay_probe: float = 2e-5
     max_frequency_hz: float = 150.0
+    interference_min_periods: float = 4.0
     first_guess_chi2: float = 10.0
     friction_fits: bool = True
     part_drifts: bool = True

@@ -326,7 +326,9 @@ def sensor_term(values: Mapping[str, float], names: list[str], settings: LocusSe
     """The sensor library's fit as a term (no time series).
 
     ``values`` may hold cross-talk shares ``crosstalk_<i>_from_<j>`` (channel i reads that share of
-    channel j in addition; in channel i's unit per channel j's, named where they differ). The delay and low-pass columns are responses to the probe delay and the
+    channel j in addition; in channel i's unit per channel j's, named where they differ), and a
+    periodic interference: ``interference_hz`` [Hz] with ``interference_<i>``, the amplitude channel
+    i reads [its unit] (:mod:`engine.diagnosis.locus._interference`). The delay and low-pass columns are responses to the probe delay and the
     probe cut-off, so their coefficients scale those: a delay of about ``coef * delay_probe`` [s], and a first-order lag of
     about ``coef / (2 pi lowpass_probe_hz)`` [s] (valid while the terms are small).
     """
@@ -350,6 +352,20 @@ def sensor_term(values: Mapping[str, float], names: list[str], settings: LocusSe
             ui, uj = CHANNEL_UNITS[reader], CHANNEL_UNITS[source]
             unit = "" if ui == uj else f" ({ui} per {uj})"
             cross.append(f"{reader} reads {g:+.3g}{unit} x {source} in addition (cross-talk)")
+    if "interference_hz" in values:
+        f = values["interference_hz"]
+        details["interference_hz"] = f
+        reached = [c for c in names if f"interference_{c}" in values]  # in the record's order
+        amps = []
+        for c in reached:
+            details[f"interference_{c}"] = values[f"interference_{c}"]
+            amps.append(f"{c} {values[f'interference_{c}']:.3g} {CHANNEL_UNITS[c]}")
+        who = reached[0] if len(reached) == 1 else ", ".join(reached[:-1]) + " and " + reached[-1]
+        cross.insert(
+            0,
+            f"{who} read{'s' if len(reached) == 1 else ''} an interference at {f:.4g} Hz "
+            f"(amplitude {', '.join(amps)}) besides the signal",
+        )
     parts = cross + parts  # what the data asked for first
     return Term(
         kind="sensor error",
