@@ -23,7 +23,8 @@ from typing import Final
 #: 1.3: the sealed family's seven terms, neutral by default.
 #: 1.4: the second sealed family's seven terms (SEALED2), neutral by default.
 #: 1.5: the third sealed family's seven terms (SEALED3), neutral by default.
-MODEL_VERSION: Final[str] = "1.5"
+#: 1.6: the fourth sealed family's seven terms (SEALED4), neutral by default.
+MODEL_VERSION: Final[str] = "1.6"
 
 # --- base quantities -------------------------------------------------------
 #: Rated supply frequency [Hz], the electrical base (MODEL.md section 1.1).
@@ -159,6 +160,17 @@ MESH_ORDER: Final[int] = 40
 #: w_3 = W_EDDY): 0.16 m/s at the wheel's radius, within the load's speeds in the test (up to
 #: 0.03 pu), so that both the rising and the falling branch of the characteristic are met.
 W_EDDY: Final[float] = 0.01
+
+# --- model 1.6 extensions (docs/model-changes.md) ----------------------------
+# Constants of the fourth sealed family's terms (engine.simulation.sealed4).
+#: How long before and after the late pole's closing instant the integrator ends a step [s] (sealed4
+#: effect ``supply_late_pole``): the right-hand side jumps there, so one step ends just before it and
+#: one just after, and only that 2 ns step straddles the jump (erring by about 2 ns times the jump).
+T_POLE_GUARD: Final[float] = 1e-9
+#: Travel of the load at which the misaligned guides' friction reaches its value [rad of theta_3]
+#: (sealed4 effect ``load_guide_binding``): 10 mm at the wheel's radius, about half the load's
+#: travel over a record.
+THETA_BIND: Final[float] = 0.1
 
 # --- test protocol (MODEL.md section 2) ------------------------------------
 #: Sample interval Ts [s].

@@ -121,6 +121,13 @@ def test_defaults_are_model_md_constants():
         "hyst12": 0.0,
         "mesh2": 0.0,
         "eddy3": 0.0,
+        # model 1.6 extensions (the fourth sealed family), neutral by default
+        "t_pole": 0.0,
+        "bypass_a": 0.0,
+        "tau_rub": 0.0,
+        "seal12": 0.0,
+        "gear2": 0.0,
+        "bind3": 0.0,
         # the per-unit base values (issue 52: parameters, MODEL.md's by default)
         "w_b": const.W_B,
         "pole_pairs": const.POLE_PAIRS,

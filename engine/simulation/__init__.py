@@ -18,6 +18,7 @@ from engine.simulation.parameters import (
 from engine.simulation.sealed import SEALED
 from engine.simulation.sealed2 import SEALED2
 from engine.simulation.sealed3 import SEALED3
+from engine.simulation.sealed4 import SEALED4
 from engine.simulation.simulator import (
     SimulationError,
     SimulationResult,
@@ -36,6 +37,7 @@ __all__ = [
     "SEALED",
     "SEALED2",
     "SEALED3",
+    "SEALED4",
     "Case",
     "Disturbance",
     "Effect",

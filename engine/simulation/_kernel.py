@@ -54,6 +54,13 @@ stiffness variation of a gear stage in the resilient path, an eddy-current brake
 the mains' hum of a ground loop on the accelerometers' channels. With all of them zero the kernel
 performs model 1.4's floating-point operations.
 
+Model 1.6 adds seven more behind the same guard (the fourth sealed family,
+:data:`engine.simulation.sealed4.SEALED4`): a pole of the supply's contactor closing late, a share of
+phase a's turns bypassed, the rotor rubbing the stator's bore under the magnetic pull, dry friction
+between the clutch's halves, the mesh friction of a gear stage in the resilient path, misaligned
+guides pinching the load, and a gain error of a current sensor of the torque's estimate (the m_el
+channel only). With all of them zero the kernel performs model 1.5's floating-point operations.
+
 Every function but the entry points compiles without numba's reference-counting runtime
 (``_nrt=False``, a CPU target option of numba's, used where a function allocates nothing): with it,
 the parameter vector P was reference-counted at every call and every inlined call of a step, atomic
@@ -88,6 +95,8 @@ from engine.constants import (
     T_BRAKE_APPLY,
     T_BRAKE_RELEASE,
     T_BRAKE_TRAVEL,
+    T_POLE_GUARD,
+    THETA_BIND,
     THETA_BUMP,
     W_BUMP,
     W_EDDY,
@@ -172,7 +181,20 @@ P_HYST12 = P_TAU_BRAKE + 1
 P_MESH2 = P_HYST12 + 1
 P_EDDY3 = P_MESH2 + 1
 P_HUM = P_EDDY3 + 1
-N_PARAMS = P_HUM + 1
+# model 1.6: parametric terms of the fourth sealed family (engine.simulation.sealed4), appended: the
+# late pole's closing delay [s], the bypassed share of phase a's turns [x], the rotor's rub [pu torque
+# at |psi_s| = 1], dry friction across the clutch [pu torque], the resilient path's gear friction
+# [x], the load's binding guides [pu torque at THETA_BIND], the phase-a current sensor's gain error [x]
+P_T_POLE = P_HUM + 1
+P_BYPASS_A = P_T_POLE + 1
+P_TAU_RUB = P_BYPASS_A + 1
+P_SEAL12 = P_TAU_RUB + 1
+P_GEAR2 = P_SEAL12 + 1
+P_BIND3 = P_GEAR2 + 1
+P_IGAIN_A = P_BIND3 + 1
+N_PARAMS = P_IGAIN_A + 1
+#: sqrt(3), of the phase-c axis e^(j 4 pi / 3) = (-1/2, -sqrt(3)/2) and of the current sensor's error.
+SQRT3 = math.sqrt(3.0)
 #: sqrt(2 e): the bump's force v BUMP_NORM s exp(-s^2) peaks at v (at s = +-1/sqrt(2)).
 BUMP_NORM = math.sqrt(2.0 * math.e)
 
@@ -269,9 +291,21 @@ def step_to_knot(t, h, P):
     """The step h [s] from t, shortened to end at the next kink of the unknown input if it lies within.
 
     The kinks are the knots and the two zero points one spacing outside them. A kink closer to t
-    than 1e-7 spacings counts as passed (so a step never shrinks to nothing).
+    than 1e-7 spacings counts as passed (so a step never shrinks to nothing). With model 1.6's late
+    pole (``P_T_POLE``) a step also ends T_POLE_GUARD before the pole's closing instant, where the
+    right-hand side jumps, and the next one T_POLE_GUARD after it: every stage of a step then lies on
+    one side of the jump but for that short step's (an instant closer than a tenth of T_POLE_GUARD
+    counts as passed).
     """
-    if P[P_EXTENDED] == 0.0 or P[P_DIST_LOCUS] == DIST_NONE:
+    if P[P_EXTENDED] == 0.0:
+        return h
+    if P[P_T_POLE] != 0.0:
+        t_cut = P[P_T_POLE] - T_POLE_GUARD
+        if t_cut - t <= 0.1 * T_POLE_GUARD:
+            t_cut = P[P_T_POLE] + T_POLE_GUARD
+        if t_cut - t > 0.1 * T_POLE_GUARD:
+            h = min(h, t_cut - t)
+    if P[P_DIST_LOCUS] == DIST_NONE:
         return h
     dt = P[P_DIST_DT]
     n = int(P[P_DIST_N])
@@ -400,6 +434,49 @@ def sealed3_torques(t, y, P, motor_on):
 
 
 @njit(cache=True, fastmath=False, **_NO_NRT)
+def sealed4_torques(y, m_s, P, motor_on):
+    """The mechanical torques of model 1.6's fourth sealed family at y [pu], each 0 when its value is.
+
+    Returns ``m_rub``, the rotor's rub on the stator's bore against J1's motion, tau_rub |psi_s|^2
+    tanh(w_1 / W_SMOOTH) while the motor is on (0 after the switch-off); ``m_seal``, the dry friction
+    between the clutch's halves, seal12 tanh((w_1 - w_2) / W_SMOOTH) (from J1 to J2, at every
+    deflection); ``m_gear``, the resilient path's gear friction against the wheel's motion, gear2
+    |m_s| tanh(w_2 / W_SMOOTH); and ``m_bind``, the binding guides' friction against the mass's
+    motion, bind3 |theta_3| / THETA_BIND tanh(w_3 / W_SMOOTH). A function of its own, called only when
+    one of them is on (as :func:`sealed2_torques` and :func:`sealed3_torques`).
+    """
+    m_rub = 0.0
+    if P[P_TAU_RUB] != 0.0 and motor_on:
+        m_rub = P[P_TAU_RUB] * (y[0] * y[0] + y[1] * y[1]) * smooth_sign(y[4])
+    m_seal = 0.0
+    if P[P_SEAL12] != 0.0:
+        m_seal = P[P_SEAL12] * smooth_sign(y[4] - y[5])
+    m_gear = 0.0
+    if P[P_GEAR2] != 0.0:
+        m_gear = P[P_GEAR2] * abs(m_s) * smooth_sign(y[5])
+    m_bind = 0.0
+    if P[P_BIND3] != 0.0:
+        m_bind = P[P_BIND3] * abs(y[9]) / THETA_BIND * smooth_sign(y[6])
+    return m_rub, m_seal, m_gear, m_bind
+
+
+@njit(cache=True, fastmath=False, **_NO_NRT)
+def bypassed_currents(psa, pra, xs, xr, xm, P):
+    """(i_s_alpha, i_r_alpha) [pu] with a share ``P[P_BYPASS_A]`` of phase a's turns bypassed (model 1.6).
+
+    The alpha axis's inductances: the stator's n^2 x_m + s (x_s - x_m), the mutual n x_m, the rotor's
+    x_r, with n = 1 - (2/3) v and s = 1 - (4/3) v + (2/3) v^2 (phase a's turns (1 - v), its leakage
+    (1 - v)^2, seen from the alpha axis with the star point floating); the beta axis is unchanged.
+    """
+    v = P[P_BYPASS_A]
+    n = 1.0 - 2.0 / 3.0 * v
+    a11 = n * n * xm + (1.0 - 4.0 / 3.0 * v + 2.0 / 3.0 * v * v) * (xs - xm)
+    a12 = n * xm
+    det = a11 * xr - a12 * a12
+    return (xr * psa - a12 * pra) / det, (a11 * pra - a12 * psa) / det
+
+
+@njit(cache=True, fastmath=False, **_NO_NRT)
 def electromagnetic_torque(y, P):
     """m_el = psi_s_alpha i_s_beta - psi_s_beta i_s_alpha [pu] of the fluxes in y (model 1.2: saturated x_m)."""
     xs = P[P_X_S]
@@ -413,6 +490,10 @@ def electromagnetic_torque(y, P):
     det = xs * xr - xm * xm
     isa = (xr * y[0] - xm * y[2]) / det
     isb = (xr * y[1] - xm * y[3]) / det
+    if P[P_EXTENDED] != 0.0 and P[P_BYPASS_A] != 0.0:  # model 1.6: the torque on the rotor, alpha asymmetric
+        ira = bypassed_currents(y[0], y[2], xs, xr, xm, P)[1]
+        irb = (xs * y[3] - xm * y[1]) / det
+        return y[3] * ira - y[2] * irb
     return y[0] * isb - y[1] * isa
 
 
@@ -451,6 +532,7 @@ def rhs(t, y, P, motor_on):
     ext = P[P_EXTENDED] != 0.0
     locus = P[P_DIST_LOCUS] if ext else DIST_NONE
     dd = 0.0
+    m_err = 0.0  # model 1.6: the torque estimate's error (the m_el channel only)
     if locus != DIST_NONE:
         dd = disturbance(t, P) if motor_on else disturbance(t, P) + P[P_DIST_STEP]
     if motor_on:
@@ -467,6 +549,9 @@ def rhs(t, y, P, motor_on):
         isb = (xr * psb - xm * prb) / det
         ira = (xs * pra - xm * psa) / det
         irb = (xs * prb - xm * psb) / det
+        bypass = ext and P[P_BYPASS_A] != 0.0
+        if bypass:  # model 1.6: a share of phase a's turns bypassed: the alpha axis's own inductances
+            isa, ira = bypassed_currents(psa, pra, xs, xr, xm, P)
         ang = P[P_F] * P[P_W_B] * t
         u = P[P_U]
         if locus == DIST_SUPPLY:
@@ -500,7 +585,16 @@ def rhs(t, y, P, motor_on):
             drop = P[P_W_B] * P[P_R_BAR] * P[P_R_R] * (ira * cg + irb * sg)
             dpra -= drop * cg
             dprb -= drop * sg
-        m_el = psa * isb - psb * isa
+        if bypass:  # the alpha axis's resistance is n r_s: (2/3) v r_s i_s_alpha back
+            dpsa += P[P_W_B] * (2.0 / 3.0 * P[P_BYPASS_A]) * P[P_R_S] * isa
+        if ext and P[P_T_POLE] != 0.0 and t < P[P_T_POLE]:  # phase c open: i_s along e_c stays zero
+            along = (xm / xr) * (-0.5 * dpra - 0.5 * SQRT3 * dprb) - (-0.5 * dpsa - 0.5 * SQRT3 * dpsb)
+            dpsa -= 0.5 * along
+            dpsb -= 0.5 * SQRT3 * along
+        # with bypassed turns, the torque on the rotor (the stator's alpha axis is not the beta axis's)
+        m_el = prb * ira - pra * irb if bypass else psa * isb - psb * isa
+        if ext and P[P_IGAIN_A] != 0.0:  # the phase-a current sensor of the torque's estimate reads high
+            m_err = P[P_IGAIN_A] * isa * (psa / SQRT3 - psb)
     else:
         dpsa = 0.0
         dpsb = 0.0
@@ -536,6 +630,7 @@ def rhs(t, y, P, motor_on):
     m_2 = m_c - m_s
     m_3 = m_s - m_a
     if ext:
+        m_res = m_s  # the resilient element's whole torque, with 1.4's play and 1.5's mesh (for 1.6's gear)
         # cogging: periodic in the motor angle, COGGING_ORDER periods per revolution
         m_1 -= P[P_TAU_COG] * math.sin(COGGING_ORDER * y[7])
         m_2 -= P[P_TAU_C2] * smooth_sign(w2)  # Coulomb friction of the wheel
@@ -558,11 +653,18 @@ def rhs(t, y, P, motor_on):
             m_1 -= m_sq + m_bearing
             m_2 += m_sq + m_play
             m_3 += m_bump - m_play
+            m_res -= m_play
         if P[P_TAU_BRAKE] != 0.0 or P[P_MESH2] != 0.0 or P[P_EDDY3] != 0.0:  # model 1.5
             m_brake, m_mesh, m_eddy = sealed3_torques(t, y, P, motor_on)
             m_1 -= m_brake
             m_2 -= m_mesh
             m_3 += m_mesh - m_eddy
+            m_res += m_mesh
+        if P[P_TAU_RUB] != 0.0 or P[P_SEAL12] != 0.0 or P[P_GEAR2] != 0.0 or P[P_BIND3] != 0.0:  # model 1.6
+            m_rub, m_seal, m_gear, m_bind = sealed4_torques(y, m_res, P, motor_on)
+            m_1 -= m_rub + m_seal
+            m_2 += m_seal - m_gear
+            m_3 -= m_bind
         if locus == DIST_MOTOR_SHAFT:
             m_1 += dd
         elif locus == DIST_DRIVE_TRAIN:
@@ -585,11 +687,14 @@ def rhs(t, y, P, motor_on):
         ch0 += hum
         ch3 += hum
     ch4 = r * P[P_OMEGA_B] * w3
+    ch1 = m_el
+    if ext and P[P_IGAIN_A] != 0.0:  # the torque estimate's error, in the channel only (not on J1)
+        ch1 = m_el + m_err
     fc = P[P_LOWPASS]
     if fc > 0.0:
         a = 2.0 * math.pi * fc
         f0 = a * (ch0 - y[10])
-        f1 = a * (m_el - y[11])
+        f1 = a * (ch1 - y[11])
         f2 = a * (ch2 - y[12])
         f3 = a * (ch3 - y[13])
         f4 = a * (ch4 - y[14])
@@ -612,7 +717,7 @@ def rhs(t, y, P, motor_on):
         f3,
         f4,
     )
-    return dy, (ch0, m_el, ch2, ch3, ch4)
+    return dy, (ch0, ch1, ch2, ch3, ch4)
 
 
 @njit(cache=True, fastmath=False, **_NO_NRT)

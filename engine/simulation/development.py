@@ -10,9 +10,10 @@ lies. Families of effects outside the catalogue serve to measure it, with opposi
   need no new term in the simulator (each multiplies one field of MODEL.md).
 * :data:`~engine.simulation.held_out.HELD_OUT` (model 1.2),
   :data:`~engine.simulation.sealed.SEALED` (model 1.3),
-  :data:`~engine.simulation.sealed2.SEALED2` (model 1.4) and
-  :data:`~engine.simulation.sealed3.SEALED3` (model 1.5) are kept for scoring: development never
-  reads their scores.
+  :data:`~engine.simulation.sealed2.SEALED2` (model 1.4),
+  :data:`~engine.simulation.sealed3.SEALED3` (model 1.5) and
+  :data:`~engine.simulation.sealed4.SEALED4` (model 1.6) are kept for scoring: development never
+  reads their scores (SEALED to SEALED3 have had their one blind run each and are spent).
 
 =============================  ===============  ===============================  =============
 effect                         locus            term                             bounds

@@ -16,8 +16,11 @@ A protocol-2 run hides one family from the diagnosis and draws its held-back cas
   :data:`~engine.simulation.sealed2.RULE`); its one blind run (seed 263) is published, so it is
   spent: development data since.
 * ``sealed3``: :data:`~engine.simulation.sealed3.SEALED3` (model 1.5), kept for scoring (its rule:
-  :data:`~engine.simulation.sealed3.RULE`); its one blind run (seed 269) is published, so it is
-  spent: development data since.
+  :data:`~engine.simulation.sealed3.RULE`); its one blind run (seed 269, code ada3284) is published,
+  so it is spent: development data since.
+* ``sealed4``: :data:`~engine.simulation.sealed4.SEALED4` (model 1.6), kept for scoring (its rule:
+  :data:`~engine.simulation.sealed4.RULE`); run once, blind, on committed code, its figures are
+  out-of-sample ones.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from engine.simulation.held_out import HELD_OUT
 from engine.simulation.sealed import SEALED
 from engine.simulation.sealed2 import SEALED2
 from engine.simulation.sealed3 import SEALED3
+from engine.simulation.sealed4 import SEALED4
 
 __all__ = ["DEFAULT_FAMILY", "FAMILIES", "locus_of"]
 
@@ -40,6 +44,7 @@ FAMILIES: dict[str, EffectLibrary] = {
     "sealed": SEALED,
     "sealed2": SEALED2,
     "sealed3": SEALED3,
+    "sealed4": SEALED4,
 }
 #: The family a run hides unless told otherwise.
 DEFAULT_FAMILY: str = "held_back"

@@ -13,7 +13,9 @@ effects (``tau_ripple3``, ``clutch_offset``, ``tau_cog``, ``tau_C2``,
 ``xtalk2``); since model 1.4 the terms of the second sealed family (``u_dc``,
 ``r_m``, ``mu_1``, ``sq12``, ``play2``, ``bump3`` and the sensors' ``hold1``);
 since model 1.5 the terms of the third sealed family (``r_con``, ``r_bar``,
-``tau_brake``, ``hyst12``, ``mesh2``, ``eddy3`` and the sensors' ``hum``).
+``tau_brake``, ``hyst12``, ``mesh2``, ``eddy3`` and the sensors' ``hum``);
+since model 1.6 the terms of the fourth sealed family (``t_pole``, ``bypass_a``,
+``tau_rub``, ``seal12``, ``gear2``, ``bind3`` and the sensors' ``igain_a``).
 The sensor chain (delay, trigger offset, low-pass, gain, offset,
 quantisation) is also an extension with neutral defaults. See
 ``docs/model-changes.md``.
@@ -305,6 +307,34 @@ class PlantParameters:
     eddy3 : float
         Extension (1.5): an eddy-current brake on the load [pu torque, the largest force]: on the mass
         -eddy3 2 s / (1 + s^2), s = w_3 / W_EDDY (linear in the speed below W_EDDY, falling above it).
+    t_pole : float
+        Extension (1.6): one pole of the supply's contactor (phase c's) closes t_pole [s] after the
+        other two, in [0, 0.05]: until then phase c carries no current (i_s along e^(j 4 pi / 3)
+        stays zero; the motor's star point floats), so the stator flux's component along that axis
+        follows (x_m / x_r) times the rotor flux's instead of the supply (the reactances of the
+        instant); 0 means all three poles close at switch-on.
+    bypass_a : float
+        Extension (1.6): a share bypass_a [x] of phase a's turns bypassed (a coil jumpered out in an
+        emergency repair), in [0, 0.5]: the stator's alpha axis couples to the air gap with
+        n = 1 - (2/3) bypass_a of the turns, its leakage is s = 1 - (4/3) bypass_a + (2/3) bypass_a^2
+        times x_s - x_m and its resistance n r_s; the beta axis is unchanged, and m_el is the
+        torque on the rotor, psi_r_beta i_r_alpha - psi_r_alpha i_r_beta.
+    tau_rub : float
+        Extension (1.6): the rotor rubbing the stator's bore under the unbalanced magnetic pull
+        [pu torque at |psi_s| = 1 pu]: tau_rub |psi_s|^2 tanh(w_1 / W_SMOOTH) against the motor's
+        motion while the motor is on (the pull is the air gap's field's; not in m_el).
+    seal12 : float
+        Extension (1.6): dry friction between the clutch's halves [pu torque] (a coupling's seal, or a
+        misaligned insert rubbing): seal12 tanh((w_1 - w_2) / W_SMOOTH) from J1 to J2 at every
+        deflection, beside the contact.
+    gear2 : float
+        Extension (1.6): the mesh friction of a gear stage in the resilient path [x], 1 - its
+        efficiency: gear2 |m_s| tanh(w_2 / W_SMOOTH) against the wheel's motion (m_s the resilient
+        element's torque).
+    bind3 : float
+        Extension (1.6): misaligned guides of the load, pinching it harder the further it travels
+        [pu torque at THETA_BIND of travel]: bind3 |theta_3| / THETA_BIND tanh(w_3 / W_SMOOTH)
+        against the mass's motion.
     w_b : float
         Base value (issue 52): electrical base angular frequency w_b [rad/s], 2 pi times the rated
         supply frequency (MODEL.md: 2 pi 50).
@@ -366,6 +396,12 @@ class PlantParameters:
     hyst12: float = 0.0
     mesh2: float = 0.0
     eddy3: float = 0.0
+    t_pole: float = 0.0
+    bypass_a: float = 0.0
+    tau_rub: float = 0.0
+    seal12: float = 0.0
+    gear2: float = 0.0
+    bind3: float = 0.0
     w_b: float = const.W_B
     pole_pairs: int = const.POLE_PAIRS
     tm_per_j: float = TM_PER_J
@@ -441,6 +477,12 @@ class PlantParameters:
         _check_range("hyst12", self.hyst12, 0.0, 0.9, "x")
         _check_range("mesh2", self.mesh2, 0.0, 0.9, "x")
         _check_range("eddy3", self.eddy3, 0.0, 100.0, "pu")
+        _check_range("t_pole", self.t_pole, 0.0, 0.05, "s")
+        _check_range("bypass_a", self.bypass_a, 0.0, 0.5, "x")
+        _check_range("tau_rub", self.tau_rub, 0.0, 10.0, "pu")
+        _check_range("seal12", self.seal12, 0.0, 10.0, "pu")
+        _check_range("gear2", self.gear2, 0.0, 0.9, "x")
+        _check_range("bind3", self.bind3, 0.0, 100.0, "pu")
         for name in ("k12", "k2"):
             _check_range(name, getattr(self, name), 1e-3, 1e5, "pu/rad")
         for name in ("r_s", "r_r"):
@@ -492,9 +534,11 @@ class SensorParameters:
     ``a2 + xtalk2 a1``. Model 1.4 adds a sample-and-hold of omega1 after the low-pass: sample k's
     omega1 is the value at ``hold1 floor(t_k / hold1)``, t_k its instant since switch-on (step 1).
     Model 1.5 adds the mains' hum of a ground loop in the accelerometers' cabling before the chain:
-    a1 and a2 each read ``hum sin(f w_b t)`` more.
+    a1 and a2 each read ``hum sin(f w_b t)`` more. Model 1.6 adds a gain error of the phase-a current
+    sensor of the torque's estimate: while the motor is on, m_el reads
+    ``m_el + igain_a i_s_alpha (psi_s_alpha / sqrt(3) - psi_s_beta)``.
 
-    Steps 1-2 (and the encoder's and the accelerometer's errors, the hold and the hum) are in the kernel, 3-5
+    Steps 1-2 (and the encoder's and the accelerometer's errors, the hold, the hum and the current sensor's gain) are in the kernel, 3-5
     act on the sampled values (:func:`engine.simulation.simulator.apply_sensor_readout`).
 
     Parameters
@@ -529,6 +573,12 @@ class SensorParameters:
         [0, 100]: a1 and a2 each read hum * sin(f w_b t) more (t since switch-on, f w_b the supply's
         angular frequency; after the accelerometer's cross-talk, before the low-pass, gain and
         offset); 0 means none.
+    igain_a : float
+        Extension (1.6): gain error of the phase-a current sensor of the torque's estimate [x], in
+        [0, 1]: the estimate (the stator flux times the measured currents, phase c's computed from
+        a's and b's) sees i_a (1 + igain_a), so that m_el reads igain_a i_s_alpha (psi_s_alpha /
+        sqrt(3) - psi_s_beta) more while the motor is on (before the low-pass, gain and offset); 0
+        means none.
     """
 
     delay: float = 0.0
@@ -541,6 +591,7 @@ class SensorParameters:
     xtalk2: float = 0.0
     hold1: float = 0.0
     hum: float = 0.0
+    igain_a: float = 0.0
 
     def validate(self) -> SensorParameters:
         for f in fields(self):
@@ -558,6 +609,7 @@ class SensorParameters:
         _check_range("xtalk2", self.xtalk2, 0.0, 1.0, "x")
         _check_range("hold1", self.hold1, 0.0, 0.01, "s")
         _check_range("hum", self.hum, 0.0, 100.0, "m/s^2")
+        _check_range("igain_a", self.igain_a, 0.0, 1.0, "x")
         return self
 
     def replace(self, **changes: Any) -> SensorParameters:

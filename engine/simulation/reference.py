@@ -3,7 +3,7 @@
 A second, independent transcription of MODEL.md, of the effect catalogue, of the
 held-back effects and of the additive unknown input of model 1.1, of the held-out
 effects of model 1.2, of the sealed effects of model 1.3, of the second sealed family of
-model 1.4 and of the third sealed family of model 1.5,
+model 1.4, of the third sealed family of model 1.5 and of the fourth sealed family of model 1.6,
 used as the yardstick of the numba kernel (MODEL.md section 4, relative
 tolerance 1e-9; ``tests/test_simulation_accuracy.py``) and as the baseline of
 ``bench/bench_simulator.py``. It is slow on purpose: plain numpy, complex
@@ -80,6 +80,20 @@ x the signed penetration; the resilient spring plus ``v k_2 x sin(MESH_ORDER the
 ``-v 2 s / (1 + s^2)``, ``s = w_3 / W_EDDY``, on the mass; and ``v sin(f w_b t)`` added to a1 and a2
 after the cross-talk.
 
+Model 1.6 (``docs/model-changes.md``)
+-------------------------------------
+The fourth sealed family (:data:`engine.simulation.SEALED4`), written out here from its
+definitions: phase c open until ``t = v`` (the solution in two pieces, split there), the stator
+flux's derivative along ``e_c = e^(j 4 pi / 3)`` replaced by ``(x_m / x_r)`` times the rotor flux's,
+so that ``Re(i_s conj(e_c))`` keeps its zero; a share v of phase a's turns bypassed, the real (alpha)
+parts of the currents from the alpha axis's own inductance matrix ``[[n^2 x_m + s (x_s - x_m),
+n x_m], [n x_m, x_r]]``, ``n = 1 - 2 v / 3``, ``s = 1 - 4 v / 3 + 2 v^2 / 3``, its resistance
+``n r_s``, and the torque ``Im(conj(i_r) psi_r)`` on the rotor; the rub ``v |psi_s|^2 tanh(w_1 /
+W_SMOOTH)`` against the motor while it is on; ``v tanh((w_1 - w_2) / W_SMOOTH)`` from J1 to J2; ``v
+|m_s| tanh(w_2 / W_SMOOTH)`` against the wheel; ``v |theta_3| / THETA_BIND tanh(w_3 / W_SMOOTH)``
+against the mass; and the m_el channel (not the torque on J1) reading ``v Re(i_s) (Re(psi_s) /
+sqrt(3) - Im(psi_s))`` more while the motor is on.
+
 Sensor chain
 ------------
 Applied in the order of the measurement:
@@ -128,6 +142,7 @@ from engine.constants import (
     T_BRAKE_RELEASE,
     T_BRAKE_TRAVEL,
     T_EVENT_MAX,
+    THETA_BIND,
     THETA_BUMP,
     TM_PER_J,
     W_B,
@@ -247,6 +262,17 @@ SEALED3_NEUTRAL: Mapping[str, float] = {
     "accelerometer_mains_hum": 0.0,  # m/s^2: a1 and a2 read value sin(f w_b t) more
 }
 
+#: The fourth sealed family (model 1.6), at its "no effect" value.
+SEALED4_NEUTRAL: Mapping[str, float] = {
+    "supply_late_pole": 0.0,  # s: phase c carries no current until t = value
+    "stator_coil_bypass": 0.0,  # x: phase a with (1 - value) of its turns (the alpha axis's own inductances)
+    "motor_rotor_rub": 0.0,  # pu: - value |psi_s|^2 tanh(w_1 / W_SMOOTH) on the motor shaft, motor on
+    "clutch_seal_drag": 0.0,  # pu: value tanh((w_1 - w_2) / W_SMOOTH) from J1 to J2, every deflection
+    "resilient_gear_loss": 0.0,  # x: - value |m_s| tanh(w_2 / W_SMOOTH) on the wheel
+    "load_guide_binding": 0.0,  # pu: - value |theta_3| / THETA_BIND tanh(w_3 / W_SMOOTH) on the mass
+    "torque_current_gain": 0.0,  # x: m_el read + value Re(i_s) (Re(psi_s) / sqrt(3) - Im(psi_s)), motor on
+}
+
 _N_PLANT = 10  # psi_s (2), psi_r (2), w_1..3, theta_1..3
 _N_CHANNELS = len(CHANNELS)
 _OMEGA1 = CHANNELS.index("omega1")
@@ -289,6 +315,7 @@ def _resolve(parameters: Mapping[str, float] | None, effects: Mapping[str, float
         **SEALED_NEUTRAL,
         **SEALED2_NEUTRAL,
         **SEALED3_NEUTRAL,
+        **SEALED4_NEUTRAL,
     }
     for name in effects or {}:
         if name not in neutral_values:
@@ -332,7 +359,8 @@ class ReferenceModel:
     values : mapping
         Every MODEL.md name and every effect name of :data:`EFFECT_NEUTRAL`,
         :data:`HELD_BACK_NEUTRAL`, :data:`HELD_OUT_NEUTRAL`, :data:`SEALED_NEUTRAL`,
-        :data:`SEALED2_NEUTRAL` and :data:`SEALED3_NEUTRAL` (see :func:`reference_simulate`).
+        :data:`SEALED2_NEUTRAL`, :data:`SEALED3_NEUTRAL` and :data:`SEALED4_NEUTRAL` (see
+        :func:`reference_simulate`).
     disturbance : mapping, optional
         The unknown input ``{"locus", "t0", "dt", "values"}``.
 
@@ -363,6 +391,10 @@ class ReferenceModel:
         self.brake, self.hysteresis = v["motor_brake"], v["clutch_hysteretic_contact"]
         self.mesh, self.eddy = v["resilient_mesh_stiffness"], v["load_eddy_current_brake"]
         self.hum = v["accelerometer_mains_hum"]
+        self.late_pole, self.bypass = v["supply_late_pole"], v["stator_coil_bypass"]
+        self.rub, self.seal = v["motor_rotor_rub"], v["clutch_seal_drag"]
+        self.gear, self.binding = v["resilient_gear_loss"], v["load_guide_binding"]
+        self.current_gain = v["torque_current_gain"]
         leak = v["leakage_reactance"]  # both leakages x_s - x_m and x_r - x_m higher by it
         self.x_s, self.x_r, self.x_m = v["x_s"] + leak, v["x_r"] + leak, v["x_m"]
         self.switch_off = (math.inf, 0.0)
@@ -387,15 +419,24 @@ class ReferenceModel:
         self.n_states = _N_PLANT + (_N_CHANNELS if self.filter_rate else 0)
         self.n_rhs = 0
 
-    def derivatives(self, t: float, y: np.ndarray, motor_on: bool) -> tuple[np.ndarray, np.ndarray]:
-        """dy/dt and the unfiltered channels [a1, m_el, omega1, a2, v2] (MODEL.md section 3 units)."""
+    def derivatives(
+        self, t: float, y: np.ndarray, motor_on: bool, pole_open: bool | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """dy/dt and the unfiltered channels [a1, m_el, omega1, a2, v2] (MODEL.md section 3 units).
+
+        ``pole_open``: whether phase c is still open (model 1.6's late pole); by default while
+        t < its closing instant (the piece before it is solved with True up to that instant).
+        """
         self.n_rhs += 1
         psi = y[0:2] + 1j * y[2:4]  # [psi_s, psi_r]
         w, th = y[4:7], y[7:10]
         dpsi = np.zeros(2, dtype=complex)
         m_el = 0.0
+        error = 0.0  # the torque estimate's error (the m_el channel only)
+        if pole_open is None:
+            pole_open = t < self.late_pole
         if motor_on:
-            i_s, i_r = self.inverse_inductance(psi[0]) @ psi
+            i_s, i_r = self.currents(psi)
             phase = np.exp(1j * self.f * W_B * t)
             amplitude = self.u * (1.0 + self.input.at("supply", t))
             amplitude *= 1.0 + self.flicker * math.sin(2.0 * math.pi * F_FLICKER * t)
@@ -406,8 +447,15 @@ class ReferenceModel:
             axis = np.exp(1j * POLE_PAIRS * th[0])  # the broken bar's rotor axis, electrical angle p theta_1
             bar = self.broken_bar * self.r_r * (i_r * np.conj(axis)).real * axis
             dpsi[0] = W_B * (u_s - self.r_s * i_s - loss)
+            dpsi[0] += W_B * 2.0 / 3.0 * self.bypass * self.r_s * i_s.real  # phase a's resistance n r_s
             dpsi[1] = W_B * (-self.r_r * i_r - bar - loss + 1j * w[0] * psi[1])
-            m_el = float(np.imag(np.conj(psi[0]) * i_s))
+            if pole_open:  # phase c open: the stator flux along e_c follows (x_m / x_r) the rotor's
+                _, x_r, x_m = self.reactances(psi[0])
+                e_c = np.exp(4j * math.pi / 3.0)
+                along = x_m / x_r * (dpsi[1] * np.conj(e_c)).real - (dpsi[0] * np.conj(e_c)).real
+                dpsi[0] += along * e_c
+            m_el = self.torque(psi, i_s, i_r)
+            error = self.current_gain * i_s.real * (psi[0].real / math.sqrt(3.0) - psi[0].imag)
         elif self.decay != 0:
             t_e, m_e = self.switch_off
             m_el = self.decay * m_e * math.exp(-(t - t_e) / SWITCH_OFF_DECAY_TIME)
@@ -439,6 +487,11 @@ class ReferenceModel:
         m_f += self.stribeck * math.tanh(w[0] / W_SMOOTH) * math.exp(-((w[0] / W_STRIBECK) ** 2))
         m_f += self.bearing * abs(m_c) * math.tanh(w[0] / W_SMOOTH)  # the bearings under the clutch's load
         m_f += self.brake * self.brake_engagement(t, motor_on) * math.tanh(w[0] / W_SMOOTH)
+        if motor_on:  # the rotor's rub under the magnetic pull of the air gap's field
+            m_f += self.rub * abs(psi[0]) ** 2 * math.tanh(w[0] / W_SMOOTH)
+        m_seal = self.seal * math.tanh((w[0] - w[1]) / W_SMOOTH)  # dry friction between the clutch's halves
+        m_gear = self.gear * abs(m_s) * math.tanh(w[1] / W_SMOOTH)  # the resilient path's mesh friction
+        binding = self.binding * abs(th[2]) / THETA_BIND * math.tanh(w[2] / W_SMOOTH)  # the guides' friction
         s_eddy = w[2] / W_EDDY
         eddy = self.eddy * 2.0 * s_eddy / (1.0 + s_eddy**2)  # the eddy-current brake's force on the mass
         s_bump = (th[2] - THETA_BUMP) / W_BUMP  # where the mass is on the bump
@@ -446,9 +499,11 @@ class ReferenceModel:
         m_pre = self.preload * self.k12 * d  # the spring across the clutch, inside the zone too
         torques = np.array(
             [
-                m_el - m_c - m_pre - m_f + self.input.at("motor_shaft", t, motor_on),
+                m_el - m_c - m_pre - m_f - m_seal + self.input.at("motor_shaft", t, motor_on),
                 m_c
                 + m_pre
+                + m_seal
+                - m_gear
                 - m_s
                 - self.wheel_friction * math.tanh(w[1] / W_SMOOTH)
                 + self.input.at("drive_train", t, motor_on),
@@ -459,6 +514,7 @@ class ReferenceModel:
                 - self.drag * w[2] * abs(w[2])
                 + bump
                 - eddy
+                - binding
                 + self.input.at("load", t, motor_on),
             ]
         )
@@ -467,7 +523,7 @@ class ReferenceModel:
         a1, a2 = self.r * OMEGA_B * dw_dt[0], self.r * OMEGA_B * dw_dt[2]
         a2 += self.crosstalk * a1  # the load accelerometer's cross-axis sensitivity
         hum = self.hum * math.sin(self.f * W_B * t)  # the mains in the accelerometers' cabling
-        raw = np.array([a1 + hum, m_el, omega1, a2 + hum, self.r * OMEGA_B * w[2]])
+        raw = np.array([a1 + hum, m_el + error, omega1, a2 + hum, self.r * OMEGA_B * w[2]])
         parts = [dpsi.real, dpsi.imag, dw_dt, OMEGA_B * w]
         if self.filter_rate:
             parts.append(self.filter_rate * (raw - y[_N_PLANT:]))
@@ -488,9 +544,33 @@ class ReferenceModel:
         """L^-1 with [i_s, i_r] = L^-1 [psi_s, psi_r]; with saturation x_m depends on |psi_s|."""
         if not self.saturation:
             return self.Linv
-        x_m = self.x_m / (1.0 + self.saturation * abs(psi_s) ** 2)
-        x_s, x_r = self.x_s - self.x_m + x_m, self.x_r - self.x_m + x_m  # the leakages are unchanged
+        x_s, x_r, x_m = self.reactances(psi_s)
         return np.array([[x_r, -x_m], [-x_m, x_s]]) / (x_s * x_r - x_m**2)
+
+    def reactances(self, psi_s: complex) -> tuple[float, float, float]:
+        """(x_s, x_r, x_m) [pu] at the stator flux psi_s: with saturation x_m falls, the leakages kept."""
+        if not self.saturation:
+            return self.x_s, self.x_r, self.x_m
+        x_m = self.x_m / (1.0 + self.saturation * abs(psi_s) ** 2)
+        return self.x_s - self.x_m + x_m, self.x_r - self.x_m + x_m, x_m
+
+    def currents(self, psi: np.ndarray) -> tuple[complex, complex]:
+        """(i_s, i_r) [pu] of the fluxes [psi_s, psi_r]; with phase a's turns bypassed, the alpha axis its own."""
+        i_s, i_r = self.inverse_inductance(psi[0]) @ psi
+        if self.bypass:  # phase a with (1 - v) of its turns: the real (alpha) axis's own inductance matrix
+            x_s, x_r, x_m = self.reactances(psi[0])
+            n = 1.0 - 2.0 / 3.0 * self.bypass
+            leak = (1.0 - 4.0 / 3.0 * self.bypass + 2.0 / 3.0 * self.bypass**2) * (x_s - x_m)
+            alpha = np.array([[n * n * x_m + leak, n * x_m], [n * x_m, x_r]])
+            i_sa, i_ra = np.linalg.solve(alpha, psi.real)
+            i_s, i_r = complex(i_sa, i_s.imag), complex(i_ra, i_r.imag)
+        return complex(i_s), complex(i_r)
+
+    def torque(self, psi: np.ndarray, i_s: complex, i_r: complex) -> float:
+        """m_el [pu]: Im(conj(psi_s) i_s), or with phase a's turns bypassed the torque on the rotor, Im(conj(i_r) psi_r)."""
+        if self.bypass:
+            return float(np.imag(np.conj(i_r) * psi[1]))
+        return float(np.imag(np.conj(psi[0]) * i_s))
 
     def deflection(self, t: float, y: np.ndarray, motor_on: bool = True) -> float:
         """theta_1 - theta_2 measured from the centre of the backlash zone [rad]."""
@@ -520,9 +600,10 @@ def reference_simulate(
         MODEL.md parameters that differ from :data:`MODEL_DEFAULTS`, by their
         MODEL.md names (e.g. ``{"K": 0.005, "J1": 0.87, "c": 1.0}``).
     effects : mapping, optional
-        Catalogued, held-back, held-out and sealed effects (the three sealed families) by name and
+        Catalogued, held-back, held-out and sealed effects (the four sealed families) by name and
         value (keys of :data:`EFFECT_NEUTRAL`, :data:`HELD_BACK_NEUTRAL`, :data:`HELD_OUT_NEUTRAL`,
-        :data:`SEALED_NEUTRAL`, :data:`SEALED2_NEUTRAL` and :data:`SEALED3_NEUTRAL`).
+        :data:`SEALED_NEUTRAL`, :data:`SEALED2_NEUTRAL`, :data:`SEALED3_NEUTRAL` and
+        :data:`SEALED4_NEUTRAL`).
     method, rtol, atol
         ``solve_ivp`` settings.
     grid : SampleGrid, optional
@@ -565,7 +646,14 @@ def reference_simulate(
 
     kw: dict[str, Any] = dict(method=method, rtol=rtol, atol=atol, dense_output=True)
     y0 = np.zeros(model.n_states)
-    s1 = solve_ivp(f_on, (0.0, T_EVENT_MAX), y0, events=event(1.0), **kw)
+    t_pole = model.late_pole
+    s0 = None
+    if t_pole > 0:  # phase c closes at t_pole: the first piece with it open, up to that instant
+        s0 = solve_ivp(lambda t, y: model.derivatives(t, y, True, True)[0], (0.0, t_pole), y0, events=event(1.0), **kw)
+        if s0.status != 0:
+            raise RuntimeError(f"reference: the first contact before the late pole closes ({s0.message})")
+        y0 = s0.y[:, -1]
+    s1 = solve_ivp(f_on, (t_pole, T_EVENT_MAX), y0, events=event(1.0), **kw)
     if s1.status != 1:
         raise RuntimeError(f"reference: no first contact within {T_EVENT_MAX} s ({s1.message})")
     t_c = s1.t_events[0][0]
@@ -574,7 +662,8 @@ def reference_simulate(
         raise RuntimeError(f"reference: no re-entry into the backlash zone within {T_EVENT_MAX} s ({s2.message})")
     t_e = float(s2.t_events[0][0])
     y_e = s2.y_events[0][0]
-    model.switch_off = (t_e, float(model.derivatives(t_e, y_e, True)[1][1] - model.input.at("motor_electrical", t_e)))
+    psi_e = y_e[0:2] + 1j * y_e[2:4]
+    model.switch_off = (t_e, model.torque(psi_e, *model.currents(psi_e)))
     ts, n, e = _grid_numbers(grid)
     t_k = t_e + (np.arange(n) - e) * ts - values["measurement_delay"] - values["trigger_offset"]
     s3 = solve_ivp(f_off, (t_e, max(t_k[-1], t_e) + 1e-9), y_e, **kw)
@@ -586,6 +675,8 @@ def reference_simulate(
         """The channels as the sensors read them at t [s since switch-on] (zeros before it)."""
         if t < 0:
             return np.zeros(_N_CHANNELS)  # before switch-on: the plant at rest
+        if s0 is not None and t < t_pole:
+            return model.channels(t, s0.sol(t), True)
         if t < t_c:
             return model.channels(t, s1.sol(t), True)
         if t < t_e:
@@ -674,6 +765,13 @@ def reference_inputs(case: Case) -> tuple[dict[str, float], dict[str, float]]:
         "resilient_mesh_stiffness": p.mesh2,
         "load_eddy_current_brake": p.eddy3,
         "accelerometer_mains_hum": s.hum,
+        "supply_late_pole": p.t_pole,
+        "stator_coil_bypass": p.bypass_a,
+        "motor_rotor_rub": p.tau_rub,
+        "clutch_seal_drag": p.seal12,
+        "resilient_gear_loss": p.gear2,
+        "load_guide_binding": p.bind3,
+        "torque_current_gain": s.igain_a,
     }
     return parameters, effects
 

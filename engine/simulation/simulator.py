@@ -161,10 +161,10 @@ def parameter_vector(
     Parameters
     ----------
     case : Case
-        Plant (with its model-1.1 to 1.5 terms and unknown input, if any) and measurement
+        Plant (with its model-1.1 to 1.6 terms and unknown input, if any) and measurement
         chain; only the chain's delay, trigger offset, low-pass, (model 1.2) encoder eccentricity,
-        (model 1.3) accelerometer cross-talk, (model 1.4) omega1's sample-and-hold and (model 1.5)
-        the accelerometers' mains hum enter the kernel (gain, offset and quantisation act afterwards: :func:`apply_sensor_readout`). Model
+        (model 1.3) accelerometer cross-talk, (model 1.4) omega1's sample-and-hold, (model 1.5)
+        the accelerometers' mains hum and (model 1.6) the torque estimate's current sensor enter the kernel (gain, offset and quantisation act afterwards: :func:`apply_sensor_readout`). Model
         1.3's higher leakage reactances (``x_leak``) enter as ``x_s + x_leak`` and ``x_r + x_leak``,
         with no term of their own.
     solver : SolverSettings
@@ -217,6 +217,10 @@ def parameter_vector(
     P[kern.P_R_CON], P[kern.P_R_BAR], P[kern.P_TAU_BRAKE] = p.r_con, p.r_bar, p.tau_brake
     P[kern.P_HYST12], P[kern.P_MESH2], P[kern.P_EDDY3] = p.hyst12, p.mesh2, p.eddy3
     P[kern.P_HUM] = s.hum
+    # model 1.6 (appended after model 1.5's)
+    P[kern.P_T_POLE], P[kern.P_BYPASS_A], P[kern.P_TAU_RUB] = p.t_pole, p.bypass_a, p.tau_rub
+    P[kern.P_SEAL12], P[kern.P_GEAR2], P[kern.P_BIND3] = p.seal12, p.gear2, p.bind3
+    P[kern.P_IGAIN_A] = s.igain_a
     extended = (
         dist is not None
         or any(P[kern.P_TAU_RIPPLE3 : kern.P_M_OFF + 1] != 0.0)
@@ -224,6 +228,7 @@ def parameter_vector(
         or p.x_leak != 0.0  # no kernel term (folded into x_s, x_r above); switched on as every 1.3 term is
         or any(P[kern.P_U_DC : kern.P_HOLD1 + 1] != 0.0)
         or any(P[kern.P_R_CON : kern.P_HUM + 1] != 0.0)
+        or any(P[kern.P_T_POLE : kern.P_IGAIN_A + 1] != 0.0)
     )
     P[kern.P_EXTENDED] = 1.0 if extended else 0.0
     return P
@@ -401,7 +406,8 @@ def simulate_batch(
         :data:`~engine.simulation.held_out.HELD_OUT` for the held-out ones (model 1.2),
         :data:`~engine.simulation.sealed.SEALED` for the sealed ones (model 1.3),
         :data:`~engine.simulation.sealed2.SEALED2` for the second sealed family (model 1.4),
-        :data:`~engine.simulation.sealed3.SEALED3` for the third (model 1.5).
+        :data:`~engine.simulation.sealed3.SEALED3` for the third (model 1.5),
+        :data:`~engine.simulation.sealed4.SEALED4` for the fourth (model 1.6).
 
     Returns
     -------
