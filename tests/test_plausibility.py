@@ -125,6 +125,28 @@ def test_the_other_plants_records_refuse_them_too() -> None:
         brfd_record.record_from_arrays(np.arange(1024) / 1024, np.zeros(1024), force, "test", "in", "kip")
 
 
+@pytest.mark.parametrize("rounding", [0.0, 1e-16, 1e-13])
+def test_a_stuck_channel_is_refused_whatever_the_rounding_of_its_reading(rounding: float) -> None:
+    """An EMPS encoder stuck at 0.25 m: its position is the zero-phase filter of a constant, which
+    varies by about 1e-15 of it by the platform's arithmetic (or by a rounding of the values sent),
+    and is refused all the same; a position that moves by a micrometre is not."""
+    from engine.diagnosis.plant_plausibility import ConstantChannelError, check_channels
+    from engine.plants import get_plant
+
+    n = 1000
+    t = np.arange(n) * emps_record.SAMPLE_INTERVAL
+    qm = 0.25 + rounding * np.random.default_rng(0).standard_normal(n)
+    gains = {"kp": 1.0, "kv": 1.0, "gtau": 1.0}
+    vir = np.sin(np.arange(n) / 50.0)
+    stuck = emps_record.record_from_arrays({"t": t, "qm": qm, "qg": qm, "vir": vir}, gains, "stuck")
+    with pytest.raises(ConstantChannelError, match=r"channel position is 0\.25 m at every one of its"):
+        check_channels(get_plant("emps"), stuck)
+    moving = 0.25 + 1e-6 * np.sin(np.arange(n) / 80.0)
+    check_channels(
+        get_plant("emps"), emps_record.record_from_arrays({"t": t, "qm": moving, "qg": moving, "vir": vir}, gains, "m")
+    )
+
+
 def test_a_record_longer_than_the_cap_is_refused_on_every_plant(clean: Record) -> None:
     """One cap on samples per record at every plant's boundary (issue 51, item 2): refused, saying what to send."""
     n = MAX_SAMPLES + 1

@@ -16,9 +16,9 @@ diagnosis, on the model the answer ends with (the named set's fit, or the calibr
 - ``misfit``: chi2 per sample above ``MISFIT_CHI2`` on a channel no scale explains: the model does
   not reproduce the record there, and every number fitted to it carries model error.
 
-:func:`check_channels` runs before any fit: a channel without a single change over the scored
-window (``constant_channel``: a stuck sensor, a placeholder column) is refused, since no noise level
-and no fit can be read from it.
+:func:`check_channels` runs before any fit: a channel without a change over the scored window
+(beyond its reading's rounding, :data:`CONSTANT_CHANNEL_REL`; ``constant_channel``: a stuck sensor,
+a placeholder column) is refused, since no noise level and no fit can be read from it.
 
 :func:`check_interval` runs after them when the answer's model leaves a misfit:
 
@@ -55,9 +55,23 @@ from engine.plants.base import Plant
 from engine.plants.noise import NoiseLevel
 from engine.records import RecordError
 
-__all__ = ["UNIT_FACTORS", "ConstantChannelError", "check_channels", "check_fit", "check_interval", "interval_evidence"]
+__all__ = [
+    "CONSTANT_CHANNEL_REL",
+    "UNIT_FACTORS",
+    "ConstantChannelError",
+    "check_channels",
+    "check_fit",
+    "check_interval",
+    "interval_evidence",
+]
 
 logger = logging.getLogger(__name__)
+
+#: A channel whose values span at most this share of their magnitude over the scored window never
+#: changes [-]: far below any sensor's resolution (a 24-bit converter resolves 6e-8 of its range),
+#: far above the rounding of a plant's reading (a zero-phase filter of a constant varies by about
+#: 1e-15 of it, by the platform's arithmetic).
+CONSTANT_CHANNEL_REL: Final[float] = 1e-9
 
 #: Factors between a record's values and the model's that a unit mistake makes [-], with what to ask:
 #: the record in milli-units (mm for m), in kilo-units (kN for N), in centi-units (cm for m), an
@@ -90,7 +104,7 @@ def check_channels(plant: Plant, record: Any) -> None:
     measured = plant.measured(record)
     for c in plant.channels:
         y = np.asarray(measured[c.name], dtype=float)[window]
-        if y.size and float(np.ptp(y)) == 0.0:
+        if y.size and float(np.ptp(y)) <= CONSTANT_CHANNEL_REL * float(np.max(np.abs(y))):
             raise ConstantChannelError(
                 f"channel {c.name} is {y[0]:.6g} {c.unit} at every one of its {y.size} scored samples: a stuck or "
                 "disconnected sensor, or a placeholder column? Check the sensor, or leave the channel out of the "
