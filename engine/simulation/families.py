@@ -19,8 +19,8 @@ A protocol-2 run hides one family from the diagnosis and draws its held-back cas
   :data:`~engine.simulation.sealed3.RULE`); its one blind run (seed 269, code ada3284) is published,
   so it is spent: development data since.
 * ``sealed4``: :data:`~engine.simulation.sealed4.SEALED4` (model 1.6), kept for scoring (its rule:
-  :data:`~engine.simulation.sealed4.RULE`); run once, blind, on committed code, its figures are
-  out-of-sample ones.
+  :data:`~engine.simulation.sealed4.RULE`); scored once, blind (seed 281, code 55d4a47), its figures
+  published: spent, development data since.
 """
 
 from __future__ import annotations
