@@ -922,6 +922,35 @@ def test_seeded_triples_and_their_exchange_that_explain_spare_the_escalation_of_
         assert len(escalations) == 2 and frozenset(triple) in searches[3][4]  # the triple is kept, not refitted
 
 
+@pytest.mark.parametrize(("best_triple", "exchanged"), [(40.0, False), (30.0, True)])
+def test_the_first_exchange_runs_only_when_the_first_sets_closed_a_quarter_of_the_best_single_s_excess(
+    monkeypatch: pytest.MonkeyPatch, best_triple: float, exchanged: bool
+) -> None:
+    """Issue 54 (``SetSettings.min_exchange_progress``, 0.25): singles at chi2/n 50 and more; the best
+    first triple at 40 closes about 0.20 of the best single's excess over the noise, and the exchange
+    from it is skipped; at 30 it closes about 0.41, and the exchange runs."""
+    assert SetSettings().min_exchange_progress == 0.25
+    searches: list[int] = []
+    triple = ("load_inertia", "supply_voltage", "sensor_gain")
+
+    def fake_search(record, nominal, space, library, cands, cs, ss, previous=(), screens=None):
+        searches.append(ss.n_extend)
+        if len(searches) == 1:  # the first pairs
+            return [pair(("load_inertia", "supply_voltage"), 45.0, (10.0, 10.0))]
+        if len(searches) == 2:  # the seeded triples
+            return [pair(triple, best_triple, (10.0, 10.0, 10.0))]
+        return []
+
+    monkeypatch.setattr(staged_module, "search_sets", fake_search)
+    monkeypatch.setattr(staged_module, "escalate_candidates", lambda record, nominal, space, library, cands, cs: cands)
+    stages: list[str] = []
+    cands = [single(n, 50.0 + i, 10.0) for i, n in enumerate(triple)]
+    staged_module.staged_search(None, fake_cal(100.0, k=3), None, CATALOGUE, cands, DiagnosisSettings(), stages.append)
+    assert stages[:3] == ["early escalation of the best singles", "first pairs", "first triples"]
+    assert ("first exchange" in stages) is exchanged
+    assert (len(searches) >= 3 and searches[2] == 0) is exchanged  # the exchange builds no triple again
+
+
 def test_without_a_triple_so_far_there_is_no_first_exchange(monkeypatch: pytest.MonkeyPatch) -> None:
     """The first exchange starts from the best first triple: none fitted (``first_triples`` off), none run."""
     searches: list[int] = []
