@@ -39,9 +39,9 @@ def main(argv: list[str] | None = None) -> int:
     from engine.diagnosis.calibration import calibrate
     from engine.diagnosis.diagnose import DiagnosisSettings
     from engine.diagnosis.locus import LocusSettings
-    from engine.diagnosis.locus._estimate import _motions
-    from engine.diagnosis.locus._interference import periodic_extension, segment_gain
-    from engine.diagnosis.locus._linear import linear_fit, orth, project, sparse_extension
+    from engine.diagnosis.locus._estimate import sensor_fit
+    from engine.diagnosis.locus._interference import segment_gain
+    from engine.diagnosis.locus._linear import linear_fit, orth, project
     from engine.diagnosis.locus._responses import responses
     from engine.diagnosis.space import default_space
 
@@ -66,24 +66,16 @@ def main(argv: list[str] | None = None) -> int:
         resp = responses(record, cal, sigma, rows, locus_settings)
         Q = orth(resp.params, r.size)
         rp = project(Q, r[:, None])[:, 0]
-        s_rss, _, _, s_cross, _ = sparse_extension(project(Q, resp.sensors), project(Q, resp.crosstalk), rp, Q.shape[1])
-        design = np.hstack([project(Q, resp.sensors), project(Q, resp.crosstalk[:, s_cross])])
-        hum = periodic_extension(
-            design,
-            rp,
-            record.grid.time,
-            len(rows),
-            Q.shape[1],
-            Q,
-            locus_settings.interference_min_periods,
-            motions=_motions(names, sigma, cal),
-        )
-        drop = 0.0 if hum is None else s_rss - hum.rss - hum.penalty
+        t = record.grid.time
+        fit = sensor_fit(resp, Q, rp, t, names, sigma, cal, locus_settings)
+        hum = fit.interference
+        drop = 0.0 if hum is None else fit.base_rss - hum.rss - hum.penalty
         ns = {}
-        if hum is not None:
+        if hum is not None:  # the stationarity rule's statistic on the channels taken
+            design = np.hstack([project(Q, resp.sensors), project(Q, resp.crosstalk[:, fit.cross])])
             _, _, c0 = linear_fit(design, rp, Q.shape[1])
             e = (rp - design @ c0).reshape(len(rows), -1)
-            whole, gain = segment_gain(e, record.grid.time - record.grid.time[0], hum.frequency_hz, 4)
+            whole, gain = segment_gain(e, t - t[0], hum.frequency_hz, 4)
             ns = {names[j]: round(float(gain[j] / whole[j]), 4) for j in hum.channels}
         truth = k.effects[0] if k.effects else None
         row = {

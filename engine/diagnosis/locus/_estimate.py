@@ -10,16 +10,17 @@ import logging
 import math
 import time
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
 from engine.constants import CHANNELS, DERIVATIVE_CHANNELS
 from engine.diagnosis.calibration import CalibrationError, CalibrationResult
-from engine.diagnosis.locus._interference import periodic_extension
+from engine.diagnosis.locus._interference import Interference, periodic_extension
 from engine.diagnosis.locus._linear import orth, penalised_fit, project, sparse_extension
 from engine.diagnosis.locus._refine import Estimate, refine
 from engine.diagnosis.locus._report import LocusError, LocusReport, LocusScore, LocusSettings
-from engine.diagnosis.locus._responses import N_EXTRAS, Observed, responses
+from engine.diagnosis.locus._responses import N_EXTRAS, Observed, Responses, responses
 from engine.diagnosis.locus._starts import extras_scan, joint_fits, refinement_start
 from engine.diagnosis.locus._term import locus_term, sensor_term
 from engine.diagnosis.locus._uncertainty import part_term_sigma
@@ -76,16 +77,111 @@ def estimate_locus(
         return _estimate(record, calibration, settings, space, known_drifts)
 
 
-def _motions(names: list[str], sigma: np.ndarray, cal: CalibrationResult) -> list[tuple[int, int, float]]:
-    """The record's pairs of a channel and its time derivative (:data:`DERIVATIVE_CHANNELS`), whitened scale."""
+@dataclass(frozen=True)
+class SensorFit:
+    """The measurement chain's fit to the whitened residual (step 5 of the method).
+
+    Attributes
+    ----------
+    rss, bic, dof : float
+        The fit's residual, its BIC and its degrees of freedom [chi2 units; -], the interference's
+        included when one is taken.
+    coef : ndarray
+        Coefficients of the base library's columns (``Responses.sensor_names``).
+    cross : list of int
+        The cross-talk columns taken (``Responses.crosstalk_names``), with ``cross_coef``.
+    cross_coef : ndarray
+    base_rss : float
+        The residual before the interference (the base library and the cross-talk) [chi2 units].
+    interference : Interference or None
+        The periodic interference taken, if any (:mod:`engine.diagnosis.locus._interference`).
+    """
+
+    rss: float
+    bic: float
+    dof: float
+    coef: np.ndarray
+    cross: list[int]
+    cross_coef: np.ndarray
+    base_rss: float
+    interference: Interference | None
+
+    def values(self, resp: Responses, names: list[str], sigma: np.ndarray) -> dict[str, float]:
+        """The fitted values by name, as :func:`~engine.diagnosis.locus._term.sensor_term` reads them."""
+        values = dict(zip(resp.sensor_names, (float(v) for v in self.coef), strict=True))
+        values |= {resp.crosstalk_names[j]: float(v) for j, v in zip(self.cross, self.cross_coef, strict=True)}
+        hum = self.interference
+        if hum is not None:
+            values["interference_hz"] = hum.frequency_hz
+            for j, (a, b) in zip(hum.channels, hum.coef, strict=True):
+                values[f"interference_{names[j]}"] = float(math.hypot(a, b) * sigma[j])
+        return values
+
+
+def sensor_fit(
+    resp: Responses,
+    Q: np.ndarray,
+    rp: np.ndarray,
+    t: np.ndarray,
+    names: list[str],
+    sigma: np.ndarray,
+    cal: CalibrationResult,
+    settings: LocusSettings,
+) -> SensorFit:
+    """The measurement chain's fit: its base library, the cross-talk and the periodic interference the data ask for.
+
+    Parameters
+    ----------
+    resp : Responses
+        The response batch (its sensor and cross-talk columns).
+    Q : ndarray, shape (n, k)
+        Orthonormal basis of the calibrated parameters' columns, projected out of every column.
+    rp : ndarray, shape (n,)
+        The whitened residual, the calibrated parameters projected out.
+    t : ndarray, shape (n_samples,)
+        The window's sample instants [s].
+    names : list of str
+        The record's channels, in the residual's order.
+    sigma : ndarray, shape (n_ch,)
+        Each channel's noise standard deviation (the whitening).
+    cal : CalibrationResult
+        The calibration (the plant's wheel radius scales a1 against omega1).
+    settings : LocusSettings
+    """
+    k = Q.shape[1]
+    sensors, crosstalk = project(Q, resp.sensors), project(Q, resp.crosstalk)
+    rss, bic, coef, cross, cross_coef = sparse_extension(sensors, crosstalk, rp, k)
+    dof = float(resp.sensors.shape[1] + len(cross))
     assert cal.case is not None
-    out = []
+    motions = []  # the pairs of a channel and its time derivative, their scale between whitened values
     for deriv, chan, scale in DERIVATIVE_CHANNELS:
         if deriv in names and chan in names:
             i, j = names.index(deriv), names.index(chan)
             factor = 1.0 if scale is None else float(getattr(cal.case.plant, scale))
-            out.append((i, j, factor * float(sigma[j] / sigma[i])))
-    return out
+            motions.append((i, j, factor * float(sigma[j] / sigma[i])))
+    hum = periodic_extension(
+        np.hstack([sensors, crosstalk[:, cross]]),
+        rp,
+        t,
+        len(names),
+        k,
+        Q,
+        settings.interference_min_periods,
+        motions=motions,
+    )
+    if hum is None:
+        return SensorFit(rss, bic, dof, coef, cross, cross_coef, rss, None)
+    m = coef.size
+    return SensorFit(
+        hum.rss,
+        bic + hum.rss - rss + hum.penalty,
+        dof + 1 + 2 * len(hum.channels),
+        hum.design_coef[:m],
+        cross,
+        hum.design_coef[m:],
+        rss,
+        hum,
+    )
 
 
 def _estimate(
@@ -133,27 +229,8 @@ def _estimate(
         x = np.nan_to_num(fit.x)
         coef = np.linalg.lstsq(free, r - hats @ x, rcond=None)[0]
         estimates[locus] = Estimate(x, coef[-N_EXTRAS:], coef[:-N_EXTRAS], fit, fit.rss, fit.bic, refined=False)
-    # the measurement chain: its base library, and the cross-talk the data ask for (sparse)
-    s_rss, s_bic, s_coef, s_cross, s_cross_coef = sparse_extension(
-        project(Q, resp.sensors), project(Q, resp.crosstalk), rp, k
-    )
-    s_dof = float(resp.sensors.shape[1] + len(s_cross))
-    # and a periodic interference at one fixed frequency, if the residual asks for one
-    hum = periodic_extension(
-        np.hstack([project(Q, resp.sensors), project(Q, resp.crosstalk[:, s_cross])]),
-        rp,
-        record.grid.time,
-        len(rows),
-        k,
-        Q,
-        settings.interference_min_periods,
-        motions=_motions(names, sigma, cal),
-    )
-    if hum is not None:
-        s_bic += hum.rss - s_rss + hum.penalty
-        s_rss = hum.rss
-        s_coef, s_cross_coef = hum.design_coef[: len(s_coef)], hum.design_coef[len(s_coef) :]
-        s_dof += 1 + 2 * len(hum.channels)
+    # the measurement chain: its base library, and the cross-talk and interference the data ask for
+    sf = sensor_fit(resp, Q, rp, record.grid.time, names, sigma, cal, settings)
     bic_none = rr + k * ln_n
 
     # 2. a scan of a constant input per locus: a global start where a term is too strong to
@@ -182,10 +259,10 @@ def _estimate(
     # scaled by the best fit's dispersion (quasi-likelihood): a best fit far above the noise says
     # the model is still wrong somewhere, and BIC differences in chi2 units then overstate it.
     bics = {locus: e.bic for locus, e in estimates.items() if e.refined}
-    bics[SENSORS] = s_bic
+    bics[SENSORS] = sf.bic
     leader = min(bics, key=lambda key: bics[key])
-    lead_rss = estimates[leader].rss if leader in estimates else s_rss
-    lead_dof = estimates[leader].fit.dof + estimates[leader].n_extras if leader in estimates else s_dof
+    lead_rss = estimates[leader].rss if leader in estimates else sf.rss
+    lead_dof = estimates[leader].fit.dof + estimates[leader].n_extras if leader in estimates else sf.dof
     dispersion = max(1.0, lead_rss / max(n - lead_dof - k, 1.0))
     best_bic = min(min(bics.values()), bic_none)
     all_w = {key: math.exp(-0.5 * (b - best_bic) / dispersion) for key, b in {**bics, "none": bic_none}.items()}
@@ -193,8 +270,8 @@ def _estimate(
     scores: dict[str, LocusScore] = {}
     for locus in (*DISTURBANCE_LOCI, SENSORS):
         b = bics[locus] if locus in bics else estimates[locus].bic
-        rss = estimates[locus].rss if locus in estimates else s_rss
-        dof = estimates[locus].fit.dof if locus in estimates else s_dof
+        rss = estimates[locus].rss if locus in estimates else sf.rss
+        dof = estimates[locus].fit.dof if locus in estimates else sf.dof
         scores[locus] = LocusScore(
             bic=b,
             delta_bic=b - min(bics.values()),
@@ -226,12 +303,7 @@ def _estimate(
     t_rel = record.grid.time
     chi2_injected = math.nan
     if best == SENSORS:
-        values = dict(zip(resp.sensor_names, (float(v) for v in s_coef), strict=True))
-        values |= {resp.crosstalk_names[j]: float(v) for j, v in zip(s_cross, s_cross_coef, strict=True)}
-        if hum is not None:
-            values["interference_hz"] = hum.frequency_hz
-            for j, (a, b) in zip(hum.channels, hum.coef, strict=True):
-                values[f"interference_{names[j]}"] = float(math.hypot(a, b) * sigma[j])
+        values = sf.values(resp, names, sigma)
         term = sensor_term(values, names, settings)
     else:
         est = estimates[best]

@@ -22,7 +22,7 @@ channels are selected sparsely, as the cross-talk is (:func:`~engine.diagnosis.l
    residual by about ``2 ln F``, takes none.
 
 Measured on development records (``lab/validation/dev-locus-spent/interference.md``): a mains hum
-on a1 and a2 keeps 0.2-1.1 % of its drop in the stretches' gain; the transients of mechanical
+on a1 and a2 keeps 0.1-1.1 % of its drop in the stretches' gain; the transients of mechanical
 terms near their best frequency 43-1800 %.
 
 A mechanical term at a fixed frequency acts through the plant: its response in each channel
@@ -244,11 +244,11 @@ def periodic_extension(
     _, f_best, eligible = best
     # 2. the channels, sparsely: each channel's pair, taken while it pays for itself
     pair = _pair(t0, f_best)
-    columns = []
-    for j in range(n_ch):
+    columns: dict[int, np.ndarray] = {}
+    for j in eligible:
         col = np.zeros((n, 2))
         col[j * n_s : (j + 1) * n_s] = pair
-        columns.append(project(Q, col))
+        columns[j] = project(Q, col)
     chosen: list[int] = []
     current = design
     while len(chosen) < len(eligible):
