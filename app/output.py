@@ -47,7 +47,8 @@ def summary_lines(answer: dict[str, Any], plots: Sequence[str] = ()) -> list[str
     named = ", ".join(str(e.get("effect")) for e in verdict.get("effects") or () if isinstance(e, dict))
     line = f"verdict: {status}" + (f" ({named})" if named else "")
     if verdict.get("locus") and not named:
-        line += f", locus {verdict['locus']}"
+        group = [str(g) for g in verdict.get("locus_group") or () if g != verdict["locus"]]
+        line += f", locus {verdict['locus']}" + (f" (not told from {', '.join(group)})" if group else "")
     if isinstance(verdict.get("confidence"), int | float):
         line += f", probability right {100 * verdict['confidence']:.0f} %"
     if isinstance(verdict.get("locus_confidence"), int | float):

@@ -23,7 +23,9 @@ Examples (from the repository root)::
 
     python bench/confidence_reliability.py --fit engine/diagnosis/data/confidence_map.json \\
         docs/validation/v2-seed{97,151,163,173,191,223} docs/validation/v1-seed{193,199,211} \\
-        --open-world-runs docs/validation/v2-heldout-seed241 docs/validation/v2-sealed-seed257
+        --open-world-runs docs/validation/v2-heldout-seed241 docs/validation/v2-sealed-seed257 \\
+        --locus-runs docs/validation/v2-heldout-seed241 docs/validation/v2-sealed-seed257 \\
+        docs/validation/v2-sealed2-seed263 docs/validation/v2-sealed3-seed269 docs/validation/v2-sealed4-seed281
     python bench/confidence_reliability.py --out docs/validation/confidence \\
         docs/validation/v2-seed{97,151,163,173,191,223,229} docs/validation/v1-seed{193,199,211,227}
 """
@@ -50,11 +52,14 @@ from engine.diagnosis.confidence import (
     SCORE_FEATURE,
     ConfidenceMap,
     IsotonicMap,
+    PartMap,
     calibrated_confidence,
     fit_isotonic,
+    fit_parts,
     load_map,
     locus_confidence,
     locus_feature,
+    part_key,
 )
 from engine.diagnosis.open_world import fit_open_world
 from engine.validation.provenance import code_version
@@ -136,13 +141,16 @@ def fit_map(
     command: str,
     locus_rows: Sequence[tuple[Path, list[tuple[float, bool]]]] = (),
     open_world_runs: Sequence[tuple[RunOutcomes, str | None]] = (),
+    locus_runs: Sequence[tuple[RunOutcomes, str | None]] = (),
 ) -> ConfidenceMap:
     """The map fitted on ``runs``: per verdict status on the score, and the locus on :func:`locus_feature`.
 
     With ``locus_rows`` (files of a locus re-run and their (feature, right) pairs) the locus's map is
     fitted on those instead of the runs' unexplained and weak-gap verdicts. With ``open_world_runs``
     (runs of families outside the catalogue) the open-world part is fitted on their records against the
-    in-catalogue records of ``runs``.
+    in-catalogue records of ``runs``. With ``locus_runs`` (blind runs of families outside the catalogue)
+    the locus's map is one per part the answer names (:func:`~engine.diagnosis.confidence.fit_parts`),
+    fitted on their located verdicts.
     """
     outcomes = [o for run, _ in runs for o in run.outcomes]
     verdict: dict[str, IsotonicMap] = {}
@@ -154,7 +162,12 @@ def fit_map(
     loc_xy = [(x, bool(ok)) for x, ok in loc if x is not None]
     if locus_rows:
         loc_xy = [xy for _, rows in locus_rows for xy in rows]
-    locus = fit_isotonic([x for x, _ in loc_xy], [ok for _, ok in loc_xy], LOCUS_FEATURE) if loc_xy else None
+    locus: PartMap | IsotonicMap | None = (
+        fit_isotonic([x for x, _ in loc_xy], [ok for _, ok in loc_xy], LOCUS_FEATURE) if loc_xy else None
+    )
+    located = [o for run, _ in locus_runs for o in run.outcomes if o.locus_correct is not None and o.locus]
+    if located:
+        locus = fit_parts([part_key(str(o.locus)) for o in located], [bool(o.locus_correct) for o in located])
     world = None
     if open_world_runs:
         inside = explained_by_gap(outcomes, IN_CATALOGUE_KINDS)
@@ -174,7 +187,17 @@ def fit_map(
         ],
         "held_out": list(HELD_OUT_RUNS),
         "locus_fitted_on": (
-            [{"rows": str(p), "n": len(rows)} for p, rows in locus_rows]
+            [
+                {
+                    "run": run.name,
+                    "seed": run.seed,
+                    "code_version": code,
+                    "n": sum(o.locus_correct is not None for o in run.outcomes),
+                }
+                for run, code in locus_runs
+            ]
+            if locus_runs
+            else [{"rows": str(p), "n": len(rows)} for p, rows in locus_rows]
             if locus_rows
             else "the unexplained and weak-gap verdicts of the runs above"
         ),
@@ -191,7 +214,9 @@ def fit_map(
             f"{MIN_BLOCK} cases merged with the neighbour of closer accuracy; each block's accuracy shrunk by a "
             f"Beta({PRIOR:g}, {PRIOR:g}) prior; linear between blocks, flat beyond. Locus: the same on "
             f"{LOCUS_FEATURE}, on whether the verdict's locus is where an effect of the record acts "
-            f"(engine.validation.reliability)."
+            f"(engine.validation.reliability); or, fitted on locus runs, per part the answer names (the locus or "
+            f"the group of loci the record cannot tell apart), its accuracy shrunk by the same prior, parts of "
+            f"fewer than {MIN_BLOCK} cases pooled."
         ),
         "score": (
             "the decision's score (engine/diagnosis/decision.py; its formula and thresholds are the same in the "
@@ -220,6 +245,8 @@ def measure(
     """The measurement document: per protocol and split, the reliability before and after the map."""
     fitted = {r["run"] for r in cmap.provenance.get("fitted_on", [])}
     fitted |= {r["run"] for r in cmap.provenance.get("open_world_fitted_on", [])}
+    locus_on = cmap.provenance.get("locus_fitted_on")
+    fitted |= {r["run"] for r in locus_on if "run" in r} if isinstance(locus_on, list) else set()
 
     def split_of(r: RunOutcomes) -> str:
         outside = bool(r.outcomes) and all(o.kind == "held_back" for o in r.outcomes)
@@ -376,6 +403,14 @@ def main(argv: list[str] | None = None) -> int:
         "families whose blind run is spent) instead of the runs' unexplained verdicts",
     )
     ap.add_argument(
+        "--locus-runs",
+        type=Path,
+        nargs="+",
+        default=(),
+        help="with --fit: blind runs of families outside the catalogue whose figures are spent; fits the locus's "
+        "map per part the answer names (overrides --locus-rows)",
+    )
+    ap.add_argument(
         "--open-world-runs",
         type=Path,
         nargs="+",
@@ -390,14 +425,14 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"{p} holds no report.json: not a scored run")
     names = [p.name for p in args.runs]
     if args.fit is not None:
-        held = sorted((set(names) | {p.name for p in args.open_world_runs}) & set(HELD_OUT_RUNS))
+        held = sorted((set(names) | {p.name for p in (*args.open_world_runs, *args.locus_runs)}) & set(HELD_OUT_RUNS))
         if held:
             ap.error(f"refusing to fit on held-out runs: {', '.join(held)}")
         try:
             rows = [(p, read_locus_rows(p)) for p in args.locus_rows]
         except (OSError, ValueError) as e:
             ap.error(str(e))
-        cmap = fit_map(_read(args.runs), _command(argv), rows, _read(args.open_world_runs))
+        cmap = fit_map(_read(args.runs), _command(argv), rows, _read(args.open_world_runs), _read(args.locus_runs))
         write_text_atomic(args.fit, json.dumps(cmap.to_dict(), indent=1) + "\n")
         logger.info("wrote the map to %s", args.fit)
         return 0

@@ -197,7 +197,16 @@ def _locate(
         return replace(verdict, reason=f"{verdict.reason}; the locus could not be estimated ({exc})"), None
     out = report.to_dict()
     term = {k: v for k, v in out.get("term", {}).items() if k not in ("series", "t")} if out.get("term") else None
-    return replace(verdict, locus=report.locus, missing_term=term, locus_confidence=locus_confidence(out)), out
+    return (
+        replace(
+            verdict,
+            locus=report.locus,
+            missing_term=term,
+            locus_confidence=locus_confidence(out),
+            locus_group=tuple(report.group),
+        ),
+        out,
+    )
 
 
 def diagnose(

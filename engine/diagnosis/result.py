@@ -64,7 +64,11 @@ class Verdict:
         The decision's uncalibrated score 0..1 behind ``confidence`` (what the map is refitted on).
     locus_confidence : float or None
         For a locus from the locus estimate (``unexplained``, ``weak_gap``): probability that the
-        missing physics acts there (:func:`engine.diagnosis.confidence.locus_confidence`).
+        missing physics acts in ``locus_group`` (:func:`engine.diagnosis.confidence.locus_confidence`).
+    locus_group : tuple of str
+        With a locus from the locus estimate: the loci the record cannot tell from ``locus``,
+        ``locus`` first (:data:`engine.simulation.parameters.LOCUS_GROUPS`): the part of the plant
+        the answer names; ``(locus,)`` when it is in no group, empty without a locus estimate.
     """
 
     status: str
@@ -80,6 +84,7 @@ class Verdict:
     left: float | None = None
     score: float | None = None
     locus_confidence: float | None = None
+    locus_group: tuple[str, ...] = ()
 
     @classmethod
     def without_effect(cls, status: str, confidence: float, reason: str) -> Verdict:
@@ -102,6 +107,7 @@ class Verdict:
             "left": self.left,
             "score": self.score,
             "locus_confidence": self.locus_confidence,
+            "locus_group": list(self.locus_group),
         }
 
 

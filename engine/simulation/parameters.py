@@ -54,6 +54,33 @@ DISTURBANCE_MEANING: dict[str, tuple[str, str]] = {
     "load": ("torque on the load (mass m2)", "pu"),
 }
 
+#: Loci the recorded channels cannot tell apart, by the name a sentence gives the group. The
+#: supply and the motor's electrics reach every recorded channel only through the electromagnetic
+#: torque m_el, itself a channel: a record holds none of the stator's voltages, currents or fluxes,
+#: so whatever a change at either does to the record is a change of m_el(t) while the motor is on,
+#: which an additive electromagnetic torque reproduces on every channel (``tests/test_locus_groups.py``:
+#: 99 % of a supply deviation's change on each channel), and which a deviation of the supply's
+#: voltage, or of the motor's windings, can make too. Only an assumption about the shape of the
+#: missing physics would tell them apart, not the record: the locus estimate names the group
+#: (:func:`locus_group`). A record with a current or voltage channel would separate them; this
+#: plant has none (MODEL.md section 3).
+LOCUS_GROUPS: dict[str, tuple[str, ...]] = {"the supply or the motor's electrics": ("supply", "motor_electrical")}
+
+
+def locus_group(locus: str) -> tuple[str, ...]:
+    """The loci the record cannot tell from ``locus`` (:data:`LOCUS_GROUPS`), ``locus`` first; ``(locus,)`` alone
+    when it is in no group."""
+    for members in LOCUS_GROUPS.values():
+        if locus in members:
+            return (locus, *(m for m in members if m != locus))
+    return (locus,)
+
+
+def locus_group_name(locus: str) -> str | None:
+    """What a sentence calls the group of ``locus`` (None when it is in no group)."""
+    return next((name for name, members in LOCUS_GROUPS.items() if locus in members), None)
+
+
 #: The plant's Coulomb friction against the motion of the part at each torque locus:
 #: ``field * tanh(w / W_SMOOTH)`` against the part's own speed w (w_1 of the motor shaft, w_2 of
 #: the drive wheel, w_3 of the load, the last being the absorber's discontinuity c_1). The locus

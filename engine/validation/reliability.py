@@ -41,6 +41,7 @@ import numpy as np
 
 from engine.diagnosis.validation import SAME_PHYSICS, same_physics_names
 from engine.simulation.families import locus_of
+from engine.simulation.parameters import locus_group
 from engine.validation.stats import CONFIDENCE, Rate, rate
 
 logger = logging.getLogger(__name__)
@@ -375,11 +376,18 @@ class CaseOutcome:
 
     @property
     def locus_correct(self) -> bool | None:
-        """Whether the verdict's locus, from a locus estimate, is where an effect of the record acts
-        (None when the verdict states no estimated locus)."""
+        """Whether the part the verdict names, from a locus estimate, is where an effect of the record acts
+        (None when the verdict states no estimated locus).
+
+        The part is the locus with the loci the record cannot tell from it: the estimate's ``group``,
+        or, for a result written before it existed, :func:`~engine.simulation.parameters.locus_group`
+        of its locus (the group is a function of the best locus alone, so this is what the current
+        code would answer with the same best locus).
+        """
         if self.locus_estimate is None or self.locus is None:
             return None
-        return self.locus in self.true_loci
+        group = self.locus_estimate.get("group") or locus_group(self.locus)
+        return any(g in self.true_loci for g in group)
 
 
 @dataclass(frozen=True)

@@ -70,6 +70,9 @@ class Answer:
         Per named effect, the effects the diagnosis declared indistinguishable from it at its
         value (``verdict.effects[i].alternatives``: the same record, e.g. a measurement delay
         and a trigger offset); a true effect among them counts as named.
+    locus_group : tuple of str
+        ``verdict.locus_group``: the loci the record cannot tell from ``locus`` (results written
+        before it existed: none, so ``locus`` alone).
     """
 
     status: str
@@ -81,6 +84,12 @@ class Answer:
     alternatives: tuple[tuple[str, ...], ...] = ()
     near_twins: tuple[tuple[str, ...], ...] = ()
     stages: tuple[tuple[str, float], ...] = ()
+    locus_group: tuple[str, ...] = ()
+
+    def names_locus(self, locus: str) -> bool:
+        """Whether the part the answer names is ``locus``: its locus, or a locus of the group the
+        record cannot tell from it."""
+        return self.locus is not None and (locus == self.locus or locus in self.locus_group)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -192,6 +201,7 @@ def answer_of(result: dict[str, Any]) -> Answer:
         alternatives=alternatives,
         near_twins=near,
         stages=_stages(result),
+        locus_group=tuple(str(g) for g in v.get("locus_group") or () if isinstance(g, str)),
     )
 
 
@@ -441,7 +451,13 @@ def score_cases(key: Sequence[KeyEntry], results: dict[str, dict[str, Any]]) -> 
         ),
         Metric(
             "held_back_locus",
-            "held back: verdict.locus is the effect's locus",
+            "held back: the part the verdict names (verdict.locus, with the loci the record cannot tell "
+            "from it) is the effect's locus",
+            rate([a.names_locus(k.effects[0].locus) for k, a in held]),
+        ),
+        Metric(
+            "held_back_locus_single",
+            "held back: verdict.locus itself is the effect's locus",
             rate([a.locus == k.effects[0].locus for k, a in held]),
         ),
         Metric("clean_false_alarm", "clean: any answer but no_gap", rate([a.status != "no_gap" for _, a in clean])),
@@ -543,7 +559,7 @@ def score_cases(key: Sequence[KeyEntry], results: dict[str, dict[str, Any]]) -> 
         cell[0] += int(a.status == "unexplained")
         cell[1] += 1
         cell = per_effect[name]["held_back_locus"]
-        cell[0] += int(a.locus == locus)
+        cell[0] += int(a.names_locus(locus))
         cell[1] += 1
     rows = [_row(k, answers[k.case_id], correct(k, answers[k.case_id])) for k in key]
     return Scores(

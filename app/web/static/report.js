@@ -607,7 +607,12 @@
       out.push("The model fits the record to the noise: there is no gap to explain.");
     }
     if (status !== "explained" && status !== "partly_explained" && v.locus) {
-      out.push(`The missing physics acts at the ${words(v.locus)}.`);
+      const others = (v.locus_group || []).filter((g) => g !== v.locus);
+      out.push(
+        others.length
+          ? `The missing physics acts at the ${words(v.locus)} or the ${others.map(words).join(" or the ")}: the recorded channels cannot tell them apart.`
+          : `The missing physics acts at the ${words(v.locus)}.`,
+      );
     }
     if (v.missing_term && v.missing_term.description) out.push(`Missing term: ${v.missing_term.description}.`);
     const gap = r.gap;

@@ -28,6 +28,7 @@ from engine.diagnosis.space import ModelSpace, default_space
 from engine.parallel import single_threaded_blas
 from engine.records import Record
 from engine.simulation import DISTURBANCE_LOCI
+from engine.simulation.parameters import locus_group
 
 logger = logging.getLogger(__name__)
 
@@ -299,7 +300,11 @@ def _estimate(
             seconds=time.perf_counter() - t0,
             notes=notes,
         )
-    ties = [key for key in ranked[1:] if (bics[key] - bics[best]) / dispersion < settings.tie_delta]
+    # the part the record can name: the best locus with those its channels cannot tell from it
+    group = list(locus_group(best)) if best in DISTURBANCE_LOCI else [best]
+    ties = [
+        key for key in ranked[1:] if key not in group and (bics[key] - bics[best]) / dispersion < settings.tie_delta
+    ]
     t_rel = record.grid.time
     chi2_injected = math.nan
     if best == SENSORS:
@@ -317,7 +322,7 @@ def _estimate(
                 "injecting the estimated input into the calibrated case does not lower chi2: the gap is too "
                 "large for the linearisation around the calibrated trajectory; the locus is a first guess"
             )
-    confidence = scores[best].weight
+    confidence = sum(scores[key].weight for key in group)
     left = scores[best].rss / n
     if left > settings.first_guess_chi2:
         confidence = min(confidence, FIRST_GUESS_CONFIDENCE)
@@ -338,6 +343,7 @@ def _estimate(
         seconds=time.perf_counter() - t0,
         notes=notes,
         dispersion=dispersion,
+        group=group,
     )
     logger.info(
         "locus: %s (confidence %.2f%s), %s; %d simulations, %.1f s",

@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from engine.simulation.parameters import locus_group_name
+
 
 class LocusError(RuntimeError):
     """Raised when the locus cannot be estimated (e.g. the calibrated case cannot be simulated)."""
@@ -244,6 +246,10 @@ class LocusReport:
     dispersion : float
         chi2 per degree of freedom of the best fit (at least 1); the BIC differences behind
         ``confidence`` and ``ties`` are divided by it.
+    group : list of str
+        The loci the recorded channels cannot tell from the best one, the best first
+        (:data:`engine.simulation.parameters.LOCUS_GROUPS`; the best alone when it is in no group): the
+        answer is this part of the plant, and ``confidence`` is the group's posterior weight.
     """
 
     locus: str | None
@@ -258,6 +264,7 @@ class LocusReport:
     seconds: float
     notes: list[str] = field(default_factory=list)
     dispersion: float = 1.0
+    group: list[str] = field(default_factory=list)
 
     @property
     def description(self) -> str:
@@ -265,6 +272,12 @@ class LocusReport:
         if self.locus is None or self.term is None:
             return "no locus explains the residual better than the calibration alone"
         text = self.term.description
+        name = locus_group_name(self.locus) if len(self.group) > 1 else None
+        if name is not None:
+            text += (
+                f"; the part is {name}: the recorded channels cannot tell {' from '.join(self.group)} apart "
+                "(both reach the record only through m_el; a stator current or voltage channel would)"
+            )
         if self.ties:
             text += f" (the record cannot tell this locus from {', '.join(self.ties)})"
         return text
@@ -275,6 +288,8 @@ class LocusReport:
             "locus": self.locus,
             "confidence": self.confidence,
             "ties": list(self.ties),
+            "group": list(self.group) if self.group else ([self.locus] if self.locus else []),
+            "group_name": locus_group_name(self.locus) if self.locus and len(self.group) > 1 else None,
             "description": self.description,
             "scores": {k: v.to_dict() for k, v in self.scores.items()},
             "term": None if self.term is None else self.term.to_dict(),
