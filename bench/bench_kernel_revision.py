@@ -8,8 +8,8 @@ runs both on the same parameter vectors in the same process:
 
 * **Identity.** Every record, event time and status of both kernels must be equal bit for bit,
   else the script stops with an error. The vectors cover every effect of the catalogue and of
-  the held-back, held-out and sealed families and of the second and third sealed families (at 30 %
-  and 90 % of its range; simulated only, nothing is diagnosed), an unknown input at every locus of the
+  the held-back, held-out and sealed families and of the second, third and fourth sealed families
+  (at 30 % and 90 % of its range; simulated only, nothing is diagnosed), an unknown input at every locus of the
   plant (12 knots, with a step at the switch-off: the clutch's makes the zone depend on time),
   and plain plants uniform in the plausible box; on three sample grids (MODEL.md's, a coarser
   shorter one and a finer longer one), at the search and the final integrator step, through the
@@ -85,10 +85,11 @@ def identity_vectors(rng: np.random.Generator) -> list[Any]:
     from engine.simulation.sealed import SEALED
     from engine.simulation.sealed2 import SEALED2
     from engine.simulation.sealed3 import SEALED3
+    from engine.simulation.sealed4 import SEALED4
 
     plants = uniform_plants(PLAUSIBLE_RANGE, 6, rng)
     cases: list[Any] = []
-    for lib in (CATALOGUE, HELD_BACK, HELD_OUT, SEALED, SEALED2, SEALED3):  # simulated only: nothing is diagnosed
+    for lib in (CATALOGUE, HELD_BACK, HELD_OUT, SEALED, SEALED2, SEALED3, SEALED4):  # simulated only
         for name in lib:
             lo, hi = lib[name].bounds
             for frac in (0.3, 0.9):

@@ -1,4 +1,4 @@
-"""Visibility of a family's effects: the table of the bounds' rule (docs/model-changes.md, 1.2 to 1.6).
+"""Visibility of a family's effects: the table of the bounds' rule (docs/model-changes.md, 1.2 to 1.7).
 
 Simulation only: nothing is diagnosed, calibrated or validated, so the script may be run on a
 family kept for scoring. For every effect of the family at ``--fraction`` of its upper bound, on
@@ -8,14 +8,14 @@ plain record: its RMS over the record in units of the noise standard deviation a
 brackets, then the shift of the event time t_e. The bounds' rule asks, at half the upper bound,
 for at least two channels above 3 noise RMS (one for an effect of the measurement chain that acts
 on one channel only), and for the event at the upper bound. Any family of
-:data:`engine.simulation.families.FAMILIES` (``--family``; the newest, ``sealed4`` of model 1.6,
+:data:`engine.simulation.families.FAMILIES` (``--family``; the newest, ``sealed5`` of model 1.7,
 by default).
 
 Run from the repository root::
 
-    .venv/bin/python bench/family_visibility.py --family sealed4           # half the upper bound
-    .venv/bin/python bench/family_visibility.py --family sealed4 --fraction 1
-    .venv/bin/python bench/family_visibility.py --family sealed3           # model 1.5's table
+    .venv/bin/python bench/family_visibility.py --family sealed5           # half the upper bound
+    .venv/bin/python bench/family_visibility.py --family sealed5 --fraction 1
+    .venv/bin/python bench/family_visibility.py --family sealed4           # model 1.6's table
 
 Prints a Markdown table.
 """
@@ -93,7 +93,7 @@ def table(rows: list[Row], fraction: float) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--family", choices=sorted(FAMILIES), default="sealed4")
+    ap.add_argument("--family", choices=sorted(FAMILIES), default="sealed5")
     ap.add_argument("--fraction", type=float, default=0.5, help="of each effect's upper bound (default 0.5)")
     ap.add_argument("--snr", type=float, default=40.0, help="noise level [dB] (default 40)")
     args = ap.parse_args(argv)

@@ -24,7 +24,8 @@ from typing import Final
 #: 1.4: the second sealed family's seven terms (SEALED2), neutral by default.
 #: 1.5: the third sealed family's seven terms (SEALED3), neutral by default.
 #: 1.6: the fourth sealed family's seven terms (SEALED4), neutral by default.
-MODEL_VERSION: Final[str] = "1.6"
+#: 1.7: the fifth sealed family's seven terms (SEALED5), neutral by default.
+MODEL_VERSION: Final[str] = "1.7"
 
 # --- base quantities -------------------------------------------------------
 #: Rated supply frequency [Hz], the electrical base (MODEL.md section 1.1).
@@ -171,6 +172,13 @@ T_POLE_GUARD: Final[float] = 1e-9
 #: (sealed4 effect ``load_guide_binding``): 10 mm at the wheel's radius, about half the load's
 #: travel over a record.
 THETA_BIND: Final[float] = 0.1
+
+# --- model 1.7 extensions (docs/model-changes.md) ----------------------------
+# Constants of the fifth sealed family's terms (engine.simulation.sealed5).
+#: Travel of the load at which it meets the end buffer [rad of theta_3] (sealed5 effect
+#: ``load_end_buffer``): 10 mm at the wheel's radius, reached after the event on the nominal plant
+#: (which travels about 0.26 rad over a record). The buffer's force is v at THETA_STOP of compression.
+THETA_STOP: Final[float] = 0.1
 
 # --- test protocol (MODEL.md section 2) ------------------------------------
 #: Sample interval Ts [s].

@@ -128,6 +128,13 @@ def test_defaults_are_model_md_constants():
         "seal12": 0.0,
         "gear2": 0.0,
         "bind3": 0.0,
+        # model 1.7 extensions (the fifth sealed family), neutral by default
+        "u_h57": 0.0,
+        "psi_r0": 0.0,
+        "tau_mis1": 0.0,
+        "ecc12": 0.0,
+        "tau_unb2": 0.0,
+        "buf3": 0.0,
         # the per-unit base values (issue 52: parameters, MODEL.md's by default)
         "w_b": const.W_B,
         "pole_pairs": const.POLE_PAIRS,

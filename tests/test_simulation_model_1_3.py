@@ -87,8 +87,8 @@ def test_the_progressive_contact_is_stiffer_by_one_plus_the_value_at_x_ref() -> 
     P = parameter_vector(SEALED["clutch_progressive_contact"].apply(Case(NOMINAL), 0.5))
     b, k12 = NOMINAL.b, NOMINAL.k12
     for d, sign in ((b + X_REF, 1.0), (-b - X_REF, -1.0)):
-        assert kern.contact_push(d, 0.0, P, True) == pytest.approx(sign * k12 * X_REF * 1.5, rel=1e-12)
-        assert kern.contact_push(d, 0.0, P, False) == pytest.approx(sign * k12 * X_REF, rel=1e-12)  # guard off
+        assert kern.contact_push(d, 0.0, b, P, True) == pytest.approx(sign * k12 * X_REF * 1.5, rel=1e-12)
+        assert kern.contact_push(d, 0.0, b, P, False) == pytest.approx(sign * k12 * X_REF, rel=1e-12)  # guard off
     base, strong = simulate_batch(
         [Case(NOMINAL), SEALED["clutch_progressive_contact"].apply(Case(NOMINAL), 1.0)]
     ).event_times

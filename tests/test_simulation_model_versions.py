@@ -1,9 +1,9 @@
-"""The model versions' families of effects, checked alike (docs/model-changes.md, versions 1.1 to 1.6).
+"""The model versions' families of effects, checked alike (docs/model-changes.md, versions 1.1 to 1.7).
 
 Each version from 1.1 on added a family of effects outside the catalogue, each effect a new term of
 the kernel: 1.1 the held-back family HELD_BACK (and the additive unknown input), 1.2 the held-out
 family HELD_OUT, 1.3 the sealed family SEALED, 1.4 the second sealed family SEALED2, 1.5 the third
-sealed family SEALED3, 1.6 the fourth sealed family SEALED4. The checks they share run here from one table,
+sealed family SEALED3, 1.6 the fourth sealed family SEALED4, 1.7 the fifth sealed family SEALED5. The checks they share run here from one table,
 :data:`VERSIONS`; a case id names the version and the effect (``1.3-supply_flicker``), or the version
 and the family (``1.2-held_out``) where the check is of a family. What one version alone has stays in
 its module: the unknown input of 1.1 in ``tests/test_simulation_model_1_1.py``, the terms of 1.3 that
@@ -11,12 +11,12 @@ have a physics of their own (the leakages, the progressive contact, the cross-ta
 visibility table) in ``tests/test_simulation_model_1_3.py``, and those of 1.4 (the DC offset, the
 core losses, the squeeze film's zone, the hub's play, the bump, the speed's sample-and-hold) in
 ``tests/test_simulation_model_1_4.py``, and those of 1.5 in ``tests/test_simulation_model_1_5.py``, and those
-of 1.6 in ``tests/test_simulation_model_1_6.py``.
+of 1.6 in ``tests/test_simulation_model_1_6.py``, and those of 1.7 in ``tests/test_simulation_model_1_7.py``.
 
-Simulation only. HELD_OUT, SEALED, SEALED2, SEALED3 and SEALED4 are kept for scoring: nothing here
-diagnoses, calibrates, locates or validates a record of their effects (the case generator is run without
-its absorption rule, which refits, and not on SEALED3 and SEALED4, which were defined without running
-anything of engine.validation on them).
+Simulation only. HELD_OUT, SEALED, SEALED2, SEALED3, SEALED4 and SEALED5 are kept for scoring: nothing
+here diagnoses, calibrates, locates or validates a record of their effects (the case generator is run
+without its absorption rule, which refits, and not on SEALED3, SEALED4 and SEALED5, which were defined
+without running anything of engine.validation on them).
 
 * every new term is exactly neutral at its neutral value: the records are bit for bit those without
   it (model 1.0's for 1.1), from 1.2 on also inside the kernel's extended path (``P_EXTENDED``),
@@ -24,7 +24,7 @@ anything of engine.validation on them).
   model 1.0 bit for bit;
 * the kernel agrees with the independent scipy reference (engine.simulation.reference) for every
   effect at its upper bound, for an unknown input at every locus (1.1) and in the combinations where
-  two terms meet (1.2 to 1.6): MODEL.md section 4's spec, plus a regression guard at about twice the
+  two terms meet (1.2 to 1.7): MODEL.md section 4's spec, plus a regression guard at about twice the
   worst error measured;
 * from 1.2 on, at half its upper bound every effect is visible at 40 dB on the nominal plant, keeps
   the event across the plausible box at its upper bound, and has a slot of its own in the kernel's
@@ -60,6 +60,10 @@ cases, in % of peak-to-peak:
   combinations and inputs 0.0210 % (a1, the late pole on a supply input), |dt_e| 6.0e-8 s (the
   clutch seal's drag on a clutch input: the integrator step's error on the smoothed sign of w_1 - w_2
   as the zone moves; 7.9e-9 s at a 2 us step). Guards 0.04 % and, for the event time, 1.2e-7 s.
+* 1.7: effects at their upper bound 0.0046 % (a1, clutch_hub_runout 0.5), |dt_e| 1.2e-8 s (the same);
+  combinations and inputs 0.0145 % (a1, the harmonics with the unbalance, the flicker and saturation),
+  |dt_e| 1.9e-8 s (the misaligned shaft with the cogging and the brake). Guards as for 1.1 to 1.5:
+  0.04 % and 5e-8 s.
 """
 
 from __future__ import annotations
@@ -86,6 +90,7 @@ from engine.simulation import (
     SEALED2,
     SEALED3,
     SEALED4,
+    SEALED5,
     Case,
     Disturbance,
     ParameterError,
@@ -100,6 +105,7 @@ from engine.simulation import (
     sealed2,
     sealed3,
     sealed4,
+    sealed5,
     simulate,
     simulate_batch,
 )
@@ -112,6 +118,7 @@ from engine.simulation.reference import (
     SEALED2_NEUTRAL,
     SEALED3_NEUTRAL,
     SEALED4_NEUTRAL,
+    SEALED5_NEUTRAL,
     SEALED_NEUTRAL,
     reference_inputs,
     reference_simulate,
@@ -214,8 +221,21 @@ V1_6 = Version(
     SEALED4_NEUTRAL,
     (_PLAIN, _COGGING, _EVERY_HELD_OUT, _EVERY_SEALED, _EVERY_SEALED2, _EVERY_SEALED3),
 )
+_EVERY_SEALED4 = (
+    "on every sealed4 effect at half its bound",
+    SEALED4.apply(Case(NOMINAL), {n: 0.5 * e.bounds[1] for n, e in SEALED4.items()}),
+)
+V1_7 = Version(
+    "1.7",
+    "sealed5",
+    SEALED5,
+    (CATALOGUE, HELD_BACK, HELD_OUT, SEALED, SEALED2, SEALED3, SEALED4),
+    "1.6",
+    SEALED5_NEUTRAL,
+    (_PLAIN, _COGGING, _EVERY_HELD_OUT, _EVERY_SEALED, _EVERY_SEALED2, _EVERY_SEALED3, _EVERY_SEALED4),
+)
 #: Every version with a family of its own, oldest first; a new version adds its row here.
-VERSIONS = (V1_1, V1_2, V1_3, V1_4, V1_5, V1_6)
+VERSIONS = (V1_1, V1_2, V1_3, V1_4, V1_5, V1_6, V1_7)
 
 
 def _families(*versions: Version) -> list[Any]:
@@ -399,6 +419,53 @@ COMBINATIONS: dict[str, dict[str, dict[str, float]]] = {
         },
         "every-sealed4-effect": {n: e.bounds[1] for n, e in SEALED4.items()},
     },
+    "1.7": {
+        "harmonics-unbalance-flicker-and-saturation": {
+            "supply_harmonics": 0.2,
+            "supply_unbalance": 0.1,
+            "supply_flicker": 0.02,
+            "magnetic_saturation": 0.5,
+        },
+        "residual-flux-saturation-leakage-and-late-pole": {
+            "rotor_residual_flux": 0.3,
+            "magnetic_saturation": 0.5,
+            "leakage_reactance": 0.02,
+            "supply_late_pole": 0.005,
+        },
+        "residual-flux-coil-bypass-and-broken-bar": {
+            "rotor_residual_flux": 0.3,
+            "stator_coil_bypass": 0.1,
+            "rotor_broken_bar": 0.2,
+        },
+        "misalignment-cogging-and-brake": {
+            "shaft_misalignment": 0.05,
+            "motor_cogging": 0.05,
+            "motor_brake": 1.0,
+        },
+        "hub-runout-offset-squeeze-film-and-progressive-contact": {
+            "clutch_hub_runout": 0.5,
+            "clutch_offset": 0.005,
+            "clutch_squeeze_film": 2.0,
+            "clutch_progressive_contact": 1.0,
+        },
+        "imbalance-wheel-friction-and-mesh-stiffness": {
+            "wheel_imbalance": 0.05,
+            "wheel_coulomb_friction": 0.1,
+            "resilient_mesh_stiffness": 0.2,
+        },
+        "end-buffer-bump-and-guide-binding": {
+            "load_end_buffer": 0.5,
+            "load_track_bump": 0.05,
+            "load_guide_binding": 0.05,
+        },
+        "a1-saturation-hum-crosstalk-and-lowpass": {
+            "accelerometer_saturation": 0.05,
+            "accelerometer_mains_hum": 1.0,
+            "accelerometer_crosstalk": 0.1,
+            "sensor_lowpass": 1000.0,
+        },
+        "every-sealed5-effect": {n: e.bounds[1] for n, e in SEALED5.items()},
+    },
 }
 _SUPPLY_INPUT = {"locus": "supply", "t0": 0.01, "dt": 0.01, "values": [0.04, -0.03, 0.05, 0.02, -0.05] * 4}
 #: Unknown inputs, with the effects on top of them: (effects, the input's schedule) by case name.
@@ -454,6 +521,17 @@ INPUTS: dict[str, dict[str, tuple[dict[str, float] | None, dict[str, Any]]]] = {
         ),
         "seal-drag-and-clutch-input": (
             {"clutch_seal_drag": SEALED4["clutch_seal_drag"].bounds[1]},
+            _schedule("clutch"),
+        ),
+    },
+    # the harmonics under a disturbed supply; the hub's runout across a moving zone
+    "1.7": {
+        "harmonics-and-supply-input": (
+            {"supply_harmonics": SEALED5["supply_harmonics"].bounds[1]},
+            _SUPPLY_INPUT,
+        ),
+        "hub-runout-and-clutch-input": (
+            {"clutch_hub_runout": SEALED5["clutch_hub_runout"].bounds[1]},
             _schedule("clutch"),
         ),
     },
@@ -543,7 +621,7 @@ def test_every_effect_is_neutral_at_its_neutral_value_and_acts_otherwise(version
 def test_the_extended_path_with_every_term_zero_is_model_1_0_bit_for_bit(
     solver: SolverSettings, n: int, grid: SampleGrid | None
 ) -> None:
-    """Forcing P_EXTENDED on with every 1.1 to 1.6 term zero changes no bit: each term is guarded.
+    """Forcing P_EXTENDED on with every 1.1 to 1.7 term zero changes no bit: each term is guarded.
 
     Not a check of one version: the kernel's path of every version at once. MODEL.md's grid at the
     default step (the check since 1.2), and a 25 us grid at a 10 us step (added with 1.3).
@@ -555,6 +633,7 @@ def test_the_extended_path_with_every_term_zero_is_model_1_0_bit_for_bit(
     assert np.all(P[:, kern.P_U_DC : kern.P_HOLD1 + 1] == 0.0)
     assert np.all(P[:, kern.P_R_CON : kern.P_HUM + 1] == 0.0)
     assert np.all(P[:, kern.P_T_POLE : kern.P_IGAIN_A + 1] == 0.0)
+    assert np.all(P[:, kern.P_U_H57 : kern.P_SAT_A1 + 1] == 0.0)
     forced = P.copy()
     forced[:, kern.P_EXTENDED] = 1.0
     runs = []
@@ -617,6 +696,15 @@ SLOTS: dict[str, dict[str, int]] = {
         "bind3": kern.P_BIND3,
         "igain_a": kern.P_IGAIN_A,
     },
+    "1.7": {
+        "u_h57": kern.P_U_H57,
+        "psi_r0": kern.P_PSI_R0,
+        "tau_mis1": kern.P_TAU_MIS1,
+        "ecc12": kern.P_ECC12,
+        "tau_unb2": kern.P_TAU_UNB2,
+        "buf3": kern.P_BUF3,
+        "sat_a1": kern.P_SAT_A1,
+    },
 }
 #: The slots of each version, appended after the previous version's: range(start, stop) (1.4's
 #: after the per-unit base values P_W_B and P_OMEGA_B, which came within 1.3).
@@ -626,9 +714,10 @@ SLOT_RANGES = {
     "1.4": (kern.P_OMEGA_B + 1, kern.P_HOLD1 + 1),
     "1.5": (kern.P_HOLD1 + 1, kern.P_HUM + 1),
     "1.6": (kern.P_HUM + 1, kern.P_IGAIN_A + 1),
+    "1.7": (kern.P_IGAIN_A + 1, kern.P_SAT_A1 + 1),
 }
 #: The values without a slot: the leakages enter x_s and x_r (tests/test_simulation_model_1_3.py).
-NO_SLOT = {"1.2": set(), "1.3": {"x_leak"}, "1.4": set(), "1.5": set(), "1.6": set()}
+NO_SLOT = {"1.2": set(), "1.3": {"x_leak"}, "1.4": set(), "1.5": set(), "1.6": set(), "1.7": set()}
 
 
 def _family_slots(P: np.ndarray) -> int:
@@ -636,7 +725,7 @@ def _family_slots(P: np.ndarray) -> int:
     return int(sum(np.count_nonzero(P[start:stop]) for start, stop in SLOT_RANGES.values()))
 
 
-@pytest.mark.parametrize("version", _families(V1_2, V1_3, V1_4, V1_5, V1_6))
+@pytest.mark.parametrize("version", _families(V1_2, V1_3, V1_4, V1_5, V1_6, V1_7))
 def test_the_version_s_slots_are_appended_after_the_previous_version_s(version: Version) -> None:
     slots = SLOTS[version.version]
     assert sorted(slots.values()) == list(range(*SLOT_RANGES[version.version]))
@@ -647,7 +736,7 @@ def test_the_version_s_slots_are_appended_after_the_previous_version_s(version: 
     ("version", "name"),
     [
         pytest.param(v, n, id=f"{v.version}-{n}")
-        for v in (V1_2, V1_3, V1_4, V1_5, V1_6)
+        for v in (V1_2, V1_3, V1_4, V1_5, V1_6, V1_7)
         for n, e in v.family.items()
         if e.field not in NO_SLOT[v.version]
     ],
@@ -674,13 +763,13 @@ def _half_bound_runs(version: Version) -> SimulationResult:
     return simulate_batch([base] + [e.apply(base, 0.5 * e.bounds[1]) for e in version.family.values()])
 
 
-@pytest.mark.parametrize(("version", "name"), _effects(V1_2, V1_3, V1_4, V1_5, V1_6))
+@pytest.mark.parametrize(("version", "name"), _effects(V1_2, V1_3, V1_4, V1_5, V1_6, V1_7))
 def test_half_the_upper_bound_is_visible_at_40_db_on_the_nominal_plant(version: Version, name: str) -> None:
-    """The bounds' rule (docs/model-changes.md, 1.2 to 1.6): > 3 noise RMS on two channels at half the bound.
+    """The bounds' rule (docs/model-changes.md, 1.2 to 1.7): > 3 noise RMS on two channels at half the bound.
 
     The sensors' effects are in one channel by definition (the speed encoder's error and the speed's
     sample-and-hold in omega1, the accelerometer's cross-talk in a2, the torque estimate's current
-    sensor of 1.6 in m_el): one channel for them (the mains hum of 1.5 is in two, a1 and a2, and
+    sensor of 1.6 in m_el, the accelerometer's saturation of 1.7 in a1): one channel for them (the mains hum of 1.5 is in two, a1 and a2, and
     passes with two).
     """
     e = version.family[name]
@@ -692,7 +781,7 @@ def test_half_the_upper_bound_is_visible_at_40_db_on_the_nominal_plant(version: 
     assert np.sum(rms > 3.0) >= need, (name, dict(zip(CHANNELS, rms.round(1), strict=True)))
 
 
-@pytest.mark.parametrize(("version", "name"), _effects(V1_2, V1_3, V1_4, V1_5, V1_6))
+@pytest.mark.parametrize(("version", "name"), _effects(V1_2, V1_3, V1_4, V1_5, V1_6, V1_7))
 def test_every_effect_at_its_upper_bound_keeps_the_event_across_the_plausible_box(version: Version, name: str) -> None:
     """The nominal plant and the eight corners of the plausible box (K, J1, c)."""
     e = version.family[name]
@@ -749,6 +838,14 @@ def test_every_effect_at_its_upper_bound_keeps_the_event_across_the_plausible_bo
             Case(NOMINAL, SensorParameters(igain_a=0.02)),
             id="1.6-torque_current_gain",
         ),
+        pytest.param(V1_7, "wheel_imbalance", 0.03, NOMINAL.replace(tau_unb2=0.03), id="1.7-wheel_imbalance"),
+        pytest.param(
+            V1_7,
+            "accelerometer_saturation",
+            0.02,
+            Case(NOMINAL, SensorParameters(sat_a1=0.02)),
+            id="1.7-accelerometer_saturation",
+        ),
     ],
 )
 def test_simulate_takes_an_effect_by_name_from_its_family(
@@ -770,6 +867,7 @@ def test_simulate_takes_an_effect_by_name_from_its_family(
         pytest.param(V1_3, "accelerometer_crosstalk", 0.1, "a2", id="1.3-accelerometer_crosstalk"),
         pytest.param(V1_4, "speed_sample_hold", 0.002, "omega1", id="1.4-speed_sample_hold"),
         pytest.param(V1_6, "torque_current_gain", 0.05, "m_el", id="1.6-torque_current_gain"),
+        pytest.param(V1_7, "accelerometer_saturation", 0.05, "a1", id="1.7-accelerometer_saturation"),
     ],
 )
 def test_a_sensor_s_effect_is_in_its_channel_only(version: Version, name: str, value: float, channel: str) -> None:
@@ -790,10 +888,10 @@ def test_the_family_is_outside_the_catalogue_and_the_earlier_families(version: V
 
 
 def test_the_model_version_is_the_last_version_s() -> None:
-    assert MODEL_VERSION == VERSIONS[-1].version == "1.6"
+    assert MODEL_VERSION == VERSIONS[-1].version == "1.7"
 
 
-@pytest.mark.parametrize("version", _families(V1_2, V1_3, V1_4, V1_5, V1_6))
+@pytest.mark.parametrize("version", _families(V1_2, V1_3, V1_4, V1_5, V1_6, V1_7))
 def test_the_family_has_one_new_term_per_locus_neutral_at_zero(version: Version) -> None:
     assert sorted(e.locus for e in version.family.values()) == sorted(LOCI)
     fields_before = {(e.target, e.field) for library in version.earlier for e in library.values()}
@@ -904,6 +1002,23 @@ def test_reference_knows_every_effect_at_its_neutral_value(version: Version) -> 
             },
             id="1.6-sealed4",
         ),
+        pytest.param(
+            V1_7,
+            Case(
+                NOMINAL.replace(u_h57=0.01, psi_r0=0.02, tau_mis1=0.03, ecc12=0.04, tau_unb2=0.05, buf3=0.06),
+                SensorParameters(sat_a1=0.07),
+            ),
+            {
+                "supply_harmonics": 0.01,
+                "rotor_residual_flux": 0.02,
+                "shaft_misalignment": 0.03,
+                "clutch_hub_runout": 0.04,
+                "wheel_imbalance": 0.05,
+                "load_end_buffer": 0.06,
+                "accelerometer_saturation": 0.07,
+            },
+            id="1.7-sealed5",
+        ),
     ],
 )
 def test_the_reference_reads_every_effect_of_a_case(version: Version, case: Case, expected: dict[str, float]) -> None:
@@ -920,6 +1035,7 @@ def test_the_reference_reads_every_effect_of_a_case(version: Version, case: Case
         pytest.param(V1_4, sealed2, id="1.4-sealed2"),
         pytest.param(V1_5, sealed3, id="1.5-sealed3"),
         pytest.param(V1_6, sealed4, id="1.6-sealed4"),
+        pytest.param(V1_7, sealed5, id="1.7-sealed5"),
     ],
 )
 def test_the_rule_is_stated_in_the_module_and_in_the_docs(version: Version, module: ModuleType) -> None:
@@ -987,6 +1103,14 @@ def test_the_case_generator_draws_held_back_cases_from_the_family(version: Versi
         pytest.param(PlantParameters, {"gear2": 1.0}, "gear2", id="1.6-resilient_gear_loss-too-large"),
         pytest.param(PlantParameters, {"bind3": -0.1}, "bind3", id="1.6-load_guide_binding-negative"),
         pytest.param(SensorParameters, {"igain_a": -0.1}, "igain_a", id="1.6-torque_current_gain-negative"),
+        pytest.param(PlantParameters, {"u_h57": -0.01}, "u_h57", id="1.7-supply_harmonics-negative"),
+        pytest.param(PlantParameters, {"u_h57": 0.9}, "u_h57", id="1.7-supply_harmonics-too-large"),
+        pytest.param(PlantParameters, {"psi_r0": 2.0}, "psi_r0", id="1.7-rotor_residual_flux-too-large"),
+        pytest.param(PlantParameters, {"tau_mis1": float("nan")}, "finite", id="1.7-shaft_misalignment-nan"),
+        pytest.param(PlantParameters, {"ecc12": 1.0}, "ecc12", id="1.7-clutch_hub_runout-too-large"),
+        pytest.param(PlantParameters, {"tau_unb2": -0.1}, "tau_unb2", id="1.7-wheel_imbalance-negative"),
+        pytest.param(PlantParameters, {"buf3": -0.1}, "buf3", id="1.7-load_end_buffer-negative"),
+        pytest.param(SensorParameters, {"sat_a1": -0.1}, "sat_a1", id="1.7-accelerometer_saturation-negative"),
     ],
 )
 def test_an_absurd_value_is_refused_with_its_name(

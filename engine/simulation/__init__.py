@@ -19,6 +19,7 @@ from engine.simulation.sealed import SEALED
 from engine.simulation.sealed2 import SEALED2
 from engine.simulation.sealed3 import SEALED3
 from engine.simulation.sealed4 import SEALED4
+from engine.simulation.sealed5 import SEALED5
 from engine.simulation.simulator import (
     SimulationError,
     SimulationResult,
@@ -38,6 +39,7 @@ __all__ = [
     "SEALED2",
     "SEALED3",
     "SEALED4",
+    "SEALED5",
     "Case",
     "Disturbance",
     "Effect",

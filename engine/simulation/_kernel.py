@@ -61,6 +61,14 @@ between the clutch's halves, the mesh friction of a gear stage in the resilient 
 guides pinching the load, and a gain error of a current sensor of the torque's estimate (the m_el
 channel only). With all of them zero the kernel performs model 1.5's floating-point operations.
 
+Model 1.7 adds seven more behind the same guard (the fifth sealed family,
+:data:`engine.simulation.sealed5.SEALED5`): the 5th and 7th harmonics of the supply voltage, the
+rotor's residual flux at switch-on (the initial state, :func:`initial_state`), a misaligned motor
+shaft (a torque twice per revolution), the runout of the clutch's toothed hub (the backlash's
+half-width varying once per revolution, :func:`half_width`), a mass imbalance of the drive wheel,
+an elastomer end buffer on the load's track, and the saturation of a1's accelerometer (the a1
+channel only). With all of them zero the kernel performs model 1.6's floating-point operations.
+
 Every function but the entry points compiles without numba's reference-counting runtime
 (``_nrt=False``, a CPU target option of numba's, used where a function allocates nothing): with it,
 the parameter vector P was reference-counted at every call and every inlined call of a step, atomic
@@ -98,6 +106,7 @@ from engine.constants import (
     T_POLE_GUARD,
     THETA_BIND,
     THETA_BUMP,
+    THETA_STOP,
     W_BUMP,
     W_EDDY,
     W_SMOOTH,
@@ -192,7 +201,18 @@ P_SEAL12 = P_TAU_RUB + 1
 P_GEAR2 = P_SEAL12 + 1
 P_BIND3 = P_GEAR2 + 1
 P_IGAIN_A = P_BIND3 + 1
-N_PARAMS = P_IGAIN_A + 1
+# model 1.7: parametric terms of the fifth sealed family (engine.simulation.sealed5), appended: the
+# supply's 5th and 7th harmonics [x u], the rotor's residual flux at switch-on [pu], the misaligned
+# motor shaft [pu torque], the clutch hub's runout [x b], the drive wheel's imbalance [pu torque],
+# the load's end buffer [pu torque at THETA_STOP of compression], a1's saturation [s^2/m]
+P_U_H57 = P_IGAIN_A + 1
+P_PSI_R0 = P_U_H57 + 1
+P_TAU_MIS1 = P_PSI_R0 + 1
+P_ECC12 = P_TAU_MIS1 + 1
+P_TAU_UNB2 = P_ECC12 + 1
+P_BUF3 = P_TAU_UNB2 + 1
+P_SAT_A1 = P_BUF3 + 1
+N_PARAMS = P_SAT_A1 + 1
 #: sqrt(3), of the phase-c axis e^(j 4 pi / 3) = (-1/2, -sqrt(3)/2) and of the current sensor's error.
 SQRT3 = math.sqrt(3.0)
 #: sqrt(2 e): the bump's force v BUMP_NORM s exp(-s^2) peaks at v (at s = +-1/sqrt(2)).
@@ -327,17 +347,17 @@ def clutch_deflection(t, y, P, motor_on):
 
 
 @njit(cache=True, fastmath=False, **_NO_NRT)
-def contact_push(d, dw, P, ext):
+def contact_push(d, dw, b, P, ext):
     """The clutch's contact torque before its clip, k12 x + d12 dw [pu], at a deflection d outside the zone.
 
-    x = d - b or d + b is the signed penetration beyond the zone's edge [rad]; with model 1.3's
+    x = d - b or d + b is the signed penetration beyond the zone's edge [rad], b the zone's half-width
+    (:func:`half_width`: model 1.7's runout makes it vary with theta_1); with model 1.3's
     progressive contact (``P_PROG12``, under the guard ``ext``) the spring is k12 x (1 + prog12 |x| / X_REF), and
     with model 1.5's hysteresis (``P_HYST12``) also times 1 + hyst12 tanh(sgn(x) dw / W_SMOOTH)
     (:func:`shaped_contact_spring`).
     The caller clips it (a contact can push, never pull). Inlined (numba IR) into its callers,
     :func:`rhs` and :func:`zone`, which evaluate it at every stage of every step.
     """
-    b = P[P_B]
     x = d - b if d > b else d + b
     spring = P[P_K12] * x
     if ext and (P[P_PROG12] != 0.0 or P[P_HYST12] != 0.0):
@@ -363,10 +383,11 @@ def shaped_contact_spring(spring, x, dw, P):
 
 
 @njit(cache=True, fastmath=False, **_NO_NRT)
-def sealed2_torques(y, d, dw, m_c, P):
+def sealed2_torques(y, d, dw, m_c, b, P):
     """The mechanical torques of model 1.4's second sealed family at (y, d, dw) [pu], each 0 when its value is.
 
-    Returns ``m_sq``, the squeeze film in the clutch's gap h = max(b - |d|, 0) (from J1 to J2, beside
+    Returns ``m_sq``, the squeeze film in the clutch's gap h = max(b - |d|, 0) (b the zone's
+    half-width, :func:`half_width`; from J1 to J2, beside
     the contact torque ``m_c``, unclipped); ``m_play``, what the hub's play takes off the resilient
     spring, k2 play2 tanh((theta_2 - theta_3) / play2) (from J2 to the mass); ``m_bearing``, the
     motor's bearing friction mu_1 |m_c + m_sq| tanh(w_1 / W_SMOOTH) (against J1); and ``m_bump``, the
@@ -375,7 +396,6 @@ def sealed2_torques(y, d, dw, m_c, P):
     generated for the right-hand side, not the skipped branches; the same with them inside its
     ``if ext`` block).
     """
-    b = P[P_B]
     m_sq = 0.0
     if P[P_SQ12] != 0.0:
         g = H_SQUEEZE / (H_SQUEEZE + b - abs(d)) if abs(d) < b else 1.0
@@ -458,6 +478,42 @@ def sealed4_torques(y, m_s, P, motor_on):
     if P[P_BIND3] != 0.0:
         m_bind = P[P_BIND3] * abs(y[9]) / THETA_BIND * smooth_sign(y[6])
     return m_rub, m_seal, m_gear, m_bind
+
+
+@njit(cache=True, fastmath=False, **_NO_NRT)
+def half_width(y, P, ext):
+    """The backlash zone's half-width [rad]: b, or with model 1.7's hub runout b (1 + ecc12 sin(theta_1)).
+
+    The runout of the clutch's toothed hub (``P_ECC12``, under the guard ``ext``) moves the mesh's
+    centre distance once per revolution of the motor, and with it the backlash: the contact, its
+    modes, the squeeze film's gap and the event all see this half-width.
+    """
+    if ext and P[P_ECC12] != 0.0:
+        return P[P_B] * (1.0 + P[P_ECC12] * math.sin(y[7]))
+    return P[P_B]
+
+
+@njit(cache=True, fastmath=False, **_NO_NRT)
+def sealed5_torques(y, P):
+    """The mechanical torques of model 1.7's fifth sealed family at y [pu], each 0 when its value is.
+
+    Returns ``m_mis``, the misaligned motor shaft's torque on J1, -tau_mis1 sin(2 theta_1);
+    ``m_unb``, the drive wheel's imbalance on J2, -tau_unb2 sin(theta_2); and ``m_buf``, the end
+    buffer's force on the mass, -buf3 ((theta_3 - THETA_STOP) / THETA_STOP)^2 from theta_3 =
+    THETA_STOP on (zero before). A function of its own, called only when one of them is on (as
+    :func:`sealed2_torques` to :func:`sealed4_torques`).
+    """
+    m_mis = 0.0
+    if P[P_TAU_MIS1] != 0.0:
+        m_mis = -P[P_TAU_MIS1] * math.sin(2.0 * y[7])
+    m_unb = 0.0
+    if P[P_TAU_UNB2] != 0.0:
+        m_unb = -P[P_TAU_UNB2] * math.sin(y[8])
+    m_buf = 0.0
+    if P[P_BUF3] != 0.0 and y[9] > THETA_STOP:
+        x = (y[9] - THETA_STOP) / THETA_STOP
+        m_buf = -P[P_BUF3] * x * x
+    return m_mis, m_unb, m_buf
 
 
 @njit(cache=True, fastmath=False, **_NO_NRT)
@@ -565,6 +621,10 @@ def rhs(t, y, P, motor_on):
             usb -= P[P_U_NEG] * u * math.sin(ang)
         if ext and P[P_U_DC] != 0.0:  # a DC component of the supply in the alpha axis (phase a)
             usa += P[P_U_DC] * P[P_U]
+        if ext and P[P_U_H57] != 0.0:  # model 1.7: 5th (negative) and 7th (positive sequence) harmonics
+            uh = P[P_U_H57] * P[P_U]
+            usa += uh * (math.cos(5.0 * ang) + math.cos(7.0 * ang))
+            usb += uh * (math.sin(7.0 * ang) - math.sin(5.0 * ang))
         if ext and P[P_R_CON] != 0.0:  # a resistance in phase a (star point floating): 2/3 r_con i_sa off u_sa
             usa -= 2.0 / 3.0 * P[P_R_CON] * isa
         dpsa = P[P_W_B] * (usa - P[P_R_S] * isa)
@@ -609,11 +669,11 @@ def rhs(t, y, P, motor_on):
     # clutch with backlash: a contact can push, never pull
     d = clutch_deflection(t, y, P, motor_on) if ext else y[7] - y[8]
     dw = w1 - w2
-    b = P[P_B]
+    b = half_width(y, P, ext)
     if d > b:
-        m_c = max(0.0, contact_push(d, dw, P, ext))
+        m_c = max(0.0, contact_push(d, dw, b, P, ext))
     elif d < -b:
-        m_c = min(0.0, contact_push(d, dw, P, ext))
+        m_c = min(0.0, contact_push(d, dw, b, P, ext))
     else:
         m_c = 0.0
     m_s = P[P_K2] * (y[8] - y[9]) + P[P_D2] * (w2 - w3)
@@ -649,7 +709,7 @@ def rhs(t, y, P, motor_on):
         if P[P_B_3] != 0.0:  # quadratic drag on the load against its motion
             m_3 -= P[P_B_3] * w3 * abs(w3)
         if P[P_SQ12] != 0.0 or P[P_PLAY2] != 0.0 or P[P_MU1] != 0.0 or P[P_BUMP3] != 0.0:  # model 1.4
-            m_sq, m_play, m_bearing, m_bump = sealed2_torques(y, d, dw, m_c, P)
+            m_sq, m_play, m_bearing, m_bump = sealed2_torques(y, d, dw, m_c, b, P)
             m_1 -= m_sq + m_bearing
             m_2 += m_sq + m_play
             m_3 += m_bump - m_play
@@ -665,6 +725,11 @@ def rhs(t, y, P, motor_on):
             m_1 -= m_rub + m_seal
             m_2 += m_seal - m_gear
             m_3 -= m_bind
+        if P[P_TAU_MIS1] != 0.0 or P[P_TAU_UNB2] != 0.0 or P[P_BUF3] != 0.0:  # model 1.7
+            m_mis, m_unb, m_buf = sealed5_torques(y, P)
+            m_1 += m_mis
+            m_2 += m_unb
+            m_3 += m_buf
         if locus == DIST_MOTOR_SHAFT:
             m_1 += dd
         elif locus == DIST_DRIVE_TRAIN:
@@ -686,6 +751,8 @@ def rhs(t, y, P, motor_on):
         hum = P[P_HUM] * math.sin(P[P_F] * P[P_W_B] * t)
         ch0 += hum
         ch3 += hum
+    if ext and P[P_SAT_A1] != 0.0:  # model 1.7: a1's accelerometer saturates (a2's cross-talk took the true a1)
+        ch0 = math.tanh(P[P_SAT_A1] * ch0) / P[P_SAT_A1]
     ch4 = r * P[P_OMEGA_B] * w3
     ch1 = m_el
     if ext and P[P_IGAIN_A] != 0.0:  # the torque estimate's error, in the channel only (not on J1)
@@ -790,15 +857,15 @@ def zone(t, y, P, motor_on):
     can push, never pull). Mode changes are where the right-hand side is
     discontinuous (contact entry) or kinked (clipping).
     """
-    b = P[P_B]
     ext = P[P_EXTENDED] != 0.0
+    b = half_width(y, P, ext)
     d = clutch_deflection(t, y, P, motor_on) if ext else y[7] - y[8]
     if -b <= d <= b:
         return 0
     dw = y[4] - y[5]
     if d > b:
-        return 1 if contact_push(d, dw, P, ext) > 0.0 else 2
-    return -1 if contact_push(d, dw, P, ext) < 0.0 else -2
+        return 1 if contact_push(d, dw, b, P, ext) > 0.0 else 2
+    return -1 if contact_push(d, dw, b, P, ext) < 0.0 else -2
 
 
 @njit(cache=True, fastmath=False, **_NO_NRT)
@@ -882,6 +949,25 @@ def advance(t, y, t_end, P, motor_on):
 
 #: The plant at rest before switch-on: every state zero.
 _REST = (0.0,) * N_STATES
+
+
+@njit(cache=True, fastmath=False, **_NO_NRT)
+def initial_state(P):
+    """The state at switch-on: at rest, or with model 1.7's residual rotor flux psi_r0 along alpha.
+
+    With ``P_PSI_R0`` (under the guard ``P_EXTENDED``) the rotor's flux is psi_r0 and the stator's
+    (x_m / x_r) psi_r0 on the alpha axis (the stator current zero; the unsaturated reactances), every
+    other state zero (a low-pass's states too: they read the channels from zero, as at rest).
+    """
+    if P[P_EXTENDED] == 0.0 or P[P_PSI_R0] == 0.0:
+        return _REST
+    v = P[P_PSI_R0]
+    return (
+        P[P_X_M] / P[P_X_R] * v, 0.0, v, 0.0, 0.0, 0.0, 0.0, 0.0,
+        0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+    )  # fmt: skip
+
+
 #: Row of omega1 in a record (the channel a sample-and-hold acts on, model 1.4).
 _OMEGA1 = CHANNELS.index("omega1")
 
@@ -941,7 +1027,7 @@ def simulate_one(P, out):
     P = P.copy()  # working copy: the switch-off instant is written into it
     P[P_T_SWITCH_OFF] = math.inf
     h = P[P_STEP]
-    y = _REST
+    y = initial_state(P)
     n_ring = ring_size(P)
     ring_t = np.zeros(n_ring)
     ring_y = np.zeros((n_ring, N_STATES))
@@ -987,7 +1073,7 @@ def simulate_one(P, out):
             best_t = ring_t[s]
     if t_first < 0.0:
         best_t = 0.0
-        y = _REST
+        y = initial_state(P)
     elif best < 0:
         return HISTORY_TOO_SHORT, math.nan
     else:

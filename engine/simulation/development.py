@@ -11,8 +11,9 @@ lies. Families of effects outside the catalogue serve to measure it, with opposi
 * :data:`~engine.simulation.held_out.HELD_OUT` (model 1.2),
   :data:`~engine.simulation.sealed.SEALED` (model 1.3),
   :data:`~engine.simulation.sealed2.SEALED2` (model 1.4),
-  :data:`~engine.simulation.sealed3.SEALED3` (model 1.5) and
-  :data:`~engine.simulation.sealed4.SEALED4` (model 1.6) are kept for scoring: development never
+  :data:`~engine.simulation.sealed3.SEALED3` (model 1.5),
+  :data:`~engine.simulation.sealed4.SEALED4` (model 1.6) and
+  :data:`~engine.simulation.sealed5.SEALED5` (model 1.7) are kept for scoring: development never
   reads their scores (SEALED to SEALED4 have had their one blind run each and are spent).
 
 =============================  ===============  ===============================  =============

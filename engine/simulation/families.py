@@ -21,6 +21,9 @@ A protocol-2 run hides one family from the diagnosis and draws its held-back cas
 * ``sealed4``: :data:`~engine.simulation.sealed4.SEALED4` (model 1.6), kept for scoring (its rule:
   :data:`~engine.simulation.sealed4.RULE`); scored once, blind (seed 281, code 55d4a47), its figures
   published: spent, development data since.
+* ``sealed5``: :data:`~engine.simulation.sealed5.SEALED5` (model 1.7), kept for scoring (its rule:
+  :data:`~engine.simulation.sealed5.RULE`); run once, blind, on committed code, its figures are
+  out-of-sample ones.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from engine.simulation.sealed import SEALED
 from engine.simulation.sealed2 import SEALED2
 from engine.simulation.sealed3 import SEALED3
 from engine.simulation.sealed4 import SEALED4
+from engine.simulation.sealed5 import SEALED5
 
 __all__ = ["DEFAULT_FAMILY", "FAMILIES", "locus_of"]
 
@@ -45,6 +49,7 @@ FAMILIES: dict[str, EffectLibrary] = {
     "sealed2": SEALED2,
     "sealed3": SEALED3,
     "sealed4": SEALED4,
+    "sealed5": SEALED5,
 }
 #: The family a run hides unless told otherwise.
 DEFAULT_FAMILY: str = "held_back"

@@ -15,7 +15,9 @@ effects (``tau_ripple3``, ``clutch_offset``, ``tau_cog``, ``tau_C2``,
 since model 1.5 the terms of the third sealed family (``r_con``, ``r_bar``,
 ``tau_brake``, ``hyst12``, ``mesh2``, ``eddy3`` and the sensors' ``hum``);
 since model 1.6 the terms of the fourth sealed family (``t_pole``, ``bypass_a``,
-``tau_rub``, ``seal12``, ``gear2``, ``bind3`` and the sensors' ``igain_a``).
+``tau_rub``, ``seal12``, ``gear2``, ``bind3`` and the sensors' ``igain_a``);
+since model 1.7 the terms of the fifth sealed family (``u_h57``, ``psi_r0``,
+``tau_mis1``, ``ecc12``, ``tau_unb2``, ``buf3`` and the sensors' ``sat_a1``).
 The sensor chain (delay, trigger offset, low-pass, gain, offset,
 quantisation) is also an extension with neutral defaults. See
 ``docs/model-changes.md``.
@@ -362,6 +364,30 @@ class PlantParameters:
         Extension (1.6): misaligned guides of the load, pinching it harder the further it travels
         [pu torque at THETA_BIND of travel]: bind3 |theta_3| / THETA_BIND tanh(w_3 / W_SMOOTH)
         against the mass's motion.
+    u_h57 : float
+        Extension (1.7): the 5th and 7th harmonics of the supply voltage [x u], each of amplitude
+        u_h57 u (the voltage drop of six-pulse rectifiers' currents across the network's
+        impedance): u_s = u (exp(j f w_b t) + u_h57 (exp(-j 5 f w_b t) + exp(j 7 f w_b t))), the 5th
+        of negative sequence, the 7th of positive sequence.
+    psi_r0 : float
+        Extension (1.7): the rotor's residual flux at switch-on [pu flux] (a restart before the
+        flux of the previous run has decayed): at t = 0 the rotor's flux is psi_r0 along the alpha
+        axis and the stator's (x_m / x_r) psi_r0 (the stator current zero; x_m, x_r without
+        saturation), the plant otherwise at rest; it decays with the rotor's time constant.
+    tau_mis1 : float
+        Extension (1.7): a misaligned motor shaft [pu torque] (angular misalignment against the
+        clutch's hub, flexing the shaft twice per revolution): -tau_mis1 sin(2 theta_1) on J1.
+    ecc12 : float
+        Extension (1.7): runout of the clutch's toothed hub [x b]: the backlash's half-width varies
+        once per revolution of the motor, b (1 + ecc12 sin(theta_1)) (the centre distance of an
+        eccentric mesh), in the contact, its modes and the event alike.
+    tau_unb2 : float
+        Extension (1.7): a mass imbalance of the drive wheel [pu torque]: the gravity torque
+        -tau_unb2 sin(theta_2) on J2 (the heavy spot at the bottom at rest).
+    buf3 : float
+        Extension (1.7): an elastomer end buffer on the load's track [pu torque at THETA_STOP of
+        compression]: from theta_3 = THETA_STOP on, -buf3 ((theta_3 - THETA_STOP) / THETA_STOP)^2 on
+        the mass (progressive, as a rubber buffer's; zero before it).
     w_b : float
         Base value (issue 52): electrical base angular frequency w_b [rad/s], 2 pi times the rated
         supply frequency (MODEL.md: 2 pi 50).
@@ -429,6 +455,12 @@ class PlantParameters:
     seal12: float = 0.0
     gear2: float = 0.0
     bind3: float = 0.0
+    u_h57: float = 0.0
+    psi_r0: float = 0.0
+    tau_mis1: float = 0.0
+    ecc12: float = 0.0
+    tau_unb2: float = 0.0
+    buf3: float = 0.0
     w_b: float = const.W_B
     pole_pairs: int = const.POLE_PAIRS
     tm_per_j: float = TM_PER_J
@@ -510,6 +542,12 @@ class PlantParameters:
         _check_range("seal12", self.seal12, 0.0, 10.0, "pu")
         _check_range("gear2", self.gear2, 0.0, 0.9, "x")
         _check_range("bind3", self.bind3, 0.0, 100.0, "pu")
+        _check_range("u_h57", self.u_h57, 0.0, 0.5, "x u")
+        _check_range("psi_r0", self.psi_r0, 0.0, 1.0, "pu")
+        _check_range("tau_mis1", self.tau_mis1, 0.0, 10.0, "pu")
+        _check_range("ecc12", self.ecc12, 0.0, 0.9, "x")
+        _check_range("tau_unb2", self.tau_unb2, 0.0, 10.0, "pu")
+        _check_range("buf3", self.buf3, 0.0, 100.0, "pu")
         for name in ("k12", "k2"):
             _check_range(name, getattr(self, name), 1e-3, 1e5, "pu/rad")
         for name in ("r_s", "r_r"):
@@ -563,9 +601,10 @@ class SensorParameters:
     Model 1.5 adds the mains' hum of a ground loop in the accelerometers' cabling before the chain:
     a1 and a2 each read ``hum sin(f w_b t)`` more. Model 1.6 adds a gain error of the phase-a current
     sensor of the torque's estimate: while the motor is on, m_el reads
-    ``m_el + igain_a i_s_alpha (psi_s_alpha / sqrt(3) - psi_s_beta)``.
+    ``m_el + igain_a i_s_alpha (psi_s_alpha / sqrt(3) - psi_s_beta)``. Model 1.7 adds the saturation
+    of a1's accelerometer (its amplifier's range): a1 reads ``tanh(sat_a1 a1) / sat_a1``.
 
-    Steps 1-2 (and the encoder's and the accelerometer's errors, the hold, the hum and the current sensor's gain) are in the kernel, 3-5
+    Steps 1-2 (and the encoder's and the accelerometer's errors, the hold, the hum, the current sensor's gain and a1's saturation) are in the kernel, 3-5
     act on the sampled values (:func:`engine.simulation.simulator.apply_sensor_readout`).
 
     Parameters
@@ -606,6 +645,10 @@ class SensorParameters:
         a's and b's) sees i_a (1 + igain_a), so that m_el reads igain_a i_s_alpha (psi_s_alpha /
         sqrt(3) - psi_s_beta) more while the motor is on (before the low-pass, gain and offset); 0
         means none.
+    sat_a1 : float
+        Extension (1.7): saturation of a1's accelerometer [s^2/m], 1 / its range, in [0, 1]: a1
+        reads tanh(sat_a1 a1) / sat_a1 (after the mains hum, before the low-pass, gain and offset;
+        a2's cross-talk takes the true a1); 0 means none.
     """
 
     delay: float = 0.0
@@ -619,6 +662,7 @@ class SensorParameters:
     hold1: float = 0.0
     hum: float = 0.0
     igain_a: float = 0.0
+    sat_a1: float = 0.0
 
     def validate(self) -> SensorParameters:
         for f in fields(self):
@@ -637,6 +681,7 @@ class SensorParameters:
         _check_range("hold1", self.hold1, 0.0, 0.01, "s")
         _check_range("hum", self.hum, 0.0, 100.0, "m/s^2")
         _check_range("igain_a", self.igain_a, 0.0, 1.0, "x")
+        _check_range("sat_a1", self.sat_a1, 0.0, 1.0, "s^2/m")
         return self
 
     def replace(self, **changes: Any) -> SensorParameters:

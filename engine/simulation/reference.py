@@ -3,7 +3,8 @@
 A second, independent transcription of MODEL.md, of the effect catalogue, of the
 held-back effects and of the additive unknown input of model 1.1, of the held-out
 effects of model 1.2, of the sealed effects of model 1.3, of the second sealed family of
-model 1.4, of the third sealed family of model 1.5 and of the fourth sealed family of model 1.6,
+model 1.4, of the third sealed family of model 1.5, of the fourth sealed family of model 1.6 and of
+the fifth sealed family of model 1.7,
 used as the yardstick of the numba kernel (MODEL.md section 4, relative
 tolerance 1e-9; ``tests/test_simulation_accuracy.py``) and as the baseline of
 ``bench/bench_simulator.py``. It is slow on purpose: plain numpy, complex
@@ -94,6 +95,16 @@ W_SMOOTH)`` against the motor while it is on; ``v tanh((w_1 - w_2) / W_SMOOTH)``
 against the mass; and the m_el channel (not the torque on J1) reading ``v Re(i_s) (Re(psi_s) /
 sqrt(3) - Im(psi_s))`` more while the motor is on.
 
+Model 1.7 (``docs/model-changes.md``)
+-------------------------------------
+The fifth sealed family (:data:`engine.simulation.SEALED5`), written out here from its
+definitions: ``u_s`` plus ``v u (exp(-5 j f w_b t) + exp(7 j f w_b t))``; the initial state with the
+rotor's flux v and the stator's ``(x_m / x_r) v`` on the real axis (the unsaturated reactances);
+``-v sin(2 theta_1)`` on J1; the zone's half-width ``b (1 + v sin(theta_1))`` in the contact, the
+squeeze film's gap and the event functions alike; ``-v sin(theta_2)`` on J2; ``-v ((theta_3 -
+THETA_STOP) / THETA_STOP)^2`` on the mass beyond THETA_STOP; and a1 (after the hum) read as
+``tanh(v a1) / v``.
+
 Sensor chain
 ------------
 Applied in the order of the measurement:
@@ -144,6 +155,7 @@ from engine.constants import (
     T_EVENT_MAX,
     THETA_BIND,
     THETA_BUMP,
+    THETA_STOP,
     TM_PER_J,
     W_B,
     W_BUMP,
@@ -273,6 +285,17 @@ SEALED4_NEUTRAL: Mapping[str, float] = {
     "torque_current_gain": 0.0,  # x: m_el read + value Re(i_s) (Re(psi_s) / sqrt(3) - Im(psi_s)), motor on
 }
 
+#: The fifth sealed family (model 1.7), at its "no effect" value.
+SEALED5_NEUTRAL: Mapping[str, float] = {
+    "supply_harmonics": 0.0,  # x u: u_s + value u (exp(-5 j f w_b t) + exp(7 j f w_b t))
+    "rotor_residual_flux": 0.0,  # pu: psi_r(0) = value, psi_s(0) = (x_m / x_r) value (real axis)
+    "shaft_misalignment": 0.0,  # pu: - value sin(2 theta_1) on the motor shaft
+    "clutch_hub_runout": 0.0,  # x b: the zone's half-width b (1 + value sin(theta_1))
+    "wheel_imbalance": 0.0,  # pu: - value sin(theta_2) on the wheel
+    "load_end_buffer": 0.0,  # pu: - value ((theta_3 - THETA_STOP) / THETA_STOP)^2 beyond THETA_STOP
+    "accelerometer_saturation": 0.0,  # s^2/m: a1 read as tanh(value a1) / value
+}
+
 _N_PLANT = 10  # psi_s (2), psi_r (2), w_1..3, theta_1..3
 _N_CHANNELS = len(CHANNELS)
 _OMEGA1 = CHANNELS.index("omega1")
@@ -316,6 +339,7 @@ def _resolve(parameters: Mapping[str, float] | None, effects: Mapping[str, float
         **SEALED2_NEUTRAL,
         **SEALED3_NEUTRAL,
         **SEALED4_NEUTRAL,
+        **SEALED5_NEUTRAL,
     }
     for name in effects or {}:
         if name not in neutral_values:
@@ -359,8 +383,8 @@ class ReferenceModel:
     values : mapping
         Every MODEL.md name and every effect name of :data:`EFFECT_NEUTRAL`,
         :data:`HELD_BACK_NEUTRAL`, :data:`HELD_OUT_NEUTRAL`, :data:`SEALED_NEUTRAL`,
-        :data:`SEALED2_NEUTRAL`, :data:`SEALED3_NEUTRAL` and :data:`SEALED4_NEUTRAL` (see
-        :func:`reference_simulate`).
+        :data:`SEALED2_NEUTRAL`, :data:`SEALED3_NEUTRAL`, :data:`SEALED4_NEUTRAL` and
+        :data:`SEALED5_NEUTRAL` (see :func:`reference_simulate`).
     disturbance : mapping, optional
         The unknown input ``{"locus", "t0", "dt", "values"}``.
 
@@ -395,6 +419,10 @@ class ReferenceModel:
         self.rub, self.seal = v["motor_rotor_rub"], v["clutch_seal_drag"]
         self.gear, self.binding = v["resilient_gear_loss"], v["load_guide_binding"]
         self.current_gain = v["torque_current_gain"]
+        self.harmonics, self.residual_flux = v["supply_harmonics"], v["rotor_residual_flux"]
+        self.misalignment, self.runout = v["shaft_misalignment"], v["clutch_hub_runout"]
+        self.imbalance, self.buffer = v["wheel_imbalance"], v["load_end_buffer"]
+        self.a1_saturation = v["accelerometer_saturation"]
         leak = v["leakage_reactance"]  # both leakages x_s - x_m and x_r - x_m higher by it
         self.x_s, self.x_r, self.x_m = v["x_s"] + leak, v["x_r"] + leak, v["x_m"]
         self.switch_off = (math.inf, 0.0)
@@ -442,6 +470,8 @@ class ReferenceModel:
             amplitude *= 1.0 + self.flicker * math.sin(2.0 * math.pi * F_FLICKER * t)
             u_s = amplitude * (phase + self.unbalance * np.conj(phase))
             u_s += self.dc * self.u  # a DC voltage in phase a (the real axis)
+            if self.harmonics:  # the 5th (negative sequence) and the 7th (positive sequence) harmonics
+                u_s += self.harmonics * self.u * (np.conj(phase) ** 5 + phase**7)
             u_s -= 2.0 / 3.0 * self.connection * i_s.real  # phase a's resistance, seen from a floating star point
             loss = self.core_loss * (i_s + i_r)  # the magnetising current through the core-loss resistance
             axis = np.exp(1j * POLE_PAIRS * th[0])  # the broken bar's rotor axis, electrical angle p theta_1
@@ -460,7 +490,7 @@ class ReferenceModel:
             t_e, m_e = self.switch_off
             m_el = self.decay * m_e * math.exp(-(t - t_e) / SWITCH_OFF_DECAY_TIME)
         m_el += self.input.at("motor_electrical", t, motor_on)
-        d, dw, b = self.deflection(t, y, motor_on), w[0] - w[1], self.half_gap
+        d, dw, b = self.deflection(t, y, motor_on), w[0] - w[1], self.half_width(y)
         penetration = abs(d) - b  # beyond the zone's edge [rad]
         contact_spring = self.k12 * penetration * (1.0 + self.progressive * penetration / X_REF)
         if self.hysteresis:  # stiffer while the penetration deepens (|d| grows), softer while it recedes
@@ -492,6 +522,10 @@ class ReferenceModel:
         m_seal = self.seal * math.tanh((w[0] - w[1]) / W_SMOOTH)  # dry friction between the clutch's halves
         m_gear = self.gear * abs(m_s) * math.tanh(w[1] / W_SMOOTH)  # the resilient path's mesh friction
         binding = self.binding * abs(th[2]) / THETA_BIND * math.tanh(w[2] / W_SMOOTH)  # the guides' friction
+        m_f += self.misalignment * math.sin(2.0 * th[0])  # the misaligned shaft, flexed twice per revolution
+        unbalance = self.imbalance * math.sin(th[1])  # the wheel's heavy spot under gravity
+        compression = max(th[2] - THETA_STOP, 0.0) / THETA_STOP  # the end buffer's, none before it
+        buffer = self.buffer * compression**2  # the end buffer's force against the mass
         s_eddy = w[2] / W_EDDY
         eddy = self.eddy * 2.0 * s_eddy / (1.0 + s_eddy**2)  # the eddy-current brake's force on the mass
         s_bump = (th[2] - THETA_BUMP) / W_BUMP  # where the mass is on the bump
@@ -506,6 +540,7 @@ class ReferenceModel:
                 - m_gear
                 - m_s
                 - self.wheel_friction * math.tanh(w[1] / W_SMOOTH)
+                - unbalance
                 + self.input.at("drive_train", t, motor_on),
                 m_s
                 - m_a
@@ -515,6 +550,7 @@ class ReferenceModel:
                 + bump
                 - eddy
                 - binding
+                - buffer
                 + self.input.at("load", t, motor_on),
             ]
         )
@@ -523,7 +559,10 @@ class ReferenceModel:
         a1, a2 = self.r * OMEGA_B * dw_dt[0], self.r * OMEGA_B * dw_dt[2]
         a2 += self.crosstalk * a1  # the load accelerometer's cross-axis sensitivity
         hum = self.hum * math.sin(self.f * W_B * t)  # the mains in the accelerometers' cabling
-        raw = np.array([a1 + hum, m_el + error, omega1, a2 + hum, self.r * OMEGA_B * w[2]])
+        a1_read = a1 + hum
+        if self.a1_saturation:  # a1's amplifier saturates (a2's cross-talk took the true a1)
+            a1_read = math.tanh(self.a1_saturation * a1_read) / self.a1_saturation
+        raw = np.array([a1_read, m_el + error, omega1, a2 + hum, self.r * OMEGA_B * w[2]])
         parts = [dpsi.real, dpsi.imag, dw_dt, OMEGA_B * w]
         if self.filter_rate:
             parts.append(self.filter_rate * (raw - y[_N_PLANT:]))
@@ -572,6 +611,17 @@ class ReferenceModel:
             return float(np.imag(np.conj(i_r) * psi[1]))
         return float(np.imag(np.conj(psi[0]) * i_s))
 
+    def half_width(self, y: np.ndarray) -> float:
+        """The backlash zone's half-width [rad]: b, with the hub's runout b (1 + v sin(theta_1))."""
+        return float(self.half_gap * (1.0 + self.runout * math.sin(y[7])))
+
+    def initial_state(self) -> np.ndarray:
+        """The state at switch-on: at rest, with the rotor's residual flux v and (x_m / x_r) v the stator's."""
+        y0 = np.zeros(self.n_states)
+        y0[0] = self.x_m / self.x_r * self.residual_flux  # Re(psi_s) (y holds Re, then Im, of [psi_s, psi_r])
+        y0[1] = self.residual_flux  # Re(psi_r)
+        return y0
+
     def deflection(self, t: float, y: np.ndarray, motor_on: bool = True) -> float:
         """theta_1 - theta_2 measured from the centre of the backlash zone [rad]."""
         return float(y[7] - y[8] - self.offset - self.input.at("clutch", t, motor_on))
@@ -600,10 +650,10 @@ def reference_simulate(
         MODEL.md parameters that differ from :data:`MODEL_DEFAULTS`, by their
         MODEL.md names (e.g. ``{"K": 0.005, "J1": 0.87, "c": 1.0}``).
     effects : mapping, optional
-        Catalogued, held-back, held-out and sealed effects (the four sealed families) by name and
+        Catalogued, held-back, held-out and sealed effects (the five sealed families) by name and
         value (keys of :data:`EFFECT_NEUTRAL`, :data:`HELD_BACK_NEUTRAL`, :data:`HELD_OUT_NEUTRAL`,
-        :data:`SEALED_NEUTRAL`, :data:`SEALED2_NEUTRAL`, :data:`SEALED3_NEUTRAL` and
-        :data:`SEALED4_NEUTRAL`).
+        :data:`SEALED_NEUTRAL`, :data:`SEALED2_NEUTRAL`, :data:`SEALED3_NEUTRAL`,
+        :data:`SEALED4_NEUTRAL` and :data:`SEALED5_NEUTRAL`).
     method, rtol, atol
         ``solve_ivp`` settings.
     grid : SampleGrid, optional
@@ -628,7 +678,6 @@ def reference_simulate(
     """
     values = _resolve(parameters, effects)
     model = ReferenceModel(values, disturbance)
-    b = model.half_gap
 
     def f_on(t: float, y: np.ndarray) -> np.ndarray:
         return model.derivatives(t, y, True)[0]
@@ -638,14 +687,14 @@ def reference_simulate(
 
     def event(direction: float) -> Callable[[float, np.ndarray], float]:
         def gap(t: float, y: np.ndarray) -> float:
-            return abs(model.deflection(t, y)) - b
+            return abs(model.deflection(t, y)) - model.half_width(y)
 
         gap.terminal = True  # type: ignore[attr-defined]
         gap.direction = direction  # type: ignore[attr-defined]
         return gap
 
     kw: dict[str, Any] = dict(method=method, rtol=rtol, atol=atol, dense_output=True)
-    y0 = np.zeros(model.n_states)
+    y0 = model.initial_state()
     t_pole = model.late_pole
     s0 = None
     if t_pole > 0:  # phase c closes at t_pole: the first piece with it open, up to that instant
@@ -772,6 +821,13 @@ def reference_inputs(case: Case) -> tuple[dict[str, float], dict[str, float]]:
         "resilient_gear_loss": p.gear2,
         "load_guide_binding": p.bind3,
         "torque_current_gain": s.igain_a,
+        "supply_harmonics": p.u_h57,
+        "rotor_residual_flux": p.psi_r0,
+        "shaft_misalignment": p.tau_mis1,
+        "clutch_hub_runout": p.ecc12,
+        "wheel_imbalance": p.tau_unb2,
+        "load_end_buffer": p.buf3,
+        "accelerometer_saturation": s.sat_a1,
     }
     return parameters, effects
 

@@ -161,10 +161,11 @@ def parameter_vector(
     Parameters
     ----------
     case : Case
-        Plant (with its model-1.1 to 1.6 terms and unknown input, if any) and measurement
+        Plant (with its model-1.1 to 1.7 terms and unknown input, if any) and measurement
         chain; only the chain's delay, trigger offset, low-pass, (model 1.2) encoder eccentricity,
         (model 1.3) accelerometer cross-talk, (model 1.4) omega1's sample-and-hold, (model 1.5)
-        the accelerometers' mains hum and (model 1.6) the torque estimate's current sensor enter the kernel (gain, offset and quantisation act afterwards: :func:`apply_sensor_readout`). Model
+        the accelerometers' mains hum, (model 1.6) the torque estimate's current sensor and (model 1.7)
+        a1's saturation enter the kernel (gain, offset and quantisation act afterwards: :func:`apply_sensor_readout`). Model
         1.3's higher leakage reactances (``x_leak``) enter as ``x_s + x_leak`` and ``x_r + x_leak``,
         with no term of their own.
     solver : SolverSettings
@@ -221,6 +222,10 @@ def parameter_vector(
     P[kern.P_T_POLE], P[kern.P_BYPASS_A], P[kern.P_TAU_RUB] = p.t_pole, p.bypass_a, p.tau_rub
     P[kern.P_SEAL12], P[kern.P_GEAR2], P[kern.P_BIND3] = p.seal12, p.gear2, p.bind3
     P[kern.P_IGAIN_A] = s.igain_a
+    # model 1.7 (appended after model 1.6's)
+    P[kern.P_U_H57], P[kern.P_PSI_R0], P[kern.P_TAU_MIS1] = p.u_h57, p.psi_r0, p.tau_mis1
+    P[kern.P_ECC12], P[kern.P_TAU_UNB2], P[kern.P_BUF3] = p.ecc12, p.tau_unb2, p.buf3
+    P[kern.P_SAT_A1] = s.sat_a1
     extended = (
         dist is not None
         or any(P[kern.P_TAU_RIPPLE3 : kern.P_M_OFF + 1] != 0.0)
@@ -229,6 +234,7 @@ def parameter_vector(
         or any(P[kern.P_U_DC : kern.P_HOLD1 + 1] != 0.0)
         or any(P[kern.P_R_CON : kern.P_HUM + 1] != 0.0)
         or any(P[kern.P_T_POLE : kern.P_IGAIN_A + 1] != 0.0)
+        or any(P[kern.P_U_H57 : kern.P_SAT_A1 + 1] != 0.0)
     )
     P[kern.P_EXTENDED] = 1.0 if extended else 0.0
     return P
@@ -407,7 +413,8 @@ def simulate_batch(
         :data:`~engine.simulation.sealed.SEALED` for the sealed ones (model 1.3),
         :data:`~engine.simulation.sealed2.SEALED2` for the second sealed family (model 1.4),
         :data:`~engine.simulation.sealed3.SEALED3` for the third (model 1.5),
-        :data:`~engine.simulation.sealed4.SEALED4` for the fourth (model 1.6).
+        :data:`~engine.simulation.sealed4.SEALED4` for the fourth (model 1.6),
+        :data:`~engine.simulation.sealed5.SEALED5` for the fifth (model 1.7).
 
     Returns
     -------
