@@ -52,14 +52,11 @@ from engine.diagnosis.confidence import (
     SCORE_FEATURE,
     ConfidenceMap,
     IsotonicMap,
-    PartMap,
     calibrated_confidence,
     fit_isotonic,
-    fit_parts,
     load_map,
     locus_confidence,
     locus_feature,
-    part_key,
 )
 from engine.diagnosis.open_world import fit_open_world
 from engine.validation.provenance import code_version
@@ -149,8 +146,8 @@ def fit_map(
     fitted on those instead of the runs' unexplained and weak-gap verdicts. With ``open_world_runs``
     (runs of families outside the catalogue) the open-world part is fitted on their records against the
     in-catalogue records of ``runs``. With ``locus_runs`` (blind runs of families outside the catalogue)
-    the locus's map is one per part the answer names (:func:`~engine.diagnosis.confidence.fit_parts`),
-    fitted on their located verdicts.
+    the locus's map is fitted on their located verdicts (overriding ``locus_rows``), right when the part the
+    answer names holds an effect of the record.
     """
     outcomes = [o for run, _ in runs for o in run.outcomes]
     verdict: dict[str, IsotonicMap] = {}
@@ -162,12 +159,10 @@ def fit_map(
     loc_xy = [(x, bool(ok)) for x, ok in loc if x is not None]
     if locus_rows:
         loc_xy = [xy for _, rows in locus_rows for xy in rows]
-    locus: PartMap | IsotonicMap | None = (
-        fit_isotonic([x for x, _ in loc_xy], [ok for _, ok in loc_xy], LOCUS_FEATURE) if loc_xy else None
-    )
-    located = [o for run, _ in locus_runs for o in run.outcomes if o.locus_correct is not None and o.locus]
+    located = [o for run, _ in locus_runs for o in run.outcomes if o.locus_correct is not None]
     if located:
-        locus = fit_parts([part_key(str(o.locus)) for o in located], [bool(o.locus_correct) for o in located])
+        loc_xy = [(x, bool(o.locus_correct)) for o in located if (x := locus_feature(o.locus_estimate)) is not None]
+    locus = fit_isotonic([x for x, _ in loc_xy], [ok for _, ok in loc_xy], LOCUS_FEATURE) if loc_xy else None
     world = None
     if open_world_runs:
         inside = explained_by_gap(outcomes, IN_CATALOGUE_KINDS)
@@ -214,9 +209,8 @@ def fit_map(
             f"{MIN_BLOCK} cases merged with the neighbour of closer accuracy; each block's accuracy shrunk by a "
             f"Beta({PRIOR:g}, {PRIOR:g}) prior; linear between blocks, flat beyond. Locus: the same on "
             f"{LOCUS_FEATURE}, on whether the verdict's locus is where an effect of the record acts "
-            f"(engine.validation.reliability); or, fitted on locus runs, per part the answer names (the locus or "
-            f"the group of loci the record cannot tell apart), its accuracy shrunk by the same prior, parts of "
-            f"fewer than {MIN_BLOCK} cases pooled."
+            f"(engine.validation.reliability: the part the answer names, the locus with the loci the record "
+            f"cannot tell from it)."
         ),
         "score": (
             "the decision's score (engine/diagnosis/decision.py; its formula and thresholds are the same in the "
@@ -408,7 +402,7 @@ def main(argv: list[str] | None = None) -> int:
         nargs="+",
         default=(),
         help="with --fit: blind runs of families outside the catalogue whose figures are spent; fits the locus's "
-        "map per part the answer names (overrides --locus-rows)",
+        "map on their located verdicts (overrides --locus-rows)",
     )
     ap.add_argument(
         "--open-world-runs",

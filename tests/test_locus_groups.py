@@ -2,17 +2,15 @@
 
 The supply and the motor's electrics reach the record only through the electromagnetic torque
 (``engine.simulation.parameters.LOCUS_GROUPS``): an additive electromagnetic torque reproduces a
-supply deviation's change on every channel, so the locus answer names the two together, the
-scorer counts the group, and the locus's probability is stated per part the answer names.
+supply deviation's change on every channel, so the locus answer names the two together and the
+scorer counts the group.
 """
 
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from engine.constants import CHANNELS
-from engine.diagnosis.confidence import PartMap, fit_parts, locus_confidence, part_key
 from engine.diagnosis.locus._report import LocusReport
 from engine.records import SampleGrid
 from engine.simulation import Case, Disturbance, PlantParameters, simulate_batch
@@ -87,26 +85,3 @@ def test_the_scorer_counts_the_group_and_apart_the_single_locus() -> None:
     old = Answer("unexplained", (), "supply", 1.0, None, None)  # written before the groups: the locus alone
     assert old.names_locus("supply") and not old.names_locus("motor_electrical")
     assert not Answer("no_gap", (), None, 1.0, None, None).names_locus("load")
-
-
-def test_a_part_map_states_each_parts_accuracy_and_pools_the_small_ones() -> None:
-    keys = ["load"] * 20 + ["motor_shaft"] * 25 + ["clutch"] * 4 + ["sensors"] * 6
-    right = [True] * 18 + [False] * 2 + [True] * 10 + [False] * 15 + [True] * 4 + [True] * 3 + [False] * 3
-    m = fit_parts(keys, right)
-    assert m("load") == pytest.approx(18.5 / 21) and m("motor_shaft") == pytest.approx(10.5 / 26)
-    assert m("clutch") == m("sensors") == m("drive_train") == pytest.approx(7.5 / 11)
-    assert m.n == len(keys)
-    assert PartMap.from_dict(m.to_dict()) == m
-    with pytest.raises(ValueError, match="at least one case"):
-        fit_parts([], [])
-
-
-def test_the_locus_probability_is_the_named_parts() -> None:
-    from engine.diagnosis.confidence import ConfidenceMap
-
-    m = fit_parts([part_key("supply")] * 20 + ["load"] * 20, [True] * 15 + [False] * 5 + [True] * 10 + [False] * 10)
-    cmap = ConfidenceMap(verdict={}, locus=m, provenance={})
-    p_supply = locus_confidence({"locus": "supply"}, cmap)
-    assert p_supply == locus_confidence({"locus": "motor_electrical"}, cmap) == pytest.approx(15.5 / 21)
-    assert locus_confidence({"locus": "load"}, cmap) == pytest.approx(0.5)
-    assert locus_confidence({"locus": None}, cmap) is None

@@ -11,10 +11,7 @@ import numpy as np
 import pytest
 
 from engine.diagnosis.confidence import (
-    LOCUS_FEATURE,
-    ConfidenceMap,
     IsotonicMap,
-    PartMap,
     calibrated_confidence,
     fit_isotonic,
     load_map,
@@ -139,32 +136,26 @@ def test_committed_map_loads_and_names_only_development_runs():
     assert calibrated_confidence("error", 0.3) == 0.3  # a status the map does not hold keeps its score
     assert cmap.locus is not None
     # the locus's map: fitted on the committed blind runs of spent families outside the catalogue (physics the
-    # locus was not developed on when they ran), not on held-back runs, one probability per part the answer names
+    # locus was not developed on when they ran), not on held-back runs
     runs = cmap.provenance["locus_fitted_on"]
     assert runs and all((VALIDATION / r["run"]).is_dir() and r["n"] > 0 for r in runs)
-    assert not {r["run"] for r in runs} & HELD_OUT
-    assert isinstance(cmap.locus, PartMap) and cmap.locus.n == sum(r["n"] for r in runs)
-    values = [b["value"] for b in (*cmap.locus.parts.values(), cmap.locus.other)]
-    assert all(0 < v < 1 for v in values) and max(values) - min(values) > 0.2  # the parts differ
+    assert not {r["run"] for r in runs} & HELD_OUT and cmap.locus.n == sum(r["n"] for r in runs)
+    loc = np.array([cmap.locus(v) for v in np.linspace(-6.0, 1.0, 701)])
+    assert np.all(np.diff(loc) >= 0) and np.all((loc > 0) & (loc < 1))
 
 
 def _locus_report(rss: float, locus: str | None = "load") -> dict:
     return {"locus": locus, "n_data": 1000, "confidence": 1.0, "scores": {"load": {"rss": rss}}}
 
 
-def test_an_isotonic_locus_map_falls_with_the_misfit_the_locus_leaves():
-    """Maps fitted before the parts' (on the locus's misfit) still read."""
+def test_locus_confidence_falls_with_the_misfit_the_locus_leaves():
     assert locus_feature(_locus_report(1000.0)) == pytest.approx(0.0)  # chi2/n 1
     assert locus_feature(_locus_report(1e5)) == pytest.approx(-2.0)
-    iso = ConfidenceMap(
-        verdict={}, locus=fit_isotonic([-3.0] * 20 + [0.0] * 20, [True] * 8 + [False] * 12 + [True] * 16 + [False] * 4,
-        LOCUS_FEATURE), provenance={},
-    )  # fmt: skip
-    good, bad = locus_confidence(_locus_report(1000.0), iso), locus_confidence(_locus_report(1e6), iso)
+    good, bad = locus_confidence(_locus_report(1000.0)), locus_confidence(_locus_report(1e6))
     assert good is not None and bad is not None and 0 < bad < good < 1
     assert locus_confidence(None) is None
     assert locus_confidence(_locus_report(1000.0, locus=None)) is None
-    assert locus_confidence(_locus_report(math.nan), iso) is None
+    assert locus_confidence(_locus_report(math.nan)) is None
 
 
 def _outcome(status: str, conf: float, right: bool, **kw) -> CaseOutcome:
