@@ -172,6 +172,8 @@ SEALED2_RUN = "v2-sealed2-seed263"
 SEALED3_RUN = "v2-sealed3-seed269"
 #: The blind run on the fourth sealed family (model 1.6), defined before the work seed 269's run led to was scored.
 SEALED4_RUN = "v2-sealed4-seed281"
+#: The blind run on the fifth sealed family (model 1.7), defined before the work seed 281's run led to was committed.
+SEALED5_RUN = "v2-sealed5-seed283"
 #: The protocol-2 blind run on the described drive of docs/examples/drive-60hz-conveyor.toml (issue 52).
 DRIVE_RUN = "v2-conveyor-seed311"
 #: The time budgets of issue 10 (90th percentile of one diagnosis at a time on 2 cores).
@@ -186,6 +188,16 @@ def p2_report(seed: int) -> dict[str, Any]:
 def p2_metric(report: Mapping[str, Any], name: str) -> dict[str, Any]:
     """One target's entry of a protocol-2 report."""
     return next(m for m in report["metrics"] if m["name"] == name)
+
+
+def p2_single_locus(report: Mapping[str, Any]) -> dict[str, Any]:
+    """The held-back records whose verdict's single locus is the effect's: ``held_back_locus_single``, or, in
+    reports scored before the loci the record cannot tell apart were named together, ``held_back_locus``
+    (which was that)."""
+    for m in (*report["metrics"], *report.get("breakdown", ())):
+        if m["name"] == "held_back_locus_single":
+            return m
+    return p2_metric(report, "held_back_locus")
 
 
 def p2_cell(m: Mapping[str, Any]) -> str:
@@ -319,6 +331,13 @@ def render_p2_families(page: Page) -> str:
             f"{VALIDATION}/{SEALED4_RUN}/width-coverage.json",
             "answer",
         ),
+        (
+            SEALED5_RUN,
+            "fifth sealed seven (model 1.7, defined before the work seed 281 led to was committed; never developed "
+            "on), seed 283",
+            f"{VALIDATION}/{SEALED5_RUN}/width-coverage.json",
+            "answer",
+        ),
     ]
     rows, paths = [], []
     for run, label, cov_path, rule in runs:
@@ -330,6 +349,7 @@ def render_p2_families(page: Page) -> str:
                 f"{label}, code {p2_code(report)}",
                 rate_of(p2_metric(report, "held_back_unexplained")["rate"]),
                 rate_of(p2_metric(report, "held_back_locus")["rate"]),
+                rate_of(p2_single_locus(report)["rate"]),
                 f"{cov['covered']}/{cov['n']} = {coverage_cell(cov)}"
                 + (" (rebuilt from the stored fits)" if rule == "rule" else ""),
             ]
@@ -337,7 +357,8 @@ def render_p2_families(page: Page) -> str:
     head = [
         "records of effects outside the catalogue",
         "answered `unexplained` (>= 80 %)",
-        "locus right (>= 80 %)",
+        "part named right (>= 80 %): the locus, or the loci the record cannot tell apart",
+        "single locus right",
         "width of `unexplained` answers: truth inside the 95 % interval",
     ]
     return table(head, rows) + sources(page, paths)
@@ -1476,20 +1497,31 @@ def render_validation_summary(page: Page) -> str:
     r263 = read_json(f"{VALIDATION}/{SEALED2_RUN}/report.json")
     r269 = read_json(f"{VALIDATION}/{SEALED3_RUN}/report.json")
     r281 = read_json(f"{VALIDATION}/{SEALED4_RUN}/report.json")
-    for name, what in (
-        ("held_back_unexplained", "diagnosis: an effect of a family never developed on answered `unexplained`"),
-        ("held_back_locus", "... and the part of the plant it acts on named right"),
+    r283 = read_json(f"{VALIDATION}/{SEALED5_RUN}/report.json")
+    for what, now, before in (
+        (
+            "diagnosis: an effect of a family never developed on answered `unexplained`",
+            p2_metric(r283, "held_back_unexplained"),
+            p2_metric(r281, "held_back_unexplained"),
+        ),
+        (
+            "... and the part of the plant it acts on named right (the locus, or the supply and the motor's "
+            "electrics together, which the record cannot tell apart)",
+            p2_metric(r283, "held_back_locus"),
+            p2_single_locus(r281),
+        ),
+        ("... the single locus named right", p2_single_locus(r283), p2_single_locus(r281)),
     ):
-        m, m269 = p2_metric(r281, name), p2_metric(r269, name)
         rows.append(
             [
                 what,
-                f"**{rate_of(m['rate'])}** ({rate_of(m269['rate'])})",
-                f"{m['rate']['n']} records of the fourth sealed family (model 1.6), seed 281, code {p2_code(r281)}: "
-                f"out of sample ({m269['rate']['n']} of the third sealed family of model 1.5, seed 269, code "
-                f"{p2_code(r269)}); target {m['target']}",
-                f"{page.link(f'{VALIDATION}/{SEALED4_RUN}/report.md', 'seed 281')}, "
-                f"{page.link(f'{VALIDATION}/{SEALED3_RUN}/report.md', 'seed 269')}",
+                f"**{rate_of(now['rate'])}** ({rate_of(before['rate'])})",
+                f"{now['rate']['n']} records of the fifth sealed family (model 1.7), seed 283, code {p2_code(r283)}: "
+                f"out of sample ({before['rate']['n']} of the fourth sealed family of model 1.6, seed 281, code "
+                f"{p2_code(r281)}, whose answers named single loci)"
+                + (f"; target {now['target']}" if now.get("target") else ""),
+                f"{page.link(f'{VALIDATION}/{SEALED5_RUN}/report.md', 'seed 283')}, "
+                f"{page.link(f'{VALIDATION}/{SEALED4_RUN}/report.md', 'seed 281')}",
             ]
         )
     v1 = read_json(f"{VALIDATION}/v1-seed227/report.json")
@@ -1558,9 +1590,10 @@ def render_validation_summary(page: Page) -> str:
         f"operating points drawn by the protocol); a blind run is blind only for the code it ran on. Seed {newest}: "
         f"protocol 2 (the open world), {r2['n_cases']} records, code {p2_code(r2)}; seed {previous}: "
         f"{r2p['n_cases']} records, code {p2_code(r2p)} (in brackets); both hold back five effects outside the "
-        "catalogue that the open-world step was developed on. Seeds 281 and 269: the same protocol on families "
-        f"kept apart for scoring: the fourth sealed family of model 1.6, {r281['n_cases']} records, code "
-        f"{p2_code(r281)}; the third of model 1.5, {r269['n_cases']} records, code {p2_code(r269)}; before them "
+        "catalogue that the open-world step was developed on. Seeds 283 and 281: the same protocol on families "
+        f"kept apart for scoring: the fifth sealed family of model 1.7, {r283['n_cases']} records, code "
+        f"{p2_code(r283)}; the fourth of model 1.6, {r281['n_cases']} records, code {p2_code(r281)}; before them "
+        f"seed 269 on the third of model 1.5 ({r269['n_cases']} records, code {p2_code(r269)}), "
         f"seed 263 on the second of model 1.4 ({r263['n_cases']} records, code {p2_code(r263)}), defined "
         f"before the work that seed 257's run (the sealed family of model 1.3, {r257['n_cases']} records, code "
         f"{p2_code(r257)}) led to; earlier, seed 241 on the held-out family of "
@@ -1570,6 +1603,7 @@ def render_validation_summary(page: Page) -> str:
     paths = [
         f"{VALIDATION}/v2-seed{newest}/report.json",
         f"{VALIDATION}/v2-seed{previous}/report.json",
+        f"{VALIDATION}/{SEALED5_RUN}/report.json",
         f"{VALIDATION}/{SEALED4_RUN}/report.json",
         f"{VALIDATION}/{SEALED3_RUN}/report.json",
         f"{VALIDATION}/{SEALED2_RUN}/report.json",

@@ -217,9 +217,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         default=DEFAULT_FAMILY,
         help="protocol 2: the family of effects outside the catalogue that held-back cases draw from (default "
         f"{DEFAULT_FAMILY}: model 1.1's five, developed on; held_out: model 1.2's seven, kept for scoring, whose "
-        "figures are out of sample; sealed, sealed2, sealed3, sealed4: model 1.3's, 1.4's, 1.5's and 1.6's seven, "
-        "kept for scoring, each scored once, blind (seeds 257, 263, 269 and 281), spent since; sealed5: model "
-        "1.7's seven, kept for scoring, run once, blind, on committed code; development: open to development). "
+        "figures are out of sample; sealed to sealed5: model 1.3's to 1.7's seven, kept for scoring, each scored "
+        "once, blind (seeds 257, 263, 269, 281 and 283), spent since; development: open to development). "
         "E.g. --held-back sealed5 --mix held_back=1",
     )
     add_drive_option(p)  # protocol 2 only: the cases are drawn, simulated and diagnosed on the described drive

@@ -14,7 +14,7 @@ lies. Families of effects outside the catalogue serve to measure it, with opposi
   :data:`~engine.simulation.sealed3.SEALED3` (model 1.5),
   :data:`~engine.simulation.sealed4.SEALED4` (model 1.6) and
   :data:`~engine.simulation.sealed5.SEALED5` (model 1.7) are kept for scoring: development never
-  reads their scores (SEALED to SEALED4 have had their one blind run each and are spent).
+  reads their scores (SEALED to SEALED5 have had their one blind run each and are spent).
 
 =============================  ===============  ===============================  =============
 effect                         locus            term                             bounds

@@ -22,8 +22,8 @@ A protocol-2 run hides one family from the diagnosis and draws its held-back cas
   :data:`~engine.simulation.sealed4.RULE`); scored once, blind (seed 281, code 55d4a47), its figures
   published: spent, development data since.
 * ``sealed5``: :data:`~engine.simulation.sealed5.SEALED5` (model 1.7), kept for scoring (its rule:
-  :data:`~engine.simulation.sealed5.RULE`); run once, blind, on committed code, its figures are
-  out-of-sample ones.
+  :data:`~engine.simulation.sealed5.RULE`); scored once, blind (seed 283, code 00d9c2c), its figures
+  published: spent, development data since.
 """
 
 from __future__ import annotations
