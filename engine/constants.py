@@ -25,7 +25,8 @@ from typing import Final
 #: 1.5: the third sealed family's seven terms (SEALED3), neutral by default.
 #: 1.6: the fourth sealed family's seven terms (SEALED4), neutral by default.
 #: 1.7: the fifth sealed family's seven terms (SEALED5), neutral by default.
-MODEL_VERSION: Final[str] = "1.7"
+#: 1.8: a second unknown input of the clutch, a torque across it (``clutch_torque``), zero by default.
+MODEL_VERSION: Final[str] = "1.8"
 
 # --- base quantities -------------------------------------------------------
 #: Rated supply frequency [Hz], the electrical base (MODEL.md section 1.1).

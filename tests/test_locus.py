@@ -27,9 +27,19 @@ from engine.diagnosis.calibration import CalibrationResult, calibrate
 from engine.diagnosis.locus import LocusReport, estimate_locus
 from engine.diagnosis.noise import NoiseModel
 from engine.records import Record
-from engine.simulation import CATALOGUE, HELD_BACK, LOCI, Case, EffectLibrary, PlantParameters, simulate_batch
+from engine.simulation import (
+    CATALOGUE,
+    DISTURBANCE_LOCI,
+    HELD_BACK,
+    LOCI,
+    Case,
+    EffectLibrary,
+    PlantParameters,
+    simulate_batch,
+)
 from engine.simulation.development import PARAMETER_DRIFTS
 from engine.simulation.noise import add_white_noise
+from engine.simulation.parameters import input_part
 from engine.simulation.sealed import SEALED
 from engine.simulation.sealed3 import SEALED3
 
@@ -166,7 +176,8 @@ def test_report_is_json_ready_and_series_lie_on_the_record_grid() -> None:
     d = known_point("load_torque_ripple")
     out = json.loads(json.dumps(d.report.to_dict(), allow_nan=False))
     assert out["locus"] == "load"
-    assert set(out["scores"]) == set(LOCI)
+    assert set(out["scores"]) == {*DISTURBANCE_LOCI, "sensors"}  # every input, the clutch's two among them
+    assert {input_part(k) for k in out["scores"]} == set(LOCI) and out["input"] == "load"
     assert len(out["term"]["series"]) == len(out["term"]["t"]) == d.record.n_samples
     np.testing.assert_allclose(out["term"]["t"], d.record.time)
 

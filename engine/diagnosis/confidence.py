@@ -352,7 +352,7 @@ def locus_feature(report: Mapping[str, Any] | None) -> float | None:
     """
     if not report or report.get("locus") is None:
         return None
-    score = (report.get("scores") or {}).get(report["locus"]) or {}
+    score = (report.get("scores") or {}).get(report.get("input") or report["locus"]) or {}
     rss, n = score.get("rss"), report.get("n_data")
     if not isinstance(rss, (int, float)) or not isinstance(n, (int, float)) or n <= 0 or not math.isfinite(rss):
         return None

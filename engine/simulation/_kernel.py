@@ -226,6 +226,7 @@ DIST_MOTOR_SHAFT = 3  # torque on J1 [pu] (not in m_el)
 DIST_CLUTCH = 4  # angle offset of the backlash zone [rad]: d = theta_1 - theta_2 - offset
 DIST_DRIVE_TRAIN = 5  # torque on the wheel J2 [pu]
 DIST_LOAD = 6  # torque on the load (mass m2, T_3) [pu]
+DIST_CLUTCH_TORQUE = 7  # model 1.8: torque across the clutch [pu], from J1 to J2: -d on J1, +d on J2
 
 N_CHANNELS = len(CHANNELS)
 N_STATES = 10 + N_CHANNELS
@@ -736,6 +737,9 @@ def rhs(t, y, P, motor_on):
             m_2 += dd
         elif locus == DIST_LOAD:
             m_3 += dd
+        elif locus == DIST_CLUTCH_TORQUE:  # model 1.8: a torque the clutch's halves exert on each other
+            m_1 -= dd
+            m_2 += dd
     dw1 = m_1 / P[P_T1]
     dw2 = m_2 / P[P_T2]
     dw3 = m_3 / P[P_T3]

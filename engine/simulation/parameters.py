@@ -45,7 +45,17 @@ from engine.constants import (
 
 #: Loci of the plant where an unknown input can enter (:class:`Disturbance`), in the kernel's
 #: order; every locus of :data:`engine.simulation.LOCI` but the measurement chain.
-DISTURBANCE_LOCI: tuple[str, ...] = ("supply", "motor_electrical", "motor_shaft", "clutch", "drive_train", "load")
+#: ``clutch_torque`` (model 1.8) is a second input of the clutch: a torque its halves exert on each
+#: other (a drag, a seal, a spring of the coupling), where ``clutch`` moves its zone.
+DISTURBANCE_LOCI: tuple[str, ...] = (
+    "supply",
+    "motor_electrical",
+    "motor_shaft",
+    "clutch",
+    "drive_train",
+    "load",
+    "clutch_torque",
+)
 #: What the unknown input is at each locus, and its unit.
 DISTURBANCE_MEANING: dict[str, tuple[str, str]] = {
     "supply": ("relative deviation of the supply voltage amplitude, u -> u (1 + d)", "x u"),
@@ -54,7 +64,17 @@ DISTURBANCE_MEANING: dict[str, tuple[str, str]] = {
     "clutch": ("angle offset of the backlash zone, theta_1 - theta_2 - d", "rad"),
     "drive_train": ("torque on the drive wheel J2", "pu"),
     "load": ("torque on the load (mass m2)", "pu"),
+    "clutch_torque": ("torque across the clutch, from the motor shaft J1 to the drive wheel J2", "pu"),
 }
+#: The part of the plant (one of :data:`engine.simulation.LOCI`) where each unknown input enters, where
+#: the input's name is not the part's.
+DISTURBANCE_PART: dict[str, str] = {"clutch_torque": "clutch"}
+
+
+def input_part(name: str) -> str:
+    """The part of the plant where the unknown input ``name`` (or a locus's library) enters."""
+    return DISTURBANCE_PART.get(name, name)
+
 
 #: Loci the recorded channels cannot tell apart, by the name a sentence gives the group. The
 #: supply and the motor's electrics reach every recorded channel only through the electromagnetic
@@ -145,7 +165,8 @@ class Disturbance:
         :data:`DISTURBANCE_MEANING`): ``supply`` relative voltage deviation [x u],
         ``motor_electrical`` additive electromagnetic torque [pu], ``motor_shaft`` torque on
         J1 [pu], ``clutch`` angle offset of the backlash zone [rad], ``drive_train`` torque on
-        J2 [pu], ``load`` torque on the mass m2 [pu].
+        J2 [pu], ``load`` torque on the mass m2 [pu], ``clutch_torque`` (model 1.8) torque across the
+        clutch from J1 to J2 (-d on J1, +d on J2) [pu].
     t0 : float
         Time of the first knot [s since switch-on], >= 0.
     dt : float

@@ -227,8 +227,17 @@ HELD_BACK_NEUTRAL: Mapping[str, float] = {
 
 #: Loci of the unknown input, what it is there (see the kernel): the supply voltage is scaled
 #: by (1 + d); an electromagnetic torque d is added (channel and shaft); a torque d acts on
-#: the motor shaft, the wheel or the mass; the backlash zone is moved by d [rad].
-DISTURBANCE_LOCI: tuple[str, ...] = ("supply", "motor_electrical", "motor_shaft", "clutch", "drive_train", "load")
+#: the motor shaft, the wheel or the mass; the backlash zone is moved by d [rad]; (model 1.8) a
+#: torque d acts across the clutch, from the motor shaft to the wheel.
+DISTURBANCE_LOCI: tuple[str, ...] = (
+    "supply",
+    "motor_electrical",
+    "motor_shaft",
+    "clutch",
+    "drive_train",
+    "load",
+    "clutch_torque",
+)
 
 #: The held-out effects (model 1.2), at their "no effect" value.
 HELD_OUT_NEUTRAL: Mapping[str, float] = {
@@ -531,6 +540,7 @@ class ReferenceModel:
         s_bump = (th[2] - THETA_BUMP) / W_BUMP  # where the mass is on the bump
         bump = self.bump * math.sqrt(2.0 * math.e) * s_bump * math.exp(-(s_bump**2)) if self.bump else 0.0
         m_pre = self.preload * self.k12 * d  # the spring across the clutch, inside the zone too
+        m_pre += self.input.at("clutch_torque", t, motor_on)  # model 1.8: an unknown torque across the clutch
         torques = np.array(
             [
                 m_el - m_c - m_pre - m_f - m_seal + self.input.at("motor_shaft", t, motor_on),

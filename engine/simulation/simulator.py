@@ -39,6 +39,7 @@ DISTURBANCE_CODES: Final[dict[str, int]] = {
     "motor_shaft": kern.DIST_MOTOR_SHAFT,
     "clutch": kern.DIST_CLUTCH,
     "drive_train": kern.DIST_DRIVE_TRAIN,
+    "clutch_torque": kern.DIST_CLUTCH_TORQUE,
     "load": kern.DIST_LOAD,
 }
 

@@ -4,8 +4,9 @@ When no catalogue effect explains a record (verdict "unexplained"), the
 residual of the calibration is explained instead by an *unknown input* d(t) at
 one locus of the plant (model 1.1's :class:`~engine.simulation.Disturbance`):
 a relative supply-voltage deviation, an additive electromagnetic torque, a
-torque on the motor shaft, an angle offset of the backlash zone, a torque on
-the drive wheel, or a torque on the load. The method is unknown-input
+torque on the motor shaft, an angle offset of the backlash zone or (model 1.8) a torque
+across the clutch (both inputs of the clutch: ``DISTURBANCE_PART``), a torque on the drive
+wheel, or a torque on the load. The method is unknown-input
 estimation around the calibrated trajectory, one locus at a time:
 
 1. **Responses** (one batch). d(t) is piecewise linear, with knots every

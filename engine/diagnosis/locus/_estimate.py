@@ -28,7 +28,7 @@ from engine.diagnosis.space import ModelSpace, default_space
 from engine.parallel import single_threaded_blas
 from engine.records import Record
 from engine.simulation import DISTURBANCE_LOCI
-from engine.simulation.parameters import locus_group
+from engine.simulation.parameters import input_part, locus_group
 
 logger = logging.getLogger(__name__)
 
@@ -300,11 +300,17 @@ def _estimate(
             seconds=time.perf_counter() - t0,
             notes=notes,
         )
-    # the part the record can name: the best locus with those its channels cannot tell from it
-    group = list(locus_group(best)) if best in DISTURBANCE_LOCI else [best]
-    ties = [
-        key for key in ranked[1:] if key not in group and (bics[key] - bics[best]) / dispersion < settings.tie_delta
-    ]
+    # the part the record can name (an input's part: the clutch's torque is the clutch's), with the parts
+    # its channels cannot tell from it
+    part = input_part(best)
+    group = list(locus_group(part))
+    ties = list(
+        dict.fromkeys(
+            input_part(key)
+            for key in ranked[1:]
+            if input_part(key) not in group and (bics[key] - bics[best]) / dispersion < settings.tie_delta
+        )
+    )
     t_rel = record.grid.time
     chi2_injected = math.nan
     if best == SENSORS:
@@ -322,7 +328,7 @@ def _estimate(
                 "injecting the estimated input into the calibrated case does not lower chi2: the gap is too "
                 "large for the linearisation around the calibrated trajectory; the locus is a first guess"
             )
-    confidence = sum(scores[key].weight for key in group)
+    confidence = sum(s.weight for key, s in scores.items() if input_part(key) in group)
     left = scores[best].rss / n
     if left > settings.first_guess_chi2:
         confidence = min(confidence, FIRST_GUESS_CONFIDENCE)
@@ -331,7 +337,7 @@ def _estimate(
             f"does not reproduce the record, and the locus is a first guess"
         )
     report = LocusReport(
-        locus=best,
+        locus=part,
         scores=scores,
         term=term,
         confidence=confidence,
@@ -344,6 +350,7 @@ def _estimate(
         notes=notes,
         dispersion=dispersion,
         group=group,
+        input=best,
     )
     logger.info(
         "locus: %s (confidence %.2f%s), %s; %d simulations, %.1f s",

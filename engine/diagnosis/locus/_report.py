@@ -250,6 +250,10 @@ class LocusReport:
         The loci the recorded channels cannot tell from the best one, the best first
         (:data:`engine.simulation.parameters.LOCUS_GROUPS`; the best alone when it is in no group): the
         answer is this part of the plant, and ``confidence`` is the group's posterior weight.
+    input : str or None
+        The best of ``scores``: the unknown input (one of :data:`engine.simulation.DISTURBANCE_LOCI`), or
+        ``sensors``, whose part is ``locus`` (the clutch's torque, ``clutch_torque``, is the clutch's);
+        None when no locus is named (reports written before it: ``locus``).
     """
 
     locus: str | None
@@ -265,6 +269,7 @@ class LocusReport:
     notes: list[str] = field(default_factory=list)
     dispersion: float = 1.0
     group: list[str] = field(default_factory=list)
+    input: str | None = None
 
     @property
     def description(self) -> str:
@@ -290,6 +295,7 @@ class LocusReport:
             "ties": list(self.ties),
             "group": list(self.group) if self.group else ([self.locus] if self.locus else []),
             "group_name": locus_group_name(self.locus) if self.locus and len(self.group) > 1 else None,
+            "input": self.input if self.input is not None else self.locus,
             "description": self.description,
             "scores": {k: v.to_dict() for k, v in self.scores.items()},
             "term": None if self.term is None else self.term.to_dict(),

@@ -34,6 +34,7 @@ PROBE: dict[str, float] = {
     "clutch": 1e-4,
     "drive_train": 5e-3,
     "load": 5e-3,
+    "clutch_torque": 5e-3,
 }
 #: Unpenalised extras of every locus's input: a constant from switch-on and a step at the switch-off.
 N_EXTRAS: int = 2

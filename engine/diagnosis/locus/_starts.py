@@ -58,6 +58,7 @@ SCAN_SCALE: dict[str, float] = {
     "clutch": 0.006,
     "drive_train": 0.2,
     "load": 0.2,
+    "clutch_torque": 0.2,
 }
 
 

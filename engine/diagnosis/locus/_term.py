@@ -30,6 +30,7 @@ _WHAT: dict[str, str] = {
     "clutch": "angle offset of the backlash zone",
     "drive_train": "torque",
     "load": "torque",
+    "clutch_torque": "torque",
 }
 _WHERE: dict[str, str] = {
     "supply": "at the motor's terminals",
@@ -38,6 +39,7 @@ _WHERE: dict[str, str] = {
     "clutch": "in the clutch",
     "drive_train": "on the drive wheel",
     "load": "on the load",
+    "clutch_torque": "across the clutch (its halves on each other)",
 }
 
 
