@@ -208,3 +208,10 @@ TARGETS: Final[dict[str, Target]] = {
     "seconds_single_p90": Target(10.0, "<=", gating=False),
     "seconds_compound_p90": Target(60.0, "<=", gating=False),
 }
+#: Issue 50, item 5's targets on a family kept for scoring (its one blind run), stricter than
+#: :data:`TARGETS`' for the held-back family developed on: abstention 90 %, the right part 80 %.
+#: The scorer's report states :data:`TARGETS`; the pages that quote a sealed family's run state these.
+SEALED_TARGETS: Final[dict[str, Target]] = {
+    "held_back_unexplained": Target(0.90, ">="),
+    "held_back_locus": Target(0.80, ">="),
+}
