@@ -146,8 +146,8 @@ def fit_map(
     fitted on those instead of the runs' unexplained and weak-gap verdicts. With ``open_world_runs``
     (runs of families outside the catalogue) the open-world part is fitted on their records against the
     in-catalogue records of ``runs``. With ``locus_runs`` (blind runs of families outside the catalogue)
-    the locus's map is fitted on their located verdicts (overriding ``locus_rows``), right when the part the
-    answer names holds an effect of the record.
+    the locus's map is fitted on their located verdicts instead (the command line takes one of the two), right
+    when the part the answer names holds an effect of the record.
     """
     outcomes = [o for run, _ in runs for o in run.outcomes]
     verdict: dict[str, IsotonicMap] = {}
@@ -402,7 +402,7 @@ def main(argv: list[str] | None = None) -> int:
         nargs="+",
         default=(),
         help="with --fit: blind runs of families outside the catalogue whose figures are spent; fits the locus's "
-        "map on their located verdicts (overrides --locus-rows)",
+        "map on their located verdicts (instead of --locus-rows)",
     )
     ap.add_argument(
         "--open-world-runs",
@@ -422,6 +422,8 @@ def main(argv: list[str] | None = None) -> int:
         held = sorted((set(names) | {p.name for p in (*args.open_world_runs, *args.locus_runs)}) & set(HELD_OUT_RUNS))
         if held:
             ap.error(f"refusing to fit on held-out runs: {', '.join(held)}")
+        if args.locus_rows and args.locus_runs:
+            ap.error("give the locus's map either --locus-rows or --locus-runs, not both")
         try:
             rows = [(p, read_locus_rows(p)) for p in args.locus_rows]
         except (OSError, ValueError) as e:

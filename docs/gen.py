@@ -1474,6 +1474,8 @@ def render_slow_suite_times(page: Page) -> str:
 
 def render_validation_summary(page: Page) -> str:
     """The one table of what the product has been validated on (README and the site's home page)."""
+    from engine.validation.protocol import SEALED_TARGETS
+
     newest, previous = P2_RUNS[-1], P2_RUNS[-2]
     r2, r2p = p2_report(newest), p2_report(previous)
     p2 = f"{VALIDATION}/v2-seed{newest}/report.md"
@@ -1509,7 +1511,6 @@ def render_validation_summary(page: Page) -> str:
     r269 = read_json(f"{VALIDATION}/{SEALED3_RUN}/report.json")
     r281 = read_json(f"{VALIDATION}/{SEALED4_RUN}/report.json")
     r283 = read_json(f"{VALIDATION}/{SEALED5_RUN}/report.json")
-    from engine.validation.protocol import SEALED_TARGETS
 
     for what, now, before in (
         (

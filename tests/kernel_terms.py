@@ -1,5 +1,5 @@
 """Shared helpers of the model-version tests that check one kernel term at a state against its definition
-(``tests/test_simulation_model_1_4.py``, ``tests/test_simulation_model_1_5.py``)."""
+(``tests/test_simulation_model_1_4.py`` to ``tests/test_simulation_model_1_8.py``)."""
 
 from __future__ import annotations
 

@@ -32,45 +32,18 @@ import math
 import numpy as np
 import pytest
 from bench_scripts import load_bench
+from kernel_terms import NOMINAL, STATE, vectors
+from kernel_terms import rhs as _rhs
+from kernel_terms import with_state as _with
 
 from engine.constants import CHANNELS, EVENT_INDEX, T_POLE_GUARD, THETA_BIND, W_SMOOTH
-from engine.simulation import SEALED4, Case, PlantParameters, SensorParameters, simulate_batch
+from engine.simulation import SEALED4, Case, SensorParameters, simulate_batch
 from engine.simulation import _kernel as kern
 from engine.simulation.simulator import parameter_vector
 
-NOMINAL = PlantParameters(K=0.005, J1=0.87, c=1.0)
-#: A state of the test's order of magnitude (fluxes, speeds, angles; no sensor states), the
-#: clutch's deflection theta_1 - theta_2 = 0.03 rad inside the nominal zone (b = 0.05 rad).
-STATE = (0.9, -0.3, 0.8, -0.35, 0.02, 0.012, 0.004, 0.07, 0.04, 0.01, 0.0, 0.0, 0.0, 0.0, 0.0)
 M_EL = CHANNELS.index("m_el")
 #: The axis of phase c, e^(j 4 pi / 3).
 E_C = (-0.5, -0.5 * math.sqrt(3.0))
-
-
-def _vectors(name: str, value: float) -> tuple[np.ndarray, np.ndarray]:
-    """The parameter vectors of the nominal plant without and with the effect, both on the extended path."""
-    base = Case(NOMINAL)
-    P0 = parameter_vector(base)
-    P1 = parameter_vector(SEALED4[name].apply(base, value))
-    P0[kern.P_EXTENDED] = 1.0  # the same path, so that the difference is the term alone
-    P0[kern.P_T_SWITCH_OFF] = P1[kern.P_T_SWITCH_OFF] = math.inf
-    return P0, P1
-
-
-def _rhs(
-    P: np.ndarray, y: tuple[float, ...] = STATE, t: float = 0.01, motor_on: bool = True
-) -> tuple[np.ndarray, np.ndarray]:
-    dy, ch = kern.rhs(t, y, P, motor_on)
-    return np.array(dy), np.array(ch)
-
-
-def _with(y: tuple[float, ...], **at: float) -> tuple[float, ...]:
-    """``y`` with some of its entries replaced, by index name (``w1`` .. ``w3``, ``th1`` .. ``th3``)."""
-    index = {"w1": 4, "w2": 5, "w3": 6, "th1": 7, "th2": 8, "th3": 9}
-    out = list(y)
-    for name, value in at.items():
-        out[index[name]] = value
-    return tuple(out)
 
 
 def _currents(y: tuple[float, ...]) -> tuple[complex, complex]:
@@ -83,7 +56,7 @@ def _currents(y: tuple[float, ...]) -> tuple[complex, complex]:
 
 def test_the_late_pole_keeps_phase_c_s_current_at_zero_until_it_closes() -> None:
     v = SEALED4["supply_late_pole"].bounds[1]
-    P0, P1 = _vectors("supply_late_pole", v)
+    P0, P1 = vectors(SEALED4, "supply_late_pole", v)
     (d0, c0), (d1, c1) = _rhs(P0, t=0.5 * v), _rhs(P1, t=0.5 * v)
     x_r, x_m = NOMINAL.x_r, NOMINAL.x_m
     # d i_c / dt = 0: x_r dpsi_s . e_c = x_m dpsi_r . e_c
@@ -100,7 +73,7 @@ def test_the_late_pole_keeps_phase_c_s_current_at_zero_until_it_closes() -> None
 
 def test_the_integrator_s_steps_end_just_before_and_just_after_the_late_pole_closes() -> None:
     v = SEALED4["supply_late_pole"].bounds[1]
-    _, P1 = _vectors("supply_late_pole", v)
+    _, P1 = vectors(SEALED4, "supply_late_pole", v)
     h = 1e-4
     t = v - 0.5 * h
     assert kern.step_to_knot(t, h, P1) == pytest.approx(v - T_POLE_GUARD - t, rel=1e-9)
@@ -112,7 +85,7 @@ def test_the_integrator_s_steps_end_just_before_and_just_after_the_late_pole_clo
 
 def test_the_bypassed_turns_give_the_alpha_axis_its_own_inductances() -> None:
     v = SEALED4["stator_coil_bypass"].bounds[1]
-    P0, P1 = _vectors("stator_coil_bypass", v)
+    P0, P1 = vectors(SEALED4, "stator_coil_bypass", v)
     (d0, _), (d1, c1) = _rhs(P0), _rhs(P1)
     x_s, x_r, x_m, r_s = NOMINAL.x_s, NOMINAL.x_r, NOMINAL.x_m, NOMINAL.r_s
     n = 1.0 - 2.0 / 3.0 * v
@@ -131,7 +104,7 @@ def test_the_bypassed_turns_give_the_alpha_axis_its_own_inductances() -> None:
 
 def test_the_rotor_s_rub_follows_the_flux_and_stops_with_the_motor() -> None:
     v = SEALED4["motor_rotor_rub"].bounds[1]
-    P0, P1 = _vectors("motor_rotor_rub", v)
+    P0, P1 = vectors(SEALED4, "motor_rotor_rub", v)
     T1 = NOMINAL.T1
     rub = v * (STATE[0] ** 2 + STATE[1] ** 2) * math.tanh(STATE[4] / W_SMOOTH)
     assert (_rhs(P0)[0][4] - _rhs(P1)[0][4]) * T1 == pytest.approx(rub, rel=1e-9)
@@ -142,7 +115,7 @@ def test_the_rotor_s_rub_follows_the_flux_and_stops_with_the_motor() -> None:
 @pytest.mark.parametrize("deflection", [0.03, 0.0505], ids=["inside-the-zone", "in-contact"])
 def test_the_seal_s_drag_acts_between_the_clutch_s_halves_at_every_deflection(deflection: float) -> None:
     v = SEALED4["clutch_seal_drag"].bounds[1]
-    P0, P1 = _vectors("clutch_seal_drag", v)
+    P0, P1 = vectors(SEALED4, "clutch_seal_drag", v)
     y = _with(STATE, th1=STATE[8] + deflection)
     (d0, _), (d1, _) = _rhs(P0, y), _rhs(P1, y)
     drag = v * math.tanh((STATE[4] - STATE[5]) / W_SMOOTH)
@@ -153,7 +126,7 @@ def test_the_seal_s_drag_acts_between_the_clutch_s_halves_at_every_deflection(de
 
 def test_the_gear_s_loss_is_a_share_of_the_resilient_torque_against_the_wheel() -> None:
     v = SEALED4["resilient_gear_loss"].bounds[1]
-    P0, P1 = _vectors("resilient_gear_loss", v)
+    P0, P1 = vectors(SEALED4, "resilient_gear_loss", v)
     (d0, _), (d1, _) = _rhs(P0), _rhs(P1)
     m_s = NOMINAL.k2 * (STATE[8] - STATE[9]) + NOMINAL.d2 * (STATE[5] - STATE[6])
     loss = v * abs(m_s) * math.tanh(STATE[5] / W_SMOOTH)
@@ -163,7 +136,7 @@ def test_the_gear_s_loss_is_a_share_of_the_resilient_torque_against_the_wheel() 
 
 def test_the_guides_bind_harder_the_further_the_load_travels() -> None:
     v = SEALED4["load_guide_binding"].bounds[1]
-    P0, P1 = _vectors("load_guide_binding", v)
+    P0, P1 = vectors(SEALED4, "load_guide_binding", v)
 
     def force(theta3: float) -> float:
         y = _with(STATE, th3=theta3, w3=1.0)  # well above the smoothing speed: the full friction
@@ -176,7 +149,7 @@ def test_the_guides_bind_harder_the_further_the_load_travels() -> None:
 
 def test_the_current_sensor_s_error_is_in_m_el_only_and_before_the_event_only() -> None:
     v = SEALED4["torque_current_gain"].bounds[1]
-    P0, P1 = _vectors("torque_current_gain", v)
+    P0, P1 = vectors(SEALED4, "torque_current_gain", v)
     (d0, c0), (d1, c1) = _rhs(P0), _rhs(P1)
     i_s, _ = _currents(STATE)
     assert c1[M_EL] - c0[M_EL] == pytest.approx(v * i_s.real * (STATE[0] / math.sqrt(3.0) - STATE[1]), rel=1e-9)

@@ -30,48 +30,20 @@ import math
 import numpy as np
 import pytest
 from bench_scripts import load_bench
+from kernel_terms import NOMINAL, STATE, vectors
+from kernel_terms import rhs as _rhs
+from kernel_terms import with_state as _with
 
 from engine.constants import CHANNELS, THETA_STOP
-from engine.simulation import SEALED5, Case, PlantParameters, SensorParameters, simulate_batch
+from engine.simulation import SEALED5, Case, SensorParameters, simulate_batch
 from engine.simulation import _kernel as kern
-from engine.simulation.simulator import parameter_vector
 
-NOMINAL = PlantParameters(K=0.005, J1=0.87, c=1.0)
-#: A state of the test's order of magnitude (fluxes, speeds, angles; no sensor states), the
-#: clutch's deflection theta_1 - theta_2 = 0.03 rad inside the nominal zone (b = 0.05 rad).
-STATE = (0.9, -0.3, 0.8, -0.35, 0.02, 0.012, 0.004, 0.07, 0.04, 0.01, 0.0, 0.0, 0.0, 0.0, 0.0)
 A1, A2 = CHANNELS.index("a1"), CHANNELS.index("a2")
-
-
-def _vectors(name: str, value: float, base: Case | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The parameter vectors of the base (nominal) case without and with the effect, both on the extended path."""
-    base = base or Case(NOMINAL)
-    P0 = parameter_vector(base)
-    P1 = parameter_vector(SEALED5[name].apply(base, value))
-    P0[kern.P_EXTENDED] = 1.0  # the same path, so that the difference is the term alone
-    P0[kern.P_T_SWITCH_OFF] = P1[kern.P_T_SWITCH_OFF] = math.inf
-    return P0, P1
-
-
-def _rhs(
-    P: np.ndarray, y: tuple[float, ...] = STATE, t: float = 0.01, motor_on: bool = True
-) -> tuple[np.ndarray, np.ndarray]:
-    dy, ch = kern.rhs(t, y, P, motor_on)
-    return np.array(dy), np.array(ch)
-
-
-def _with(y: tuple[float, ...], **at: float) -> tuple[float, ...]:
-    """``y`` with some of its entries replaced, by index name (``w1`` .. ``w3``, ``th1`` .. ``th3``)."""
-    index = {"w1": 4, "w2": 5, "w3": 6, "th1": 7, "th2": 8, "th3": 9}
-    out = list(y)
-    for name, value in at.items():
-        out[index[name]] = value
-    return tuple(out)
 
 
 def test_the_harmonics_add_the_5th_and_the_7th_to_the_stator_s_voltage() -> None:
     v = SEALED5["supply_harmonics"].bounds[1]
-    P0, P1 = _vectors("supply_harmonics", v)
+    P0, P1 = vectors(SEALED5, "supply_harmonics", v)
     t = 0.0123
     (d0, c0), (d1, c1) = _rhs(P0, t=t), _rhs(P1, t=t)
     ang = NOMINAL.f * P0[kern.P_W_B] * t
@@ -85,7 +57,7 @@ def test_the_harmonics_add_the_5th_and_the_7th_to_the_stator_s_voltage() -> None
 
 def test_the_residual_flux_is_the_initial_state_with_no_stator_current() -> None:
     v = SEALED5["rotor_residual_flux"].bounds[1]
-    P0, P1 = _vectors("rotor_residual_flux", v)
+    P0, P1 = vectors(SEALED5, "rotor_residual_flux", v)
     assert kern.initial_state(P0) == (0.0,) * kern.N_STATES
     y0 = kern.initial_state(P1)
     x_s, x_r, x_m = NOMINAL.x_s, NOMINAL.x_r, NOMINAL.x_m
@@ -101,7 +73,7 @@ def test_the_residual_flux_is_the_initial_state_with_no_stator_current() -> None
 @pytest.mark.parametrize("theta1", [0.07, -0.4, 1.2])
 def test_the_misaligned_shaft_s_torque_is_twice_per_revolution(theta1: float) -> None:
     v = SEALED5["shaft_misalignment"].bounds[1]
-    P0, P1 = _vectors("shaft_misalignment", v)
+    P0, P1 = vectors(SEALED5, "shaft_misalignment", v)
     y = _with(STATE, th1=theta1, th2=theta1 - 0.03)
     (d0, _), (d1, _) = _rhs(P0, y), _rhs(P1, y)
     assert (d1[4] - d0[4]) * NOMINAL.T1 == pytest.approx(-v * math.sin(2.0 * theta1), rel=1e-9)
@@ -111,7 +83,7 @@ def test_the_misaligned_shaft_s_torque_is_twice_per_revolution(theta1: float) ->
 @pytest.mark.parametrize("theta2", [0.04, -0.3, 2.0])
 def test_the_wheel_s_imbalance_is_a_gravity_torque_on_j2(theta2: float) -> None:
     v = SEALED5["wheel_imbalance"].bounds[1]
-    P0, P1 = _vectors("wheel_imbalance", v)
+    P0, P1 = vectors(SEALED5, "wheel_imbalance", v)
     y = _with(STATE, th2=theta2, th1=theta2 + 0.03)
     (d0, _), (d1, _) = _rhs(P0, y), _rhs(P1, y)
     assert (d1[5] - d0[5]) * NOMINAL.T2 == pytest.approx(-v * math.sin(theta2), rel=1e-9)
@@ -120,7 +92,7 @@ def test_the_wheel_s_imbalance_is_a_gravity_torque_on_j2(theta2: float) -> None:
 
 def test_the_hub_s_runout_widens_the_zone_with_the_motor_s_angle() -> None:
     v = SEALED5["clutch_hub_runout"].bounds[1]
-    P0, P1 = _vectors("clutch_hub_runout", v)
+    P0, P1 = vectors(SEALED5, "clutch_hub_runout", v)
     b = NOMINAL.K / NOMINAL.r
     theta1 = 0.2
     wide = b * (1.0 + v * math.sin(theta1))
@@ -141,7 +113,7 @@ def test_the_hub_s_runout_widens_the_zone_with_the_motor_s_angle() -> None:
 
 def test_the_end_buffer_acts_beyond_its_point_only() -> None:
     v = SEALED5["load_end_buffer"].bounds[1]
-    P0, P1 = _vectors("load_end_buffer", v)
+    P0, P1 = vectors(SEALED5, "load_end_buffer", v)
 
     def force(theta3: float) -> float:
         y = _with(STATE, th3=theta3, th2=theta3 + 0.03, th1=theta3 + 0.06)
@@ -155,7 +127,7 @@ def test_the_end_buffer_acts_beyond_its_point_only() -> None:
 def test_a1_s_saturation_is_in_a1_only_and_a2_s_crosstalk_reads_the_true_a1() -> None:
     v = SEALED5["accelerometer_saturation"].bounds[1]
     base = Case(NOMINAL, SensorParameters(xtalk2=0.1))
-    P0, P1 = _vectors("accelerometer_saturation", v, base)
+    P0, P1 = vectors(SEALED5, "accelerometer_saturation", v, base)
     y = _with(STATE, th1=STATE[8] + 0.06)  # 0.01 rad into the contact: a large a1
     (d0, c0), (d1, c1) = _rhs(P0, y), _rhs(P1, y)
     assert abs(c0[A1]) > 10.0

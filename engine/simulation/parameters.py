@@ -87,6 +87,12 @@ def input_part(name: str) -> str:
 #: (:func:`locus_group`). A record with a current or voltage channel would separate them; this
 #: plant has none (MODEL.md section 3).
 LOCUS_GROUPS: dict[str, tuple[str, ...]] = {"the supply or the motor's electrics": ("supply", "motor_electrical")}
+#: Why the record cannot tell each group's loci apart, and what would, as the answer says it.
+LOCUS_GROUP_REASONS: dict[str, str] = {
+    "the supply or the motor's electrics": (
+        "both reach the record only through m_el; a stator current or voltage channel would"
+    ),
+}
 
 
 def locus_group(locus: str) -> tuple[str, ...]:

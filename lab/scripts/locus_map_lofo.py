@@ -22,7 +22,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from engine.diagnosis.confidence import LOCUS_FEATURE, MIN_BLOCK, PRIOR, fit_isotonic, locus_feature
-from engine.simulation.parameters import locus_group_name
+from engine.simulation.parameters import LOCUS_GROUPS, locus_group_name
 from engine.validation.reliability import CaseOutcome, read_run, reliability_table
 
 logger = logging.getLogger("locus_map_lofo")
@@ -89,6 +89,15 @@ def main(argv: list[str] | None = None) -> int:
         k = sum(_right(o, args.single) for o in test)
         means = " | ".join(f"{100 * sum(v) / len(v):.1f} %" for v in stated.values())
         out.append(f"| {name} | {len(test)} | {k} ({100 * k / len(test):.1f} %) | {means} |")
+    for name, members in LOCUS_GROUPS.items():
+        at = [o for rows in runs.values() for o in rows if set(o.true_loci) & set(members)]
+        single = sum(o.locus in o.true_loci for o in at)
+        pooled_k = sum(bool(o.locus_correct) for o in at)
+        out += [
+            "",
+            f"Records of {name} ({', '.join(members)}), pooled: {len(at)} located; right as single loci "
+            f"{single}, as the group {pooled_k}.",
+        ]
     out += ["", "Pooled over the runs, each stated by the map fitted without it:", ""]
     out += [
         "| map | n | mean stated | observed | Brier | groups of >= 20 within 10 points |",

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from engine.simulation.parameters import locus_group_name
+from engine.simulation.parameters import LOCUS_GROUP_REASONS, locus_group_name
 
 
 class LocusError(RuntimeError):
@@ -272,16 +272,21 @@ class LocusReport:
     input: str | None = None
 
     @property
+    def group_name(self) -> str | None:
+        """What a sentence calls ``group`` (None when the best locus is in no group)."""
+        return locus_group_name(self.locus) if self.locus is not None and len(self.group) > 1 else None
+
+    @property
     def description(self) -> str:
         """One sentence for the user."""
         if self.locus is None or self.term is None:
             return "no locus explains the residual better than the calibration alone"
         text = self.term.description
-        name = locus_group_name(self.locus) if len(self.group) > 1 else None
+        name = self.group_name
         if name is not None:
             text += (
                 f"; the part is {name}: the recorded channels cannot tell {' from '.join(self.group)} apart "
-                "(both reach the record only through m_el; a stator current or voltage channel would)"
+                f"({LOCUS_GROUP_REASONS[name]})"
             )
         if self.ties:
             text += f" (the record cannot tell this locus from {', '.join(self.ties)})"
@@ -294,7 +299,7 @@ class LocusReport:
             "confidence": self.confidence,
             "ties": list(self.ties),
             "group": list(self.group) if self.group else ([self.locus] if self.locus else []),
-            "group_name": locus_group_name(self.locus) if self.locus and len(self.group) > 1 else None,
+            "group_name": self.group_name,
             "input": self.input if self.input is not None else self.locus,
             "description": self.description,
             "scores": {k: v.to_dict() for k, v in self.scores.items()},
